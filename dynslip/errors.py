@@ -1,0 +1,19 @@
+"""Exceptions that map to the CLI's exit statuses.
+
+- :class:`InputError` (exit 2): bad input; the message is one line naming the field,
+  the value and what is allowed.
+- :class:`ComputationError` (exit 3): a computation ran and did not succeed (solver
+  failure, no root in a bracket); what was computed is kept and marked incomplete.
+"""
+
+
+class InputError(ValueError):
+    """Bad input: the CLI prints the one-line message and exits with status 2."""
+
+    exit_code = 2
+
+
+class ComputationError(RuntimeError):
+    """A computation that ran and failed: the CLI exits with status 3."""
+
+    exit_code = 3

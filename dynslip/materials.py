@@ -1,0 +1,233 @@
+r"""Hyperelastic membrane energies, tensions and the tension-field relaxation.
+
+Every material is an incompressible isotropic strain energy $W(\lambda_\theta,\lambda_\phi)$
+per unit *reference volume*, in units of the shear modulus $G$
+(paper Section 4.2; physics.md Section 2):
+
+- Hookean (small strain): $2[(l_t-1)^2 + (l_p-1)^2 + (l_t-1)(l_p-1)]$
+- Mooney-Rivlin: $C_1(I_1-3) + C_2(I_2-3)$ with $2C_1 + 2C_2 = 1$
+- neo-Hookean: $(I_1-3)/2$
+- Gent: $-(J_m/2)\ln(1-(I_1-3)/J_m)$
+
+with $I_1 = l_t^2 + l_p^2 + 1/(l_t l_p)^2$ and $I_2 = (l_t l_p)^2 + l_t^{-2} + l_p^{-2}$.
+
+Tensions (force per *deformed* length, units of $G h_0$) follow by automatic
+differentiation, with the paper's eq. (2) typo fixed (physics.md Section 2):
+
+$$T_\theta = \frac{1}{\lambda_\phi}\frac{\partial W}{\partial\lambda_\theta},\qquad
+  T_\phi = \frac{1}{\lambda_\theta}\frac{\partial W}{\partial\lambda_\phi}.$$
+
+The *relaxed* energy (tension-field theory, physics.md Section 4) replaces $W$ where
+the membrane would be in compression: wrinkled in one direction it carries the
+uniaxial energy $W(l, w(l))$, with $w(l)$ the natural width under uniaxial stretch
+$l$ ($l^{-1/2}$ for every incompressible model, $1-(l-1)/2$ for the Hookean one);
+slack (both stretches at or below one) it carries nothing. The Hookean natural width
+vanishes at $l = 3$: beyond it the relaxed Hookean energy is meaningless and is
+refused (NaN inside kernels, :class:`MaterialRangeError` at the public API).
+"""
+
+from __future__ import annotations
+
+import abc
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = [
+    "AbstractMaterial",
+    "Hookean",
+    "NeoHookean",
+    "MooneyRivlin",
+    "Gent",
+    "MaterialRangeError",
+    "tensions",
+    "relaxed_energy",
+    "relaxed_tensions",
+    "check_range",
+    "make_material",
+]
+
+
+class MaterialRangeError(ValueError):
+    """A stretch lies outside the range where the material's energy is defined."""
+
+
+def invariants(lt, lp):
+    """First and second invariants of the left Cauchy-Green tensor (incompressible)."""
+    lz2 = 1.0 / (lt * lp) ** 2
+    i1 = lt**2 + lp**2 + lz2
+    i2 = (lt * lp) ** 2 + 1.0 / lt**2 + 1.0 / lp**2
+    return i1, i2
+
+
+class AbstractMaterial(eqx.Module):
+    """A membrane strain energy $W(\\lambda_\\theta, \\lambda_\\phi)$ in units of $G$.
+
+    Subclasses implement :meth:`energy` (elementwise, jit- and grad-safe) and may
+    override :meth:`natural_width` and :meth:`max_uniaxial_stretch`.
+    """
+
+    @abc.abstractmethod
+    def energy(self, lt, lp):
+        """Strain energy per reference volume, units of G; NaN or inf outside range."""
+
+    def natural_width(self, l):
+        """Width under uniaxial stretch ``l`` with zero transverse stress: ``l**-0.5``."""
+        return l**-0.5
+
+    def max_uniaxial_stretch(self) -> float:
+        """Largest uniaxial stretch where the (relaxed) energy is defined."""
+        return float("inf")
+
+    def in_range(self, lt, lp):
+        """Boolean array: True where the relaxed energy is defined and finite."""
+        lt = jnp.asarray(lt)
+        lp = jnp.asarray(lp)
+        ok = (lt > 0) & (lp > 0)
+        lmax = self.max_uniaxial_stretch()
+        return ok & (lt < lmax) & (lp < lmax) & jnp.isfinite(relaxed_energy(self, lt, lp))
+
+    @property
+    def name(self) -> str:
+        return type(self).__name__
+
+
+class Hookean(AbstractMaterial):
+    r"""Small-strain (Hookean) membrane energy, $E = 3G$: paper eq. for $W_H$."""
+
+    def energy(self, lt, lp):
+        a, b = lt - 1.0, lp - 1.0
+        return 2.0 * (a**2 + b**2 + a * b)
+
+    def natural_width(self, l):
+        return 1.0 - 0.5 * (l - 1.0)
+
+    def max_uniaxial_stretch(self) -> float:
+        return 3.0
+
+
+class MooneyRivlin(AbstractMaterial):
+    r"""Mooney-Rivlin, $C_1(I_1-3)+C_2(I_2-3)$ with $2C_1+2C_2 = 1$ (units of $G$)."""
+
+    c1: float = 0.5
+    c2: float = 0.0
+
+    def energy(self, lt, lp):
+        i1, i2 = invariants(lt, lp)
+        return self.c1 * (i1 - 3.0) + self.c2 * (i2 - 3.0)
+
+
+class NeoHookean(AbstractMaterial):
+    r"""neo-Hookean, $(I_1 - 3)/2$ (Mooney-Rivlin with $C_2 = 0$)."""
+
+    def energy(self, lt, lp):
+        i1, _ = invariants(lt, lp)
+        return 0.5 * (i1 - 3.0)
+
+
+class Gent(AbstractMaterial):
+    r"""Gent, $-(J_m/2)\ln(1-(I_1-3)/J_m)$; infinite at $I_1 \ge J_m + 3$."""
+
+    jm: float = 50.0
+
+    def energy(self, lt, lp):
+        i1, _ = invariants(lt, lp)
+        arg = 1.0 - (i1 - 3.0) / self.jm
+        safe = jnp.where(arg > 0, arg, 1.0)
+        return jnp.where(arg > 0, -0.5 * self.jm * jnp.log(safe), jnp.inf)
+
+    def max_uniaxial_stretch(self) -> float:
+        # I1 = l^2 + 2/l = jm + 3: the largest real root.
+        roots = np.roots([1.0, 0.0, -(self.jm + 3.0), 2.0])
+        return float(np.max(roots.real))
+
+
+def _grad2(fn):
+    """Elementwise gradient of a scalar function of two scalars, vectorised."""
+    g = jax.grad(fn, argnums=(0, 1))
+
+    def wrapped(lt, lp):
+        lt, lp = jnp.broadcast_arrays(jnp.asarray(lt, float), jnp.asarray(lp, float))
+        f = g
+        for _ in range(lt.ndim):
+            f = jax.vmap(f)
+        return f(lt, lp)
+
+    return wrapped
+
+
+def tensions(material: AbstractMaterial, lt, lp):
+    r"""Tensions $(T_\theta, T_\phi)$ per deformed length, units of $G h_0$ (unrelaxed).
+
+    $T_\theta = W_{,\lambda_\theta}/\lambda_\phi$, $T_\phi = W_{,\lambda_\phi}/\lambda_\theta$
+    (paper eqs. (1)-(2), the second with the typo fixed).
+    """
+    dw_dt, dw_dp = _grad2(material.energy)(lt, lp)
+    return dw_dt / lp, dw_dp / lt
+
+
+def relaxed_energy(material: AbstractMaterial, lt, lp):
+    r"""Tension-field relaxed energy (units of $G$), elementwise.
+
+    Taut: $W(l_t, l_p)$. Wrinkled across the meridian ($l_t > 1$, $l_p < w(l_t)$):
+    $W(l_t, w(l_t))$. Wrinkled across the hoop ($l_p > 1$, $l_t < w(l_p)$):
+    $W(w(l_p), l_p)$. Slack (otherwise, both stretches $\le 1$): 0. The result is
+    $C^1$ across the region boundaries, since $\partial W/\partial l_p = 0$ at
+    $l_p = w(l_t)$. NaN where the material refuses the stretch (Hookean beyond 3).
+    """
+    lt = jnp.asarray(lt, float)
+    lp = jnp.asarray(lp, float)
+    wt = material.natural_width(lt)  # width across the hoop under meridional stretch
+    wp = material.natural_width(lp)
+    wrinkled_p = (lt > 1.0) & (lp < wt)  # hoop direction wrinkled
+    wrinkled_t = (lp > 1.0) & (lt < wp)  # meridional direction wrinkled
+    slack = (lt <= 1.0) & (lp <= 1.0)
+    taut = ~(wrinkled_p | wrinkled_t | slack)
+    one = jnp.ones_like(lt)
+    # Safe arguments so that no branch produces NaN gradients where it is not taken.
+    w_taut = material.energy(jnp.where(taut, lt, one), jnp.where(taut, lp, one))
+    lt_u = jnp.where(wrinkled_p, lt, one)
+    w_uni_t = material.energy(lt_u, jnp.where(wrinkled_p, material.natural_width(lt_u), one))
+    lp_u = jnp.where(wrinkled_t, lp, one)
+    w_uni_p = material.energy(jnp.where(wrinkled_t, material.natural_width(lp_u), one), lp_u)
+    w = jnp.where(taut, w_taut, jnp.where(wrinkled_p, w_uni_t, jnp.where(wrinkled_t, w_uni_p, 0.0)))
+    lmax = material.max_uniaxial_stretch()
+    bad = (lt <= 0) | (lp <= 0) | (lt >= lmax) | (lp >= lmax)
+    return jnp.where(bad, jnp.nan, w)
+
+
+def relaxed_tensions(material: AbstractMaterial, lt, lp):
+    """Tensions from the relaxed energy (per deformed length, units of G h0)."""
+    dw_dt, dw_dp = _grad2(lambda a, b: relaxed_energy(material, a, b))(lt, lp)
+    return dw_dt / lp, dw_dp / lt
+
+
+def check_range(material: AbstractMaterial, lt, lp, where: str = "") -> None:
+    """Raise :class:`MaterialRangeError` if any stretch is outside the material's range."""
+    lt = np.asarray(lt, float)
+    lp = np.asarray(lp, float)
+    ok = np.asarray(material.in_range(lt, lp))
+    if not ok.all():
+        idx = np.flatnonzero(~ok.ravel())[0]
+        i1 = lt.ravel()[idx] ** 2 + lp.ravel()[idx] ** 2 + 1 / (lt.ravel()[idx] * lp.ravel()[idx]) ** 2
+        raise MaterialRangeError(
+            f"{material.name}: stretches (lambda_theta={lt.ravel()[idx]:.4g}, "
+            f"lambda_phi={lp.ravel()[idx]:.4g}, I1={i1:.4g}) outside the material's range"
+            + (f" {where}" if where else "")
+            + f"; largest uniaxial stretch allowed {material.max_uniaxial_stretch():.4g}"
+        )
+
+
+def make_material(model: str, *, jm: float = 50.0, c1: float = 0.5, c2: float = 0.0):
+    """Material from its name: ``hookean``, ``neo_hookean``, ``mooney_rivlin``, ``gent``."""
+    if model == "hookean":
+        return Hookean()
+    if model == "neo_hookean":
+        return NeoHookean()
+    if model == "mooney_rivlin":
+        return MooneyRivlin(c1=float(c1), c2=float(c2))
+    if model == "gent":
+        return Gent(jm=float(jm))
+    raise ValueError(f"unknown material model {model!r}")

@@ -1,0 +1,207 @@
+"""Scenario files: YAML validated by pydantic, with ``--set section.key=value`` overrides.
+
+A scenario has a ``kind`` (which computation), a ``physics`` section and a
+``numerics`` section. The schema of each kind lives beside its runner
+(:mod:`dynslip.scenario_static`, :mod:`dynslip.scenario_forming`); this module holds
+the shared machinery: strict models (unknown keys rejected, ranges checked), units in
+each field's metadata, loading, overrides, one-line error messages and the reference
+printed by ``dynslip schema``.
+
+Physical units in files: lengths in mm, speeds in mm/s, times in s, moduli in MPa.
+The numerical core is nondimensional (lengths by R, tensions by G h0).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from pathlib import Path
+from typing import Annotated, Any, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
+from dynslip.errors import InputError
+
+# kind -> (module, class). Each module defines its scenario class with ``kind: Literal[kind]``.
+KINDS: dict[str, tuple[str, str]] = {
+    "static": ("dynslip.scenario_static", "StaticScenario"),
+    "figure4": ("dynslip.scenario_static", "Figure4Scenario"),
+    "family": ("dynslip.scenario_static", "FamilyScenario"),
+    "cylinder": ("dynslip.scenario_static", "CylinderScenario"),
+    "forming": ("dynslip.scenario_forming", "FormingScenario"),
+}
+
+
+class Strict(BaseModel):
+    """Base of every schema section: unknown keys are errors; values are frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+def F(default: Any = ..., *, unit: str = "1", description: str = "", **kw) -> Any:
+    """A pydantic ``Field`` carrying its physical unit (``"1"`` for dimensionless)."""
+    return Field(default, description=description, json_schema_extra={"unit": unit}, **kw)
+
+
+class ScenarioBase(Strict):
+    """Fields every scenario has; subclasses add ``kind``, ``physics`` and ``numerics``."""
+
+    name: str = F("", description="free-text name of the scenario")
+    description: str = F("", description="free-text description")
+
+    def to_json(self) -> str:
+        """The resolved scenario (every default filled in) as JSON."""
+        return self.model_dump_json()
+
+    def run(self, out: Path, console) -> dict:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+def _classes() -> dict[str, type]:
+    out = {}
+    for kind, (mod, cls) in KINDS.items():
+        try:
+            out[kind] = getattr(importlib.import_module(mod), cls)
+        except (ImportError, AttributeError):
+            continue  # a kind whose module is not built yet is simply not offered
+    return out
+
+
+def _adapter():
+    classes = list(_classes().values())
+    if len(classes) == 1:
+        return TypeAdapter(classes[0])
+    union = Annotated[Union[tuple(classes)], Field(discriminator="kind")]  # noqa: UP007
+    return TypeAdapter(union)
+
+
+def _set_dotted(data: dict, dotted: str, value: Any, source: str) -> None:
+    keys = dotted.split(".")
+    node = data
+    for k in keys[:-1]:
+        nxt = node.get(k)
+        if nxt is None:
+            nxt = node[k] = {}
+        if not isinstance(nxt, dict):
+            raise InputError(f"{source}: --set {dotted}: '{k}' is not a section")
+        node = nxt
+    node[keys[-1]] = value
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """``section.key=value`` -> (dotted path, YAML-parsed value)."""
+    if "=" not in text:
+        raise InputError(f"--set {text!r}: expected section.key=value")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key or any(not k for k in key.split(".")):
+        raise InputError(f"--set {text!r}: expected section.key=value")
+    try:
+        value = yaml.safe_load(raw)
+    except yaml.YAMLError:
+        value = raw
+    return key, value
+
+
+def format_validation_error(err: ValidationError, source: str) -> str:
+    """One line: the first offending field, its value and what is allowed."""
+    e = err.errors()[0]
+    loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in _classes()))
+    value = e.get("input")
+    shown = json.dumps(value) if isinstance(value, (int, float, str, bool, type(None))) else type(value).__name__
+    msg = e["msg"]
+    if e["type"] == "extra_forbidden":
+        msg = "unknown field (not in the schema; see `dynslip schema`)"
+    if e["type"] == "union_tag_invalid":
+        loc, msg = "kind", f"unknown kind; allowed: {', '.join(_classes())}"
+    more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
+    return f"{source}: field '{loc or '<root>'}' = {shown}: {msg}{more}"
+
+
+def validate_data(data: Any, source: str = "<scenario>"):
+    """Validate a mapping into a scenario object, or raise :class:`InputError`."""
+    if not isinstance(data, dict):
+        raise InputError(f"{source}: a scenario must be a mapping of sections, got {type(data).__name__}")
+    if "kind" not in data:
+        raise InputError(f"{source}: field 'kind' missing; allowed: {', '.join(_classes())}")
+    try:
+        return _adapter().validate_python(data)
+    except ValidationError as err:
+        raise InputError(format_validation_error(err, source)) from None
+
+
+def load_data(path, overrides: list[str] | tuple[str, ...] = ()) -> dict:
+    """Read a YAML scenario file and apply ``section.key=value`` overrides."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: scenario file not found")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise InputError(f"{path}: malformed YAML{where}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: a scenario must be a mapping of sections, got {type(data).__name__}")
+    for text in overrides:
+        key, value = parse_override(text)
+        _set_dotted(data, key, value, str(path))
+    return data
+
+
+def load(path, overrides: list[str] | tuple[str, ...] = ()):
+    """Load, override and validate a scenario file; raises :class:`InputError`."""
+    return validate_data(load_data(path, overrides), str(path))
+
+
+def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
+    for name, prop in schema.get("properties", {}).items():
+        if "$ref" in prop:
+            sub = defs[prop["$ref"].split("/")[-1]]
+            _rows(sub, defs, f"{prefix}{name}.", rows)
+            continue
+        if "allOf" in prop and "$ref" in prop["allOf"][0]:
+            sub = defs[prop["allOf"][0]["$ref"].split("/")[-1]]
+            _rows(sub, defs, f"{prefix}{name}.", rows)
+            continue
+        typ = prop.get("type")
+        if typ is None and "anyOf" in prop:
+            typ = " | ".join(p.get("type", p.get("$ref", "?").split("/")[-1]) for p in prop["anyOf"])
+        if "enum" in prop:
+            typ = " | ".join(map(str, prop["enum"]))
+        if "const" in prop:
+            typ = repr(prop["const"])
+        rng = []
+        for key, sym in (("exclusiveMinimum", ">"), ("minimum", ">="), ("exclusiveMaximum", "<"), ("maximum", "<=")):
+            if key in prop:
+                rng.append(f"{sym} {prop[key]}")
+        if "minItems" in prop:
+            rng.append(f"items >= {prop['minItems']}")
+        rows.append(
+            (
+                prefix + name,
+                str(typ),
+                json.dumps(prop.get("default")) if "default" in prop else "required",
+                ", ".join(rng),
+                prop.get("unit", ""),
+                prop.get("description", ""),
+            )
+        )
+
+
+def schema_reference() -> str:
+    """A plain-text reference of every field of every scenario kind."""
+    lines = []
+    for kind, cls in _classes().items():
+        sch = cls.model_json_schema()
+        rows: list = []
+        _rows(sch, sch.get("$defs", {}), "", rows)
+        lines.append(f"kind: {kind}  ({(cls.__doc__ or '').strip().splitlines()[0]})")
+        lines.append(f"  {'field':42s} {'type':18s} {'default':14s} {'range':16s} {'unit':6s} description")
+        for r in rows:
+            lines.append(f"  {r[0]:42s} {r[1][:18]:18s} {r[2][:14]:14s} {r[3][:16]:16s} {r[4]:6s} {r[5]}")
+        lines.append("")
+    return "\n".join(lines)
