@@ -70,6 +70,8 @@ def _classes() -> dict[str, type]:
 
 def _adapter():
     classes = list(_classes().values())
+    if not classes:
+        raise InputError("no scenario kinds are installed")
     if len(classes) == 1:
         return TypeAdapter(classes[0])
     union = Annotated[Union[tuple(classes)], Field(discriminator="kind")]  # noqa: UP007
@@ -125,6 +127,8 @@ def validate_data(data: Any, source: str = "<scenario>"):
         raise InputError(f"{source}: a scenario must be a mapping of sections, got {type(data).__name__}")
     if "kind" not in data:
         raise InputError(f"{source}: field 'kind' missing; allowed: {', '.join(_classes())}")
+    if data["kind"] not in _classes():
+        raise InputError(f"{source}: field 'kind' = {json.dumps(data['kind'])}: unknown kind; allowed: {', '.join(_classes())}")
     try:
         return _adapter().validate_python(data)
     except ValidationError as err:

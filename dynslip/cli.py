@@ -1,0 +1,215 @@
+"""The ``dynslip`` command line.
+
+Exit status: 0 success; 2 bad input (one line naming the field, the value and what is
+allowed; nothing written); 3 a computation that ran and failed (what was computed is
+kept in ``<out>.staging/`` marked ``INCOMPLETE``); 130 interrupted (likewise kept).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from dynslip.errors import ComputationError, InputError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors and exit status 2 (bad input)."""
+
+    def error(self, message):  # noqa: D401 - argparse API
+        self.exit(2, f"dynslip: error: {message}\n")
+
+
+def _console():
+    from rich.console import Console
+
+    return Console(stderr=False, highlight=False)
+
+
+def _default_out(scenario_path: str, out: str | None) -> Path:
+    return Path(out) if out else Path("outputs") / Path(scenario_path).stem
+
+
+def cmd_run(args) -> int:
+    from dynslip import scenario as sc
+    from dynslip.io import StagedRun
+
+    scn = sc.load(args.scenario, args.set or [])
+    out = _default_out(args.scenario, args.out)
+    console = _console()
+    t0 = time.perf_counter()
+    with StagedRun(out) as staging:
+        console.print(f"[bold]dynslip run[/bold] {args.scenario} (kind: {scn.kind}) -> {out}/")
+        scn.run(staging, console)
+    console.print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}/")
+    if getattr(args, "animate", False):
+        traj = out / "trajectory.nc"
+        if traj.exists():
+            from dynslip.animate import animate
+
+            path = animate(traj)
+            console.print(f"animation: {path}")
+        else:
+            console.print("--animate: this kind of scenario writes no trajectory; nothing to animate")
+    return 0
+
+
+def cmd_validate(args) -> int:
+    from dynslip import scenario as sc
+
+    scn = sc.load(args.scenario, args.set or [])
+    print(f"{args.scenario}: valid (kind: {scn.kind})")
+    return 0
+
+
+def cmd_schema(args) -> int:
+    from dynslip import scenario as sc
+
+    print(sc.schema_reference())
+    return 0
+
+
+def cmd_animate(args) -> int:
+    from dynslip.animate import animate
+
+    size = None
+    if args.size:
+        try:
+            w, h = (int(v) for v in args.size.lower().split("x"))
+        except ValueError:
+            raise InputError(f"--size {args.size!r}: expected WIDTHxHEIGHT in pixels, e.g. 1200x500") from None
+        size = (w, h)
+    t_range = None
+    if args.t_start is not None or args.t_end is not None:
+        t_range = (args.t_start, args.t_end)
+    kw = {"fps": args.fps, "t_range": t_range, "fmt": args.format}
+    if size is not None:
+        kw["size"] = size
+    path = animate(Path(args.trajectory), Path(args.out) if args.out else None, **kw)
+    print(f"animation: {path}")
+    return 0
+
+
+def cmd_fronts(args) -> int:
+    from dynslip.fronts import run_fronts
+
+    paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None)
+    for p in paths:
+        print(p)
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    from dynslip.sweep import run_sweep
+
+    run_sweep(
+        Path(args.sweep),
+        out=Path(args.out) if args.out else None,
+        mode=args.mode,
+        scheduler=args.scheduler,
+        console=_console(),
+    )
+    return 0
+
+
+def cmd_window(args) -> int:
+    from dynslip.window import run_window
+
+    run_window(
+        Path(args.scenario),
+        overrides=args.set or [],
+        lo=args.lo,
+        hi=args.hi,
+        coarse=args.coarse,
+        tol=args.tol,
+        out=Path(args.out) if args.out else None,
+        console=_console(),
+    )
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from dynslip.compare import run_compare
+
+    run_compare([Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="dynslip", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    r = sub.add_parser("run", help="run a scenario file")
+    r.add_argument("scenario")
+    r.add_argument("--out", help="output folder (default outputs/<scenario stem>/)")
+    r.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help="override a field")
+    r.add_argument("--animate", action="store_true", help="also write the animation of the trajectory")
+    r.set_defaults(fn=cmd_run)
+
+    v = sub.add_parser("validate", help="check a scenario file without running it")
+    v.add_argument("scenario")
+    v.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    v.set_defaults(fn=cmd_validate)
+
+    s = sub.add_parser("schema", help="print every scenario field: type, default, range, unit")
+    s.set_defaults(fn=cmd_schema)
+
+    a = sub.add_parser("animate", help="animate a saved trajectory (GIF or MP4)")
+    a.add_argument("trajectory")
+    a.add_argument("--out")
+    a.add_argument("--fps", type=float, default=12.0)
+    a.add_argument("--t-start", type=float, default=None, help="first time shown [s]")
+    a.add_argument("--t-end", type=float, default=None, help="last time shown [s]")
+    a.add_argument("--size", default=None, help="WIDTHxHEIGHT in pixels")
+    a.add_argument("--format", choices=["gif", "mp4"], default="gif")
+    a.set_defaults(fn=cmd_animate)
+
+    f = sub.add_parser("fronts", help="track stick fronts in a saved trajectory")
+    f.add_argument("trajectory")
+    f.add_argument("--out")
+    f.set_defaults(fn=cmd_fronts)
+
+    w = sub.add_parser("sweep", help="run a study over scenario fields")
+    w.add_argument("sweep")
+    w.add_argument("--out")
+    w.add_argument("--mode", choices=["sequential", "batched", "dask"], default=None)
+    w.add_argument("--scheduler", default=None, help="dask.distributed scheduler address")
+    w.set_defaults(fn=cmd_sweep)
+
+    n = sub.add_parser("window", help="find the trapping windows of mu for a scenario")
+    n.add_argument("scenario")
+    n.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    n.add_argument("--lo", type=float, default=None)
+    n.add_argument("--hi", type=float, default=None)
+    n.add_argument("--coarse", type=int, default=None)
+    n.add_argument("--tol", type=float, default=None)
+    n.add_argument("--out")
+    n.set_defaults(fn=cmd_window)
+
+    c = sub.add_parser("compare", help="compare the end states of forming runs")
+    c.add_argument("runs", nargs="+")
+    c.add_argument("--out")
+    c.set_defaults(fn=cmd_compare)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.fn(args)
+    except InputError as err:
+        print(f"dynslip: error: {err}", file=sys.stderr)
+        return 2
+    except ComputationError as err:
+        print(f"dynslip: computation failed: {err}", file=sys.stderr)
+        print("dynslip: what was computed is kept in the .staging folder, marked INCOMPLETE", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print("dynslip: interrupted; partial results kept in the .staging folder", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
