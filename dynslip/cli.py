@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 from dynslip.errors import ComputationError, InputError
+from dynslip.materials import MaterialRangeError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -202,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as err:
         print(f"dynslip: error: {err}", file=sys.stderr)
         return 2
-    except ComputationError as err:
+    except (ComputationError, MaterialRangeError) as err:
         print(f"dynslip: computation failed: {err}", file=sys.stderr)
         print("dynslip: what was computed is kept in the .staging folder, marked INCOMPLETE", file=sys.stderr)
         return 3
