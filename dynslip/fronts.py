@@ -1,0 +1,544 @@
+r"""Stick fronts: the boundaries between stuck and slipping sheet, tracked through time.
+
+A *stick front* sits between two adjacent nodes ``i, i+1`` that are both in contact with
+the ball, one stuck (``state == 1``) and the other slipping (``state`` 2 or 3; the
+contract's flags, :mod:`dynslip.trajectory`). Its position is the midpoint of the two
+nodes, in the material radius and in the polar angle:
+
+.. math::  \bar r_f = (\bar r_i + \bar r_{i+1})/2, \qquad \theta_f = (\theta_i + \theta_{i+1})/2 .
+
+The boundary between slipping toward the pole and slipping toward the equator is not a
+stick front, and neither is the contact edge (contact/free).
+
+Fronts are linked from one saved frame to the next into *tracks*. Along the meridian the
+stuck/slipping field is a sequence of *domains* (maximal runs of stuck or of slipping
+in-contact nodes). A front at frame ``k`` (between domains ``L`` and ``R``) continues as a
+front at frame ``k+1`` (between ``L'`` and ``R'``) only if the stuck side is on the same
+side and ``L'`` overlaps ``L`` and ``R'`` overlaps ``R`` (node sets); among the allowed
+pairings, an order-preserving one (fronts cannot cross in 1D) with the most links and then
+the least total displacement is chosen (dynamic programming). No speed limit is assumed.
+Speeds are finite differences along a track (``numpy.gradient``, second order inside).
+
+Events: a track is born ``run_start`` (present in the first frame), ``nucleated`` (a new
+domain appeared inside another), ``nucleated_at_contact_edge`` (a new domain at the outer
+end of the contact region), ``nucleated_at_pole``, or ``contact_gained`` (one of its
+nodes was free the frame before). It dies ``merged`` (the interior domain beside it
+vanished, so the domains on either side merged; its neighbour front dies with it),
+``reached_contact_edge`` (the outermost domain vanished), ``reached_pole`` (the domain
+holding the pole vanished), ``contact_lost`` (one of its nodes left contact), or
+``run_end`` (still present in the last frame). ``unresolved`` marks a change the rules
+above do not explain (for example a front jumping further than a domain's width between
+two saved frames); its presence says the frames are too far apart.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from dynslip.io import provenance, save_figure, variable, write_json, write_netcdf
+from dynslip.trajectory import (
+    FREE,
+    SLIP_EQUATOR,
+    SLIP_POLE,
+    STATE_MEANINGS,
+    STUCK,
+    open_trajectory,
+    stage_names,
+    state_array,
+)
+
+BIRTH_EVENTS = (
+    "run_start",
+    "nucleated",
+    "nucleated_at_contact_edge",
+    "nucleated_at_pole",
+    "contact_gained",
+    "unresolved",
+)
+DEATH_EVENTS = (
+    "run_end",
+    "merged",
+    "reached_contact_edge",
+    "reached_pole",
+    "contact_lost",
+    "unresolved",
+)
+STUCK_SIDES = ("stuck_toward_pole", "stuck_toward_equator")
+"""``stuck_side`` flags 1, 2: which neighbour of the front is the stuck one."""
+
+STATE_COLORS = ("#d9d9d9", "#1f4e9c", "#e08a1e", "#c0282d")
+"""Colours of the state flags free, stuck, slipping toward the pole, toward the equator."""
+
+_MOVING = 2  # category of a slipping node (either direction)
+
+
+@dataclass(frozen=True)
+class _Front:
+    node: int  # the front lies between node and node + 1
+    stuck_side: int  # 1: stuck node toward the pole (node), 2: toward the equator (node + 1)
+    left: tuple[int, int]  # domain on the pole side, inclusive node range
+    right: tuple[int, int]  # domain on the equator side
+    left_at_pole: bool
+    right_at_edge: bool  # the equator-side domain ends at the contact edge (or the sheet edge)
+
+
+def _categories(state_row: np.ndarray) -> np.ndarray:
+    """0 free, 1 stuck, 2 slipping (either direction)."""
+    return np.where(state_row == FREE, 0, np.where(state_row == STUCK, 1, _MOVING))
+
+
+def _runs(cat: np.ndarray) -> list[tuple[int, int, int]]:
+    """Maximal runs of equal category: (start, end inclusive, category)."""
+    edges = np.flatnonzero(np.diff(cat) != 0)
+    starts = np.r_[0, edges + 1]
+    ends = np.r_[edges, cat.size - 1]
+    return [(int(a), int(b), int(cat[a])) for a, b in zip(starts, ends, strict=True)]
+
+
+def fronts_in_frame(state_row) -> list[_Front]:
+    """The stick fronts of one frame, ordered from the pole outward."""
+    cat = _categories(np.asarray(state_row))
+    runs = _runs(cat)
+    out = []
+    for j in range(len(runs) - 1):
+        (a, b, c), (d, e, c2) = runs[j], runs[j + 1]
+        if {c, c2} != {STUCK, _MOVING}:
+            continue
+        right_at_edge = j + 2 >= len(runs) or runs[j + 2][2] == 0
+        out.append(
+            _Front(
+                node=b,
+                stuck_side=1 if c == STUCK else 2,
+                left=(a, b),
+                right=(d, e),
+                left_at_pole=a == 0,
+                right_at_edge=right_at_edge,
+            )
+        )
+    return out
+
+
+def _overlap(p: tuple[int, int], q: tuple[int, int]) -> bool:
+    return p[0] <= q[1] and q[0] <= p[1]
+
+
+def _link(prev: list[_Front], new: list[_Front]) -> dict[int, int]:
+    """Order-preserving pairing of fronts in consecutive frames: {index in prev: index in new}.
+
+    Maximises the number of links, then minimises the total displacement (in nodes).
+    """
+    n, m = len(prev), len(new)
+    # best[i][j] = (links, -displacement) using prev[i:] and new[j:]
+    best = [[(0, 0)] * (m + 1) for _ in range(n + 1)]
+    choice = [[0] * (m + 1) for _ in range(n + 1)]
+    for i in range(n - 1, -1, -1):
+        for j in range(m - 1, -1, -1):
+            cands = [(best[i + 1][j], 1), (best[i][j + 1], 2)]
+            a, b = prev[i], new[j]
+            if a.stuck_side == b.stuck_side and _overlap(a.left, b.left) and _overlap(a.right, b.right):
+                links, neg = best[i + 1][j + 1]
+                cands.append(((links + 1, neg - abs(a.node - b.node)), 3))
+            best[i][j], choice[i][j] = max(cands, key=lambda c: c[0])
+    out, i, j = {}, 0, 0
+    while i < n and j < m:
+        c = choice[i][j]
+        if c == 3:
+            out[i] = j
+            i, j = i + 1, j + 1
+        elif c == 1:
+            i += 1
+        else:
+            j += 1
+    return out
+
+
+def _vanished(dom: tuple[int, int], cat: int, cat_next: np.ndarray) -> bool:
+    return not np.any(cat_next[dom[0] : dom[1] + 1] == cat)
+
+
+def _birth_event(f: _Front, cat_prev: np.ndarray) -> str:
+    if cat_prev[f.node] == 0 or cat_prev[f.node + 1] == 0:
+        return "contact_gained"
+    lcat = STUCK if f.stuck_side == 1 else _MOVING
+    rcat = _MOVING if f.stuck_side == 1 else STUCK
+    new_left = _vanished(f.left, lcat, cat_prev)
+    new_right = _vanished(f.right, rcat, cat_prev)
+    if new_right and f.right_at_edge:
+        return "nucleated_at_contact_edge"
+    if new_left and f.left_at_pole:
+        return "nucleated_at_pole"
+    if new_left or new_right:
+        return "nucleated"
+    return "unresolved"
+
+
+def _death_event(f: _Front, cat_next: np.ndarray) -> str:
+    if cat_next[f.node] == 0 or cat_next[f.node + 1] == 0:
+        return "contact_lost"
+    lcat = STUCK if f.stuck_side == 1 else _MOVING
+    rcat = _MOVING if f.stuck_side == 1 else STUCK
+    gone_left = _vanished(f.left, lcat, cat_next)
+    gone_right = _vanished(f.right, rcat, cat_next)
+    if gone_right and f.right_at_edge:
+        return "reached_contact_edge"
+    if gone_left and f.left_at_pole:
+        return "reached_pole"
+    if gone_left or gone_right:
+        return "merged"
+    return "unresolved"
+
+
+@dataclass
+class Track:
+    """One stick front followed through consecutive saved frames."""
+
+    frames: list[int]
+    nodes: list[int]
+    stuck_side: int
+    slip_states: list[int]
+    birth_event: str = "run_start"
+    death_event: str = "run_end"
+
+
+def track_fronts(state) -> list[Track]:
+    """Find and link the stick fronts of a ``state`` field (time, rbar) of contract flags.
+
+    Returns the tracks in order of birth (then of position). Pure numpy; the positions
+    are node indices (the front of a track at ``frames[k]`` lies between ``nodes[k]`` and
+    ``nodes[k] + 1``).
+    """
+    state = np.asarray(state)
+    nt = state.shape[0]
+    tracks: list[Track] = []
+    prev: list[_Front] = []
+    prev_ids: list[int] = []
+    cats = [_categories(row) for row in state]
+
+    def slip_state(k, f):
+        return int(state[k, f.node + 1] if f.stuck_side == 1 else state[k, f.node])
+
+    for k in range(nt):
+        cur = fronts_in_frame(state[k])
+        links = _link(prev, cur) if k > 0 else {}
+        cur_ids = [-1] * len(cur)
+        for i, j in links.items():
+            cur_ids[j] = prev_ids[i]
+        for i, f in enumerate(prev):
+            if i not in links:
+                tracks[prev_ids[i]].death_event = _death_event(f, cats[k])
+        for j, f in enumerate(cur):
+            if cur_ids[j] < 0:
+                event = "run_start" if k == 0 else _birth_event(f, cats[k - 1])
+                tracks.append(Track([], [], f.stuck_side, [], birth_event=event))
+                cur_ids[j] = len(tracks) - 1
+            t = tracks[cur_ids[j]]
+            t.frames.append(k)
+            t.nodes.append(f.node)
+            t.slip_states.append(slip_state(k, f))
+        prev, prev_ids = cur, cur_ids
+    return tracks
+
+
+def _flag_attrs(meanings, start=0) -> dict:
+    return {
+        "flag_values": np.arange(start, start + len(meanings), dtype=np.int8),
+        "flag_meanings": " ".join(meanings),
+    }
+
+
+def rest_times(ds: xr.Dataset) -> np.ndarray:
+    """When each node comes to rest for the last time in each stage: array (stage, rbar), s.
+
+    A node *comes to rest* at the first frame of its final run of ``stuck`` frames within
+    the stage, provided it was slipping in the frame before (which may be the last frame of
+    the previous stage). NaN where the node did not slip and then stick in the stage: at
+    rest throughout, still slipping, or free at the end of the stage.
+    """
+    state = state_array(ds)
+    t = np.asarray(ds["time"].values, dtype=float)
+    stage = np.asarray(ds["stage"].values).astype(int)
+    n_stage = max(len(stage_names(ds)), int(stage.max()) + 1)
+    out = np.full((n_stage, state.shape[1]), np.nan)
+    slipping = (state == SLIP_POLE) | (state == SLIP_EQUATOR)
+    for s in range(n_stage):
+        idx = np.flatnonzero(stage == s)
+        if idx.size == 0:
+            continue
+        last = idx[-1]
+        for node in np.flatnonzero(state[last] == STUCK):
+            k = last
+            while k - 1 >= idx[0] and state[k - 1, node] == STUCK:
+                k -= 1
+            if k - 1 >= 0 and slipping[k - 1, node]:
+                out[s, node] = t[k]
+    return out
+
+
+def fronts_dataset(ds: xr.Dataset) -> xr.Dataset:
+    """The stick fronts of a trajectory as a dataset (dims ``track``, ``time``, ``stage``).
+
+    Per track and time (NaN where the track does not exist): position in ``rbar`` and in
+    ``theta``, speeds, the slip direction of the slipping neighbour. Per track: stuck side,
+    birth and death times and events (CF flags). Per stage and node: the rest time
+    (:func:`rest_times`). The stage summary (:func:`stage_summary`) is the JSON attribute
+    ``stage_summary``.
+    """
+    state = state_array(ds)
+    t = np.asarray(ds["time"].values, dtype=float)
+    rbar = np.asarray(ds["rbar"].values, dtype=float)
+    theta = np.asarray(ds["theta"].transpose("time", "rbar").values, dtype=float)
+    tracks = track_fronts(state)
+    nk, nt = len(tracks), t.size
+    pos_r = np.full((nk, nt), np.nan)
+    pos_t = np.full((nk, nt), np.nan)
+    spd_r = np.full((nk, nt), np.nan)
+    spd_t = np.full((nk, nt), np.nan)
+    node = np.full((nk, nt), -1, dtype=np.int32)
+    slip = np.zeros((nk, nt), dtype=np.int8)
+    for k, tr in enumerate(tracks):
+        f = np.asarray(tr.frames)
+        n = np.asarray(tr.nodes)
+        node[k, f] = n
+        slip[k, f] = tr.slip_states
+        pos_r[k, f] = 0.5 * (rbar[n] + rbar[n + 1])
+        pos_t[k, f] = 0.5 * (theta[f, n] + theta[f, n + 1])
+        if f.size >= 2:
+            spd_r[k, f] = np.gradient(pos_r[k, f], t[f])
+            spd_t[k, f] = np.gradient(pos_t[k, f], t[f])
+    birth_t = np.array([t[tr.frames[0]] for tr in tracks])
+    death_t = np.array([t[tr.frames[-1]] for tr in tracks])
+    birth_e = np.array([BIRTH_EVENTS.index(tr.birth_event) for tr in tracks], dtype=np.int8)
+    death_e = np.array([DEATH_EVENTS.index(tr.death_event) for tr in tracks], dtype=np.int8)
+    side = np.array([tr.stuck_side for tr in tracks], dtype=np.int8)
+    names = stage_names(ds)
+    rest = rest_times(ds)
+    tt, kt, st = ("track", "time"), ("track",), ("stage", "rbar")
+    data = {
+        "front_rbar": variable(pos_r, tt, "1", "material radius of the stick front (midpoint of its two nodes)", scale="R"),
+        "front_theta": variable(pos_t, tt, "rad", "polar angle of the stick front (midpoint of its two nodes)"),
+        "front_rbar_speed": variable(spd_r, tt, "1/s", "speed of the stick front in material radius, positive toward the equator", scale="R/s"),
+        "front_theta_speed": variable(spd_t, tt, "rad/s", "speed of the stick front in polar angle, positive toward the equator"),
+        "front_node": variable(node, tt, "1", "index of the pole-side node of the front (-1 where absent)"),
+        "front_slip_state": variable(
+            slip, tt, "1", "state of the slipping node beside the front (0 where absent)",
+            flag_values=np.array([0, 2, 3], dtype=np.int8),
+            flag_meanings="absent slipping_toward_pole slipping_toward_equator",
+        ),
+        "stuck_side": variable(side, kt, "1", "which neighbour of the front is stuck", **_flag_attrs(STUCK_SIDES, 1)),
+        "birth_time": variable(birth_t, kt, "s", "time of the first frame holding the front"),
+        "death_time": variable(death_t, kt, "s", "time of the last frame holding the front"),
+        "birth_event": variable(birth_e, kt, "1", "event that created the front", **_flag_attrs(BIRTH_EVENTS)),
+        "death_event": variable(death_e, kt, "1", "event that removed the front", **_flag_attrs(DEATH_EVENTS)),
+        "n_fronts": variable(np.sum(node >= 0, axis=0), ("time",), "1", "number of stick fronts"),
+        "rest_time": variable(rest, st, "s", "time the node comes to rest for the last time in the stage (NaN: did not slip then stick)"),
+    }
+    coords = {
+        "track": variable(np.arange(nk), kt, "1", "front track id"),
+        "time": variable(t, ("time",), "s", "time"),
+        "rbar": variable(rbar, ("rbar",), "1", "undeformed radius of the node", scale="R"),
+        "stage": variable(np.arange(rest.shape[0]), ("stage",), "1", "index into stage_names"),
+    }
+    out = xr.Dataset(data, coords=coords)
+    out.attrs.update(provenance(ds.attrs.get("scenario", "{}"), "fronts"))
+    out.attrs["source_git_commit"] = ds.attrs.get("git_commit", "unknown")
+    out.attrs["stage_names"] = json.dumps(names)
+    out.attrs["stage_summary"] = json.dumps(stage_summary(ds, out))
+    return out
+
+
+def _direction(disp: float, tol: float) -> str:
+    if not np.isfinite(disp):
+        return "none"
+    if disp > tol:
+        return "toward_equator"
+    if disp < -tol:
+        return "toward_pole"
+    return "stationary"
+
+
+def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict]:
+    """Per stage: how the stick fronts travel and in which order nodes come to rest.
+
+    For each stage: the net displacement in ``rbar`` of the fronts (summed over tracks,
+    within the stage; the front's first frame in the stage to its last) and its direction
+    (``toward_equator``, ``toward_pole``, ``stationary``, ``none`` without fronts), the
+    same for each stuck side; then the nodes that come to rest (:func:`rest_times`), the
+    ones that do so last, the outermost node in contact at the end of the stage, whether
+    it is among the last to come to rest, and the Spearman rank correlation between rbar
+    and rest time (positive: rest spreads outward).
+    """
+    fronts = fronts_dataset(ds) if fronts is None else fronts
+    names = stage_names(ds)
+    t = np.asarray(ds["time"].values, dtype=float)
+    stage = np.asarray(ds["stage"].values).astype(int)
+    rbar = np.asarray(ds["rbar"].values, dtype=float)
+    state = state_array(ds)
+    pos = np.asarray(fronts["front_rbar"].values)
+    side = np.asarray(fronts["stuck_side"].values)
+    rest = np.asarray(fronts["rest_time"].values)
+    tol = 1e-9 * max(1.0, float(rbar[-1] - rbar[0]))
+    out = []
+    for s in range(rest.shape[0]):
+        idx = np.flatnonzero(stage == s)
+        name = names[s] if s < len(names) else f"stage {s}"
+        if idx.size == 0:
+            out.append({"stage": s, "name": name, "frames": 0})
+            continue
+        disp = {1: [], 2: []}
+        for k in range(pos.shape[0]):
+            p = pos[k, idx]
+            p = p[np.isfinite(p)]
+            if p.size:
+                disp[int(side[k])].append(float(p[-1] - p[0]))
+        all_d = disp[1] + disp[2]
+        net = float(np.sum(all_d)) if all_d else float("nan")
+        entry = {
+            "stage": s,
+            "name": name,
+            "frames": int(idx.size),
+            "t_start_s": float(t[idx[0]]),
+            "t_end_s": float(t[idx[-1]]),
+            "n_tracks": len(all_d),
+            "front_displacement_rbar": net,
+            "front_direction": _direction(net, tol),
+            "front_travel_toward_equator_rbar": float(sum(d for d in all_d if d > 0)),
+            "front_travel_toward_pole_rbar": float(-sum(d for d in all_d if d < 0)),
+        }
+        for code, label in ((1, "stuck_toward_pole"), (2, "stuck_toward_equator")):
+            d = float(np.sum(disp[code])) if disp[code] else float("nan")
+            entry[f"direction_{label}"] = _direction(d, tol)
+        r = rest[s]
+        came = np.flatnonzero(np.isfinite(r))
+        contact_end = np.flatnonzero(state[idx[-1]] != FREE)
+        outer = int(contact_end.max()) if contact_end.size else None
+        entry["n_nodes_came_to_rest"] = int(came.size)
+        entry["outermost_contact_rbar_at_end"] = None if outer is None else float(rbar[outer])
+        entry["n_nodes_slipping_at_end"] = int(np.sum(np.isin(state[idx[-1]], (SLIP_POLE, SLIP_EQUATOR))))
+        if came.size:
+            t_last = float(np.max(r[came]))
+            last_nodes = came[r[came] == t_last]
+            entry["last_rest_time_s"] = t_last
+            entry["last_to_rest_rbar"] = [float(rbar[i]) for i in last_nodes]
+            entry["first_rest_time_s"] = float(np.min(r[came]))
+            entry["outermost_contact_rests_last"] = bool(outer is not None and outer in last_nodes)
+            entry["rest_order_spearman"] = _spearman(rbar[came], r[came])
+        out.append(entry)
+    return out
+
+
+def _spearman(x: np.ndarray, y: np.ndarray) -> float | None:
+    if x.size < 2:
+        return None
+    from scipy.stats import spearmanr
+
+    rho = spearmanr(x, y).statistic
+    return float(rho) if np.isfinite(rho) else None
+
+
+def state_colormap():
+    """A categorical colormap and norm for the ``state`` flags 0-3."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    return ListedColormap(STATE_COLORS), BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], 4)
+
+
+def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend: bool = True):
+    """Draw the space-time map of ``state`` (rbar across, time up) on ``ax``, fronts on top."""
+    from matplotlib.patches import Patch
+
+    cmap, norm = state_colormap()
+    t = np.asarray(ds["time"].values, dtype=float)
+    rbar = np.asarray(ds["rbar"].values, dtype=float)
+    ax.pcolormesh(_edges(rbar), _edges(t), state_array(ds), cmap=cmap, norm=norm, shading="flat", rasterized=True)
+    ax.plot(ds["rbar_max"].values, t, color="k", lw=0.8, ls=":", label="outermost contact")
+    stage = np.asarray(ds["stage"].values).astype(int)
+    names = stage_names(ds)
+    for k in np.flatnonzero(np.diff(stage) != 0) + 1:
+        tb = 0.5 * (t[k - 1] + t[k])
+        ax.axhline(tb, color="k", lw=0.6, ls="--")
+    for s in np.unique(stage):
+        k = np.flatnonzero(stage == s)[0]
+        ax.text(rbar[-1], t[k], f" {names[s] if s < len(names) else s}", va="bottom", ha="right", fontsize=7)
+    if fronts is not None and fronts.sizes.get("track", 0):
+        pos = np.asarray(fronts["front_rbar"].values)
+        for k in range(pos.shape[0]):
+            ok = np.isfinite(pos[k])
+            ax.plot(pos[k, ok], t[ok], color="k", lw=1.2)
+        births = np.asarray(fronts["birth_event"].values)
+        deaths = np.asarray(fronts["death_event"].values)
+        for k in range(pos.shape[0]):
+            ok = np.flatnonzero(np.isfinite(pos[k]))
+            if BIRTH_EVENTS[births[k]] != "run_start":
+                ax.plot(pos[k, ok[0]], t[ok[0]], "o", ms=3.5, mfc="w", mec="k")
+            if DEATH_EVENTS[deaths[k]] != "run_end":
+                ax.plot(pos[k, ok[-1]], t[ok[-1]], "x", ms=4, color="k")
+    ax.set_xlabel(r"material radius $\bar r / R$")
+    ax.set_ylabel("time (s)")
+    ax.set_xlim(rbar[0], rbar[-1])
+    if legend:
+        handles = [Patch(color=c, label=m.replace("_", " ")) for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)]
+        ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.85)
+
+
+def _edges(x: np.ndarray) -> np.ndarray:
+    if x.size == 1:
+        return np.array([x[0] - 0.5, x[0] + 0.5])
+    mid = 0.5 * (x[1:] + x[:-1])
+    return np.r_[x[0] - (mid[0] - x[0]), mid, x[-1] + (x[-1] - mid[-1])]
+
+
+def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path) -> Path:
+    """Figure: fronts over the space-time map; front angle and speed against time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = np.asarray(ds["time"].values, dtype=float)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.6), constrained_layout=True)
+    draw_spacetime(axes[0], ds, fronts)
+    axes[0].set_title("stick fronts over the contact state\n(o born, x removed)", fontsize=9)
+    pos_t = np.asarray(fronts["front_theta"].values)
+    spd = np.asarray(fronts["front_rbar_speed"].values)
+    axes[1].plot(t, ds["theta_max"].values, color="0.5", lw=1, ls=":", label=r"contact edge $\theta_{max}$")
+    for k in range(pos_t.shape[0]):
+        c = STATE_COLORS[1] if fronts["stuck_side"].values[k] == 1 else STATE_COLORS[3]
+        axes[1].plot(t, pos_t[k], color=c, lw=1.2)
+        axes[2].plot(t, spd[k], color=c, lw=1.0)
+    axes[1].plot([], [], color=STATE_COLORS[1], label="stuck on the pole side")
+    axes[1].plot([], [], color=STATE_COLORS[3], label="stuck on the equator side")
+    axes[1].set_xlabel("time (s)")
+    axes[1].set_ylabel(r"front polar angle $\theta$ (rad)")
+    axes[1].legend(fontsize=7)
+    axes[2].axhline(0, color="k", lw=0.5)
+    axes[2].set_xlabel("time (s)")
+    axes[2].set_ylabel(r"front speed $d\bar r/dt$ (R/s), + toward equator")
+    for ax in axes[1:]:
+        stage = np.asarray(ds["stage"].values).astype(int)
+        for k in np.flatnonzero(np.diff(stage) != 0) + 1:
+            ax.axvline(0.5 * (t[k - 1] + t[k]), color="k", lw=0.6, ls="--")
+    path = save_figure(fig, path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_fronts(trajectory_path, out_dir=None) -> dict[str, Path]:
+    """``dynslip fronts``: write ``fronts.nc``, ``fronts.png`` and ``fronts_summary.json``.
+
+    ``out_dir`` defaults to the trajectory's folder. Returns the paths by kind.
+    """
+    trajectory_path = Path(trajectory_path)
+    ds = open_trajectory(trajectory_path)
+    out_dir = trajectory_path.parent if out_dir is None else Path(out_dir)
+    fr = fronts_dataset(ds)
+    summary = json.loads(fr.attrs["stage_summary"])
+    return {
+        "dataset": write_netcdf(fr, out_dir / "fronts.nc"),
+        "figure": plot_fronts(ds, fr, out_dir / "fronts.png"),
+        "summary": write_json(out_dir / "fronts_summary.json", {"stages": summary}),
+    }
