@@ -1,0 +1,233 @@
+r"""The whole axisymmetric sheet: discrete energy, forces by autodiff, contact, friction.
+
+Nondimensional: lengths by the ball radius $R$, energies by $G h_0 R^2$, forces by
+$G h_0 R$, tensions by $G h_0$, force densities by $G h_0/R$ (physics.md Section 1).
+
+**Mesh.** Nodes at material radii $\bar r_0 = 0 < \bar r_1 < \dots < \bar r_{N-1} = \bar r_e$
+(node 0 the pole, node $N-1$ held by the clamp), deformed positions $(\rho_i, z_i)$ in
+the meridian plane, $\rho_0 = 0$. Element $e$ joins nodes $e$ and $e+1$:
+
+$$\lambda_{\theta,e} = \frac{|x_{e+1}-x_e|}{\bar r_{e+1}-\bar r_e},\qquad
+  \lambda_{\phi,e} = \frac{\rho_e+\rho_{e+1}}{\bar r_e+\bar r_{e+1}}$$
+
+(the hoop stretch at the element midpoint: no pole singularity).
+
+**Energy** (units $G h_0 R^2$): relaxed elastic energy (tension-field theory,
+:func:`dynslip.materials.relaxed_energy`) plus a contact penalty
+
+$$E = \sum_e 2\pi \bar r_{e+1/2}\Delta\bar r_e\, W_{rel}(\lambda_{\theta,e},\lambda_{\phi,e})
+  + \sum_i A_i\,\phi(1 - |x_i - x_b|),$$
+
+$A_i$ the lumped reference area of node $i$, $x_b = (0, z_b)$ the ball centre. The
+penalty is $C^2$ in the penetration $d$: $\phi = 0$ for $d \le 0$,
+$k d^3/(6w)$ for $0 < d < w$, $k(d^2/2 - wd/2 + w^2/6)$ beyond; its pressure per
+reference area $\phi'(d)$ is *exactly zero* at a positive gap, so contact is detected by
+pressure, never by a gap threshold (prototype pitfall: a smooth penalty floats).
+
+**Forces** are $-\nabla E$ by :func:`jax.grad` of the total (exact gradient, so the
+energy balance is a sound test). Per node, with $n$ the ball's outward normal at the
+node and $t$ the tangent toward increasing polar angle $\theta$ (toward the equator),
+the driving force $F$ splits into $F_n$, $F_t$; the normal force is the penalty force
+$N_i = A_i\phi'(d_i)$ and the friction law gives the slip force $S(F_t, \mu N_i)$
+(:mod:`dynslip.friction`). Overdamped dynamics with one drag $\eta$ per reference
+area, *relative to the ball*:
+
+$$\eta A_i (\dot x_i - \dot z_b e_z) = F_n n + S t .$$
+
+(The drag is a regularisation; taking it relative to the ball makes the sheet on a
+moving ball behave as on a held one and keeps the energy balance exact.)
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from dynslip.friction import AbstractFriction, Coulomb
+from dynslip.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
+
+__all__ = ["Mesh", "Penalty", "SheetModel", "make_mesh", "penalty_energy", "penalty_pressure"]
+
+
+class Mesh(eqx.Module):
+    """Material radii of the nodes and the derived element/node measures (units of R)."""
+
+    rbar: jnp.ndarray  # (N,) node material radii, rbar[0] = 0
+    dr: jnp.ndarray  # (N-1,) element lengths
+    rmid: jnp.ndarray  # (N-1,) element mid radii
+    area_el: jnp.ndarray  # (N-1,) element reference areas 2 pi rmid dr
+    area: jnp.ndarray  # (N,) lumped node reference areas
+
+    @property
+    def n(self) -> int:
+        return int(self.rbar.shape[0])
+
+
+def make_mesh(n: int, r_edge: float) -> Mesh:
+    """Uniform mesh of ``n`` nodes from the pole to the material radius ``r_edge``."""
+    if n < 4:
+        raise ValueError("a sheet mesh needs at least 4 nodes")
+    rbar = np.linspace(0.0, r_edge, n)
+    dr = np.diff(rbar)
+    rmid = 0.5 * (rbar[1:] + rbar[:-1])
+    area_el = 2 * np.pi * rmid * dr
+    area = np.zeros(n)
+    area[:-1] += 0.5 * area_el
+    area[1:] += 0.5 * area_el
+    return Mesh(*(jnp.asarray(a) for a in (rbar, dr, rmid, area_el, area)))
+
+
+class Penalty(eqx.Module):
+    """Contact penalty: stiffness ``k`` (G h0 / R^3, per reference area) and width ``w`` (R)."""
+
+    k: float = 1.0e4
+    w: float = 1.0e-3
+
+
+def penalty_energy(pen: Penalty, d):
+    """Penalty energy per reference area as a function of the penetration ``d`` (C^2)."""
+    k, w = pen.k, pen.w
+    dc = jnp.clip(d, 0.0, w)
+    small = k * dc**3 / (6 * w)
+    large = k * (d**2 / 2 - w * d / 2 + w**2 / 6)
+    return jnp.where(d <= 0, 0.0, jnp.where(d < w, small, large))
+
+
+def penalty_pressure(pen: Penalty, d):
+    """Penalty pressure per reference area, d(phi)/d(d): zero for d <= 0 (C^1)."""
+    k, w = pen.k, pen.w
+    dc = jnp.clip(d, 0.0, w)
+    return jnp.where(d <= 0, 0.0, jnp.where(d < w, k * dc**2 / (2 * w), k * (d - w / 2)))
+
+
+def element_stretches(mesh: Mesh, rho, z):
+    """Element stretches (lambda_theta, lambda_phi), each (N-1,)."""
+    drho = rho[1:] - rho[:-1]
+    dz = z[1:] - z[:-1]
+    ds = jnp.sqrt(drho**2 + dz**2)
+    lt = ds / mesh.dr
+    lp = (rho[1:] + rho[:-1]) / (mesh.rbar[1:] + mesh.rbar[:-1])
+    return lt, lp
+
+
+def node_stretches(mesh: Mesh, rho, z):
+    """Node stretches: meridional as the mean of the adjacent elements; hoop rho/rbar
+    (at the pole, the first element's hoop stretch)."""
+    lt_e, lp_e = element_stretches(mesh, rho, z)
+    lt = jnp.concatenate([lt_e[:1], 0.5 * (lt_e[1:] + lt_e[:-1]), lt_e[-1:]])
+    rb = jnp.where(mesh.rbar > 0, mesh.rbar, 1.0)
+    lp = jnp.where(mesh.rbar > 0, rho / rb, lp_e[0])
+    return lt, lp
+
+
+class SheetModel(eqx.Module):
+    """Material, mesh and contact penalty of the whole sheet: energies and forces.
+
+    Arrays are full node arrays ``rho``, ``z`` of shape (N,), with ``rho[0] = 0`` and the
+    last node at the clamp. ``zb`` is the ball centre height.
+    """
+
+    mesh: Mesh
+    material: AbstractMaterial
+    penalty: Penalty
+
+    def elastic_energy(self, rho, z):
+        """Relaxed elastic energy (G h0 R^2); NaN/inf outside the material's range."""
+        lt, lp = element_stretches(self.mesh, rho, z)
+        return jnp.sum(self.mesh.area_el * relaxed_energy(self.material, lt, lp))
+
+    def penetration(self, rho, z, zb):
+        r = jnp.sqrt(rho**2 + (z - zb) ** 2)
+        return 1.0 - r
+
+    def penalty_energy(self, rho, z, zb):
+        d = self.penetration(rho, z, zb)
+        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d))
+
+    def energy(self, rho, z, zb):
+        return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)
+
+    def gradients(self, rho, z, zb):
+        """(dE/drho, dE/dz, dE/dzb) by automatic differentiation of the total energy."""
+        return jax.grad(self.energy, argnums=(0, 1, 2))(rho, z, zb)
+
+    def frame(self, rho, z, zb):
+        """Outward unit normal n and tangent t (toward the equator) of the ball at each node.
+
+        n = (sin theta, cos theta) in (rho, z); t = (cos theta, -sin theta). At the pole
+        node (rho = 0) the tangent is radial and carries no motion.
+        """
+        dx, dzz = rho, z - zb
+        r = jnp.sqrt(dx**2 + dzz**2)
+        r = jnp.where(r > 0, r, 1.0)
+        n = jnp.stack([dx / r, dzz / r])
+        t = jnp.stack([dzz / r, -dx / r])
+        return n, t
+
+    def normal_force(self, rho, z, zb):
+        """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
+        return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
+
+    def kinematics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0):
+        """Node velocities relative to the ball and the force split, for the driver.
+
+        Returns a dict with ``u`` (2, N) velocity relative to the ball (node N-1, the
+        clamp, excluded by the driver), ``ft``, ``fn_total`` (driving force components),
+        ``N`` (normal force), ``S`` (slip force), ``grads`` (dE/drho, dE/dz, dE/dzb).
+        ``drag`` is eta (per reference area); time units follow from it.
+        """
+        g_rho, g_z, g_zb = self.gradients(rho, z, zb)
+        f = -jnp.stack([g_rho, g_z])  # (2, N) driving force
+        n, t = self.frame(rho, z, zb)
+        fn = jnp.sum(f * n, axis=0)
+        ft = jnp.sum(f * t, axis=0)
+        pole = jnp.arange(rho.shape[0]) == 0
+        ft = jnp.where(pole, 0.0, ft)
+        fn = jnp.where(pole, f[1] * jnp.sign(n[1]), fn)
+        normal = self.normal_force(rho, z, zb)
+        eps = eps_density * self.mesh.area
+        if isinstance(friction, Coulomb):
+            s = friction.slip_force(ft, normal, eps=eps)
+        else:
+            s = friction.slip_force(ft, normal)
+        eta_a = drag * self.mesh.area
+        u = (fn * n + s * t) / eta_a
+        u = u.at[0, 0].set(0.0)
+        return {"u": u, "ft": ft, "fn_total": fn, "N": normal, "S": s, "grads": (g_rho, g_z, g_zb),
+                "eta_a": eta_a, "theta_dir": t}
+
+    def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
+                    contact_threshold=1e-2):
+        """Per-node fields of the trajectory contract (see docs/trajectory-contract.md)."""
+        k = self.kinematics(rho, z, zb, friction, eps_density, drag)
+        lt, lp = node_stretches(self.mesh, rho, z)
+        tt, tp = relaxed_tensions(self.material, lt, lp)
+        def_area = self.mesh.area * lt * lp
+        pressure = k["N"] / def_area
+        contact = pressure > contact_threshold
+        contact = contact.at[-1].set(False)
+        friction_force = (k["S"] - k["ft"]) / def_area  # density, + toward the equator
+        slip = k["S"] / k["eta_a"]
+        mu_mob = jnp.where(contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan)
+        theta = jnp.where(contact, jnp.arctan2(rho, z - zb), jnp.nan)
+        slipping = k["S"] != 0.0
+        state = jnp.where(~contact, 0, jnp.where(~slipping, 1, jnp.where(slip < 0, 2, 3))).astype(jnp.int8)
+        return {
+            "lambda_theta": lt, "lambda_phi": lp, "T_theta": tt, "T_phi": tp,
+            "pressure": jnp.where(contact, pressure, 0.0), "friction": jnp.where(contact, friction_force, 0.0),
+            "slip_velocity": jnp.where(contact, slip, 0.0), "mu_mobilised": mu_mob, "theta": theta,
+            "state": state, "contact": contact,
+        }
+
+    def free_span_axial_force(self, rho, z):
+        """Axial force 2 pi rho T_theta sin(psi) carried by each element (N-1,), G h0 R.
+
+        Positive when the sheet pulls the outer node upward (toward +z of the inner node)."""
+        lt, lp = element_stretches(self.mesh, rho, z)
+        tt, _ = relaxed_tensions(self.material, lt, lp)
+        ds = lt * self.mesh.dr
+        sin_psi = (z[1:] - z[:-1]) / ds
+        rmid = 0.5 * (rho[1:] + rho[:-1])
+        return 2 * jnp.pi * rmid * tt * sin_psi

@@ -1,0 +1,355 @@
+r"""The diffrax driver of the whole-sheet forming model.
+
+State vector (flat, float64; :class:`Layout` names the slices so that later issues can
+append, e.g. a per-node slip distance):
+
+- ``rho[1:N-1]`` and ``z[0:N-1]`` of the free nodes (the pole's $\rho_0 = 0$; node
+  $N-1$ is moved by the clamp);
+- ``zb``, the ball centre height;
+- four accumulators integrated from their constitutive rates (physics.md Section 4,
+  "Energy balance"): work of the clamp $\dot W_c = C\cdot\dot x_c$ with
+  $C = \partial E/\partial x_c$ the clamp's force on the sheet; work of the hold and of
+  gravity on the ball $\dot W_b = (F_h + F_g)\dot z_b$; drag dissipation
+  $\sum_i \eta A_i|u_i|^2 + \eta_b\dot z_b^2$; friction dissipation
+  $\sum_i (F_{t,i} - S_i)S_i/(\eta A_i) \ge 0$.
+
+Ball: held ($\dot z_b$ prescribed, the hold supplies $F_h = \eta_b\dot z_b - C_z - F_g$)
+or force-controlled ($F_h$ ramped, $\eta_b\dot z_b = F_h + C_z + F_g$): global balance
+with the sheet's drag taken relative to the ball (:mod:`dynslip.sheet`).
+
+Energy balance: $W_c + W_b = \Delta(E_{el} + E_{pen}) + D_{drag} + D_{fric}$, with the
+initial (pre-stretch) energy counted in $E(0)$.
+
+Integration: a stiff diffrax solver (Kvaerno5 by default) with a PID controller,
+one stage at a time (a restart at every stage boundary: the protocol's kinks), each
+stage run in save segments; condition stops (clamp force below a threshold, rest) are
+checked between segments, so their resolution is the save interval. The vector field
+and the segment solve are jitted once per mesh size and shared by every run
+(:func:`segment_solver`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time as _time
+from collections.abc import Callable
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from dynslip.friction import AbstractFriction, Coulomb
+from dynslip.protocols import BALL_HOLD, Protocol
+from dynslip.sheet import SheetModel
+
+__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
+           "vector_field", "frame_record", "N_ACC"]
+
+N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
+
+
+class Layout(eqx.Module):
+    """Slices of the flat state vector for a sheet of ``n`` nodes."""
+
+    n: int = eqx.field(static=True)
+
+    @property
+    def size(self) -> int:
+        return (self.n - 2) + (self.n - 1) + 1 + N_ACC
+
+    def unpack(self, y, zc, rhoc):
+        n = self.n
+        rho = jnp.concatenate([jnp.zeros(1), y[: n - 2], jnp.reshape(rhoc, (1,))])
+        z = jnp.concatenate([y[n - 2 : 2 * n - 3], jnp.reshape(zc, (1,))])
+        zb = y[2 * n - 3]
+        acc = y[2 * n - 2 : 2 * n - 2 + N_ACC]
+        return rho, z, zb, acc
+
+    def pack(self, rho, z, zb, acc):
+        n = self.n
+        return jnp.concatenate([rho[1 : n - 1], z[: n - 1], jnp.reshape(zb, (1,)), acc])
+
+
+class StageArgs(eqx.Module):
+    """Everything the vector field needs besides the state: all arrays (one compile)."""
+
+    t0: jnp.ndarray
+    zc0: jnp.ndarray
+    rhoc0: jnp.ndarray
+    vzc: jnp.ndarray
+    vrhoc: jnp.ndarray
+    ball_mode: jnp.ndarray
+    zb0: jnp.ndarray
+    vzb: jnp.ndarray
+    f0: jnp.ndarray
+    f1: jnp.ndarray
+    ramp: jnp.ndarray
+    friction: AbstractFriction
+    eps: jnp.ndarray  # friction smoothing, force density (G h0 / R)
+    drag: jnp.ndarray  # eta per reference area: seconds (time unit tau = eta R^2/(G h0))
+    ball_drag: jnp.ndarray  # eta_b (G h0 R s / R)
+    weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
+
+    def clamp(self, t):
+        s = t - self.t0
+        return self.zc0 + self.vzc * s, self.rhoc0 + self.vrhoc * s
+
+    def ball_force(self, t):
+        frac = jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
+        return self.f0 + (self.f1 - self.f0) * frac
+
+
+def _f(x):
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
+    """Rates and the quantities derived on the way (shared by the vector field and frames)."""
+    zc, rhoc = args.clamp(t)
+    rho, z, zb, _ = layout.unpack(y, zc, rhoc)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag)
+    g_rho, g_z, _ = k["grads"]
+    cz, crho = g_z[-1], g_rho[-1]
+    held = args.ball_mode == BALL_HOLD
+    f_app = args.ball_force(t)
+    vb = jnp.where(held, args.vzb, (f_app + cz + args.weight) / args.ball_drag)
+    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, f_app)
+    u = k["u"]
+    v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
+    free = jnp.arange(layout.n) < layout.n - 1
+    eta_a = k["eta_a"]
+    d_drag = jnp.sum(jnp.where(free, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
+    d_fric = jnp.sum(jnp.where(free, (k["ft"] - k["S"]) * k["S"] / eta_a, 0.0))
+    w_clamp = cz * args.vzc + crho * args.vrhoc
+    w_ball = (f_hold + args.weight) * vb
+    dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
+    dy = layout.pack(v[0], v[1], vb, dacc)
+    return dy, {"clamp_force": cz, "clamp_force_rho": crho, "ball_reaction": f_hold, "ball_v": vb,
+                "zc": zc, "rhoc": rhoc, "rho": rho, "z": z, "zb": zb, "kin": k}
+
+
+def vector_field(model: SheetModel, layout: Layout):
+    def vf(t, y, args):
+        return evaluate(model, layout, t, y, args)[0]
+
+    return vf
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """Numerics of the driver (nondimensional except times in s)."""
+
+    solver: str = "kvaerno5"
+    rtol: float = 1e-5
+    atol: float = 1e-7
+    pcoeff: float = 0.3
+    icoeff: float = 0.3
+    max_steps: int = 20000  # per segment
+    save_interval: float = 1.0  # s
+    contact_threshold: float = 1e-2  # G h0 / R
+
+
+def _solver(name: str):
+    return {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
+            "implicit_euler": diffrax.ImplicitEuler}[name]()
+
+
+_SOLVE_CACHE: dict = {}
+_COMPILED: dict = {}  # ahead-of-time compiled segment solves, keyed by everything static
+
+
+def segment_solver(settings: Settings):
+    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for a solver name and
+    step limit; shared by every run (compiled once per mesh size and material class)."""
+    key = (settings.solver, settings.max_steps)
+    if key in _SOLVE_CACHE:
+        return _SOLVE_CACHE[key]
+    solver = _solver(settings.solver)
+    max_steps = settings.max_steps
+    pcoeff, icoeff = settings.pcoeff, settings.icoeff
+
+    @eqx.filter_jit
+    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
+        term = diffrax.ODETerm(vector_field(model, layout))
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff)
+        sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
+                                  max_steps=max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
+        y1 = sol.ys[-1]
+        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
+        return y1, ok, sol.stats["num_steps"], sol.stats["num_accepted_steps"], sol.stats["num_rejected_steps"]
+
+    _SOLVE_CACHE[key] = solve
+    return solve
+
+
+@eqx.filter_jit
+def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
+    """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
+    dy, aux = evaluate(model, layout, t, y, args)
+    rho, z, zb = aux["rho"], aux["z"], aux["zb"]
+    d = model.diagnostics(rho, z, zb, args.friction, args.eps, args.drag, contact_threshold)
+    acc = layout.unpack(y, aux["zc"], aux["rhoc"])[3]
+    contact = d["contact"]
+    idx = jnp.arange(layout.n)
+    any_c = jnp.any(contact)
+    last = jnp.max(jnp.where(contact, idx, -1))
+    theta_all = jnp.arctan2(rho, z - zb)
+    theta_max = jnp.where(any_c, jnp.max(jnp.where(contact, theta_all, -jnp.inf)), jnp.nan)
+    rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
+    slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
+    return {
+        "rho": rho, "z": z, **{k: v for k, v in d.items() if k != "contact"},
+        "clamp_z": aux["zc"], "clamp_rho": aux["rhoc"], "clamp_force": aux["clamp_force"],
+        "clamp_force_rho": aux["clamp_force_rho"], "ball_z": zb, "ball_reaction": aux["ball_reaction"],
+        "ball_velocity": aux["ball_v"], "theta_max": theta_max, "rbar_max": rbar_max,
+        "work_clamp": acc[0], "work_ball": acc[1], "dissipation_drag": acc[2], "dissipation_friction": acc[3],
+        "energy_elastic": model.elastic_energy(rho, z), "energy_penalty": model.penalty_energy(rho, z, zb),
+        "slip_max": slip_max, "n_contact": jnp.sum(contact),
+    }
+
+
+def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet: float, zb: float):
+    """Flat sheet at height ``z_sheet``, uniformly pre-stretched radially (rho = lambda rbar)."""
+    rho = pre_stretch * model.mesh.rbar
+    z = jnp.full(layout.n, z_sheet)
+    return layout.pack(rho, z, _f(zb), jnp.zeros(N_ACC))
+
+
+class SolverFailure(RuntimeError):
+    """The solver did not reach the end of a segment (step limit, NaN, material range)."""
+
+
+@dataclasses.dataclass
+class Result:
+    frames: list  # dicts of numpy arrays (see frame_record) plus "time", "stage"
+    stage_end: list  # per stage: dict(name, t_start, t_end, condition_met)
+    stats: dict
+    failed: str | None = None
+    e0: float = 0.0
+
+
+def _stage_args(stage, t0, zc0, rhoc0, zb0, f_start, friction, eps, drag, ball_drag, weight):
+    dur = stage.max_duration
+    f0 = f_start if stage.ball_force_start is None else stage.ball_force_start
+    return StageArgs(
+        t0=_f(t0), zc0=_f(zc0), rhoc0=_f(rhoc0), vzc=_f(stage.clamp_vz), vrhoc=_f(stage.clamp_vrho),
+        ball_mode=jnp.asarray(stage.ball_mode, jnp.int32), zb0=_f(zb0), vzb=_f(stage.ball_vz),
+        f0=_f(f0), f1=_f(stage.ball_force_end), ramp=_f(dur), friction=friction, eps=_f(eps),
+        drag=_f(drag), ball_drag=_f(ball_drag), weight=_f(weight),
+    )
+
+
+def _to_numpy(rec):
+    return {k: np.asarray(v) for k, v in rec.items()}
+
+
+def simulate(
+    model: SheetModel,
+    protocol: Protocol,
+    *,
+    friction: AbstractFriction,
+    eps: float,
+    drag: float,
+    ball_drag: float,
+    pre_stretch: float,
+    z_sheet: float,
+    weight: float = 0.0,
+    settings: Settings = Settings(),
+    on_frame: Callable[[dict], None] | None = None,
+) -> Result:
+    """Run ``protocol`` from a flat pre-stretched sheet; return the saved frames.
+
+    Raises nothing on solver failure: the result's ``failed`` holds the message and
+    ``frames`` what was computed before it (the runner turns it into exit 3).
+    """
+    layout = Layout(model.mesh.n)
+    solve = segment_solver(settings)
+    y = initial_state(model, layout, pre_stretch, z_sheet, protocol.ball_z0)
+    rtol, atol = _f(settings.rtol), _f(settings.atol)
+    t = 0.0
+    zc, rhoc = protocol.clamp_z0, protocol.clamp_rho0
+    frames: list = []
+    stage_end: list = []
+    stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0}
+    dt_guess = 1e-3 * settings.save_interval
+    reaction = 0.0
+    t_wall0 = _time.perf_counter()
+    failed = None
+    e0 = None
+
+    def record(ti, yi, args, stage_index):
+        rec = _to_numpy(frame_record(model, layout, _f(ti), yi, args, settings.contact_threshold))
+        rec["time"] = float(ti)
+        rec["stage"] = stage_index
+        frames.append(rec)
+        if on_frame is not None:
+            on_frame(rec)
+        return rec
+
+    for si, stage in enumerate(protocol.stages):
+        zb_now = float(y[2 * layout.n - 3])
+        args = _stage_args(stage, t, zc, rhoc, zb_now, reaction, friction, eps, drag, ball_drag, weight)
+        if si == 0:
+            rec = record(t, y, args, 0)
+            e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
+        t_start = t
+        t_max = t + stage.max_duration
+        n_seg = max(1, math.ceil(stage.max_duration / settings.save_interval - 1e-9))
+        seg_ts = np.linspace(t, t_max, n_seg + 1)
+        met = stage.stop.kind == "duration"
+        rest_since = None
+        for t1 in seg_ts[1:]:
+            dt0 = _f(min(dt_guess, 0.5 * (t1 - t)))
+            key = (settings.solver, settings.max_steps, layout.n,
+                   repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
+            if key not in _COMPILED:
+                c0 = _time.perf_counter()
+                _COMPILED[key] = solve.lower(model, layout, y, _f(t), _f(t1), dt0, args, rtol, atol).compile()
+                stats["compile_s"] += _time.perf_counter() - c0
+            compiled_solve = _COMPILED[key]
+            r0 = _time.perf_counter()
+            y1, ok, nst, nacc, nrej = compiled_solve(model, layout, y, _f(t), _f(t1), dt0, args, rtol, atol)
+            ok = bool(ok)
+            stats["run_s"] += _time.perf_counter() - r0
+            nst, nacc, nrej = int(nst), int(nacc), int(nrej)
+            stats["steps"] += nst
+            stats["accepted"] += nacc
+            stats["rejected"] += nrej
+            stats["segments"] += 1
+            if not ok:
+                why = ("step limit reached" if nst >= settings.max_steps else
+                       "non-finite state (NaN/inf: a stretch outside the material's range, or divergence)")
+                failed = (f"solver failed in stage '{stage.name}' between t = {t:.6g} s and {float(t1):.6g} s: "
+                          f"{why} (max_steps per segment = {settings.max_steps})")
+                break
+            dt_guess = (float(t1) - t) / max(nacc, 1)
+            y, t = y1, float(t1)
+            rec = record(t, y, args, si)
+            if not np.all(np.isfinite(rec["energy_elastic"])):
+                failed = (f"stage '{stage.name}' at t = {t:.6g} s: elastic energy not finite "
+                          "(a stretch outside the material's range)")
+                break
+            if stage.stop.kind == "clamp_force_below" and abs(float(rec["clamp_force"])) < stage.stop.force:
+                met = True
+                break
+            if stage.stop.kind == "rest":
+                moving = max(float(rec["slip_max"]), abs(float(rec["ball_velocity"])))
+                if moving < stage.stop.rate:
+                    rest_since = t if rest_since is None else rest_since
+                    if t - rest_since >= stage.stop.hold - 1e-9:
+                        met = True
+                        break
+                else:
+                    rest_since = None
+        zc, rhoc = (float(v) for v in args.clamp(_f(t)))
+        reaction = float(frames[-1]["ball_reaction"])
+        stage_end.append({"name": stage.name, "t_start": t_start, "t_end": t, "condition_met": bool(met),
+                          "clamp_z": zc})
+        if failed:
+            break
+    stats["wall_s"] = _time.perf_counter() - t_wall0
+    stats["time_per_step_ms"] = 1e3 * stats["run_s"] / max(stats["steps"], 1)
+    return Result(frames=frames, stage_end=stage_end, stats=stats, failed=failed, e0=e0 or 0.0)
