@@ -473,6 +473,8 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
         deaths = np.asarray(fronts["death_event"].values)
         for k in range(pos.shape[0]):
             ok = np.flatnonzero(np.isfinite(pos[k]))
+            if ok.size == 0:
+                continue
             if BIRTH_EVENTS[births[k]] != "run_start":
                 ax.plot(pos[k, ok[0]], t[ok[0]], "o", ms=3.5, mfc="w", mec="k")
             if DEATH_EVENTS[deaths[k]] != "run_end":
