@@ -1,0 +1,156 @@
+"""Figures of sweeps and trapping windows; they read datasets (or the window's JSON) only.
+
+- :func:`plot_sweep`: one panel per result (trapped, theta_max, rbar_max, opening radius,
+  mu_needed, the trapping windows). One swept field: lines against it. Two numeric
+  fields with 3 or more values each: maps. Otherwise lines against the first field,
+  one per value of the second; further fields are held at their first value (said in
+  the title). Failed members are marked with a red cross, never drawn as "not trapped".
+- :func:`plot_window`: trapped(mu) at every evaluated mu, the windows shaded.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+PANELS = ["trapped", "theta_max", "rbar_max", "opening_radius", "mu_needed", "release_force"]
+
+
+def _mpl():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _label(da: xr.DataArray) -> str:
+    u = da.attrs.get("units", "1")
+    return f"{da.name}" + ("" if u in ("1", "") else f" [{u}]")
+
+
+def _xvals(coord: xr.DataArray):
+    vals = coord.values
+    if vals.dtype.kind in "iuf":
+        return vals.astype(float), None
+    return np.arange(len(vals), dtype=float), [str(v) for v in vals]
+
+
+def _reduce(ds: xr.Dataset) -> tuple[xr.Dataset, str]:
+    """Hold every swept dimension past the first two at its first value."""
+    dims = [d for d in ds["status"].dims]
+    note = ""
+    if len(dims) > 2:
+        held = {d: 0 for d in dims[2:]}
+        ds = ds.isel(held)
+        note = " (" + ", ".join(f"{d}={ds[d].values.item()}" for d in held) + ")"
+    return ds, note
+
+
+def plot_sweep(ds: xr.Dataset, path) -> Path:
+    """The sweep's figure (see the module docstring); written atomically to ``path``."""
+    from dynslip.io import save_figure
+
+    plt = _mpl()
+    ds, note = _reduce(ds)
+    dims = list(ds["status"].dims)
+    panels = [p for p in PANELS if p in ds and np.isfinite(ds[p].values.astype(float)).any()]
+    has_window = "window_lo" in ds
+    n = len(panels) + (1 if has_window else 0)
+    ncol = min(3, max(n, 1))
+    nrow = max(1, -(-n // ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.4 * nrow), squeeze=False)
+    x_dim = dims[0]
+    x, ticks = _xvals(ds[x_dim])
+    maps = (
+        len(dims) == 2
+        and all(ds[d].values.dtype.kind in "iuf" and ds.sizes[d] >= 3 for d in dims)
+    )
+    failed = ds["status"].values != "ok"
+    for ax, name in zip(axes.flat, panels, strict=False):
+        da = ds[name]
+        if maps:
+            y, _ = _xvals(ds[dims[1]])
+            m = ax.pcolormesh(x, y, da.values.T.astype(float), shading="nearest")
+            fig.colorbar(m, ax=ax, label=_label(da))
+            fy, fx = np.nonzero(failed.T)
+            ax.plot(x[fx], y[fy], "rx", ms=8, label="failed")
+            ax.set_ylabel(dims[1])
+        elif len(dims) == 1:
+            ax.plot(x, da.values.astype(float), "o-")
+            ax.plot(x[failed], np.zeros(failed.sum()), "rx", ms=8, label="failed")
+            ax.set_ylabel(_label(da))
+        else:
+            for j in range(ds.sizes[dims[1]]):
+                ax.plot(x, da.isel({dims[1]: j}).values.astype(float), "o-",
+                        label=f"{dims[1]}={ds[dims[1]].values[j]}")
+                f = failed[:, j]
+                ax.plot(x[f], np.zeros(f.sum()), "rx", ms=8)
+            ax.set_ylabel(_label(da))
+            ax.legend(fontsize=7)
+        ax.set_xlabel(x_dim)
+        if ticks:
+            ax.set_xticks(x, ticks, rotation=20, fontsize=7)
+        ax.set_title(da.attrs.get("long_name", name)[:48] + note, fontsize=8)
+    if has_window:
+        ax = axes.flat[len(panels)]
+        _window_panel(ax, ds, dims, x, ticks)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    out = save_figure(fig, path, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def _window_panel(ax, ds: xr.Dataset, dims: list[str], x: np.ndarray, ticks) -> None:
+    """Each member's trapping windows as vertical bars over the first swept field."""
+    groups = [None] if len(dims) == 1 else list(range(ds.sizes[dims[1]]))
+    step = np.min(np.diff(x)) if len(x) > 1 else 1.0
+    width = 0.6 * step / max(len(groups), 1)
+    for g, j in enumerate(groups):
+        sub = ds if j is None else ds.isel({dims[1]: j})
+        label = None if j is None else f"{dims[1]}={ds[dims[1]].values[j]}"
+        offset = (g - (len(groups) - 1) / 2) * width
+        for i in range(len(x)):
+            lo = sub["window_lo"].values[i]
+            hi = sub["window_hi"].values[i]
+            for a, b in zip(lo, hi, strict=True):
+                if np.isfinite(a) and np.isfinite(b):
+                    ax.bar(x[i] + offset, b - a, bottom=a, width=width, color=f"C{g}", alpha=0.7,
+                           label=label)
+                    label = None
+    ax.set_xlabel(dims[0])
+    if ticks:
+        ax.set_xticks(x, ticks, rotation=20, fontsize=7)
+    ax.set_ylabel("mu (trapped)")
+    ax.set_title("trapping windows", fontsize=8)
+    if len(groups) > 1:
+        ax.legend(fontsize=7)
+
+
+def plot_window(result: dict, path) -> Path:
+    """trapped(mu) at every evaluated mu (failed runs as red crosses), windows shaded."""
+    from dynslip.io import save_figure
+
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(6, 2.6))
+    ev = [(m, v) for m, v in result["evaluations"]]
+    ok = [(m, v) for m, v in ev if v is not None]
+    ax.plot([m for m, _ in ok], [1.0 if v else 0.0 for _, v in ok], "ko", ms=4, label="runs")
+    bad = [m for m, v in ev if v is None]
+    ax.plot(bad, [0.5] * len(bad), "rx", ms=8, label="failed")
+    for lo, hi in result["windows"]:
+        ax.axvspan(lo, hi, color="C2", alpha=0.3)
+    ax.set_yticks([0, 1], ["not trapped", "trapped"])
+    ax.set_xlabel(result.get("field", "mu"))
+    ax.set_xlim(*result["range"])
+    ax.set_title(f"trapping windows (tol {result['tol']:g})", fontsize=9)
+    ax.legend(fontsize=7, loc="center right")
+    fig.tight_layout()
+    out = save_figure(fig, path, dpi=120)
+    plt.close(fig)
+    return out

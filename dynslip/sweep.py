@@ -1,0 +1,697 @@
+"""Studies over scenario fields: sweep files, members, runners, resume and the dataset.
+
+A sweep file is a small YAML file of its own (validated strictly, like a scenario)::
+
+    base: method2.yaml                 # the scenario every member starts from (relative to this file)
+    overrides: {numerics.nodes: 30}    # applied to every member
+    grid:                              # a dimension per field, named by dotted path ...
+      physics.protocol.depth: [4, 5, 6]
+      physics.friction.mu: {start: 0.4, stop: 1.2, num: 5}
+    # list: [{physics.friction.mu: 0.8}, {physics.friction.mu: 1.0, numerics.nodes: 40}]  # ... or a list
+    window: {lo: 0.2, hi: 2.5, coarse: 12, tol: 0.02}   # optional: each member's trapping window
+    out: outputs/my_study                               # default outputs/<sweep file stem>/
+
+The grid (or list) key ``base`` sweeps over scenario files (e.g. method 1 vs method 2).
+
+Every member's scenario is resolved and validated before anything runs: a field that
+does not exist, an empty range or a value of the wrong type stops the sweep with one
+line naming it. Each finished member is written at once, atomically, to
+``<out>/members/<fingerprint>.json`` (the fingerprint hashes the resolved scenario and
+the window settings), so an interrupted sweep resumes where it stopped: members whose
+file exists are not run again. The members are then assembled into ``<out>/sweep.nc``
+(a dimension per swept field for a grid, a ``member`` dimension for a list) and plotted.
+
+A failed member (:class:`~dynslip.errors.ComputationError`, or any other exception of
+its run) is kept as NaN with ``status`` and ``error``: never as "not trapped".
+
+Runners (``mode``):
+
+- ``sequential``: one member after another in this process.
+- ``batched``: members grouped by shape (same structure, integers and strings of the
+  resolved scenario; only floats differ); a group goes through the scenario class's
+  ``run_batch`` when it has one. The forming simulator exposes no batched entry point,
+  so a group then runs member after member ("grouped sequential"); the dataset's
+  ``batched`` attribute says which happened. (A prototype found ``jax.vmap`` over 6
+  values of mu 20 times slower than running them one after another: every member of
+  a vmapped adaptive integration takes the slowest member's steps.)
+- ``dask``: members submitted to a ``dask.distributed`` scheduler (``scheduler``
+  address, or a LocalCluster on loopback when none is given); results come back and
+  are written as they finish.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import hashlib
+import itertools
+import json
+import math
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import xarray as xr
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from dynslip.errors import ComputationError, InputError
+
+MODES = ("sequential", "batched", "dask")
+#: The default runner: the fastest in ``benchmarks/sweep.py`` on the 2-core machine.
+DEFAULT_MODE = "sequential"
+CONNECT_TIMEOUT_S = 10.0
+BASE_KEY = "base"
+MEMBER_DIM = "member"
+WINDOW_DIM = "window"
+
+#: units and long names of the summary keys the forming runner returns
+KNOWN_VARIABLES: dict[str, tuple[str, str]] = {
+    "trapped": ("1", "ball ends trapped (1 yes, 0 no, NaN failed member)"),
+    "theta_max": ("rad", "polar angle of the contact edge at the end"),
+    "rbar_max": ("1", "material radius reaching the contact edge, by R"),
+    "opening_radius": ("1", "radius of the pocket's opening R sin(theta_max), by R"),
+    "mu_needed": ("1", "largest mobilised |F_f| / F_N on the end state"),
+    "release_force": ("N", "peak force of the release"),
+}
+
+
+# ---------------------------------------------------------------------------------------
+# The sweep file
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Linspace(_Strict):
+    """``{start, stop, num}``: ``num`` equally spaced values, both ends included."""
+
+    start: float
+    stop: float
+    num: int = Field(ge=1)
+
+    def values(self) -> list[float]:
+        return [float(v) for v in np.linspace(self.start, self.stop, self.num)]
+
+
+class WindowSpec(_Strict):
+    """The trapping-window search run for each member (see :mod:`dynslip.window`)."""
+
+    field: str | None = Field(None, description="friction field; default mu (ideal law) or mu_s")
+    lo: float = Field(0.0, ge=0)
+    hi: float = Field(3.0, gt=0)
+    coarse: int = Field(13, ge=2)
+    tol: float = Field(0.02, gt=0)
+
+    @model_validator(mode="after")
+    def _range(self):
+        if not self.hi > self.lo:
+            raise ValueError(f"empty range: hi = {self.hi} must exceed lo = {self.lo}")
+        return self
+
+
+class SweepSpec(_Strict):
+    """A study: a base scenario, overrides for all, and a grid or a list of members."""
+
+    name: str = ""
+    description: str = ""
+    base: str = Field(description="scenario file, relative to the sweep file")
+    overrides: dict[str, Any] = Field(default_factory=dict)
+    grid: dict[str, list[Any] | Linspace] | None = None
+    list_: list[dict[str, Any]] | None = Field(None, alias="list")
+    window: WindowSpec | None = None
+    out: str | None = None
+    mode: Literal["sequential", "batched", "dask"] | None = None
+    keep_runs: bool = Field(False, description="keep each member's run folder under <out>/runs/")
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.grid is None) == (self.list_ is None):
+            raise ValueError("give exactly one of 'grid' and 'list'")
+        if self.grid is not None and not self.grid:
+            raise ValueError("empty grid: name at least one field")
+        if self.list_ is not None and not self.list_:
+            raise ValueError("empty list: give at least one member")
+        for k, v in (self.grid or {}).items():
+            vals = v.values() if isinstance(v, Linspace) else v
+            if not vals:
+                raise ValueError(f"grid field '{k}': empty range (no values)")
+        return self
+
+    def grid_values(self) -> dict[str, list[Any]]:
+        return {k: (v.values() if isinstance(v, Linspace) else list(v)) for k, v in (self.grid or {}).items()}
+
+
+def load_spec(path) -> SweepSpec:
+    """Read and validate a sweep file; raises :class:`InputError` (one line)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: sweep file not found")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError:
+        raise InputError(f"{path}: malformed YAML") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: a sweep file must be a mapping (base, grid or list, ...)")
+    try:
+        return SweepSpec.model_validate(data)
+    except ValidationError as err:
+        e = max(err.errors(), key=lambda e: len(e["loc"]))  # for a union, the branch that got furthest
+        loc = ".".join(str(p) for p in e["loc"] if p not in ("list[any]", "Linspace"))
+        msg = "unknown field (allowed: name, description, base, overrides, grid, list, window, out, mode, keep_runs)" if e["type"] == "extra_forbidden" else e["msg"]
+        value = e.get("input")
+        shown = json.dumps(value) if isinstance(value, (int, float, str, bool, type(None))) else type(value).__name__
+        raise InputError(f"{path}: field '{loc or '<root>'}' = {shown}: {msg}") from None
+
+
+# ---------------------------------------------------------------------------------------
+# Members
+
+
+def _get(data: dict, dotted: str):
+    node = data
+    for k in dotted.split("."):
+        if not isinstance(node, dict) or k not in node:
+            raise KeyError(dotted)
+        node = node[k]
+    return node
+
+
+def _set(data: dict, dotted: str, value, source: str) -> None:
+    keys = dotted.split(".")
+    if not all(keys):
+        raise InputError(f"{source}: field '{dotted}': not a dotted path section.key")
+    node = data
+    for k in keys[:-1]:
+        nxt = node.get(k)
+        if nxt is None:
+            nxt = node[k] = {}
+        if not isinstance(nxt, dict):
+            raise InputError(f"{source}: field '{dotted}' does not exist ('{k}' is not a section)")
+        node = nxt
+    node[keys[-1]] = value
+
+
+def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dict:
+    """Validate scenario data and return the resolved scenario (every default filled in)."""
+    if validate_fn is None:
+        from dynslip.scenario import validate_data as validate_fn
+    return json.loads(validate_fn(data, source).to_json())
+
+
+def default_member_fn(data: dict, out_dir: Path, console=None) -> dict:
+    """The real member: validate the scenario data and run it into ``out_dir``."""
+    from rich.console import Console
+
+    from dynslip.scenario import validate_data
+
+    return validate_data(data, "<member>").run(Path(out_dir), console or Console(quiet=True))
+
+
+@dataclass
+class Member:
+    index: tuple[int, ...]  # grid multi-index, or (list position,)
+    assign: dict[str, Any]  # swept field -> value (``base`` included when swept)
+    base: Path
+    data: dict  # scenario data before validation (base file + overrides + assignments)
+    resolved: dict  # validated, every default filled in
+    fingerprint: str
+
+    @property
+    def key(self) -> str:
+        return self.fingerprint[:16]
+
+    @property
+    def label(self) -> str:
+        return ", ".join(f"{k}={v}" for k, v in self.assign.items())
+
+
+def _fingerprint(resolved: dict, window: dict | None) -> str:
+    text = json.dumps({"scenario": resolved, "window": window}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = None) -> list[Member]:
+    """Every member of the sweep, resolved and validated (nothing runs)."""
+    from dynslip.scenario import load_data
+
+    root = Path(sweep_path).parent
+    if spec.grid is not None:
+        grid = spec.grid_values()
+        keys = list(grid)
+        combos = [
+            (idx, {k: grid[k][i] for k, i in zip(keys, idx, strict=True)})
+            for idx in itertools.product(*(range(len(grid[k])) for k in keys))
+        ]
+    else:
+        combos = [((i,), dict(entry)) for i, entry in enumerate(spec.list_)]
+    window = spec.window.model_dump() if spec.window else None
+    bases: dict[str, dict] = {}
+    members = []
+    for idx, assign in combos:
+        src = f"{sweep_path} member [{', '.join(f'{k}={v}' for k, v in assign.items())}]"
+        base_name = str(assign.get(BASE_KEY, spec.base))
+        base = (root / base_name).resolve()
+        if base_name not in bases:
+            if not base.is_file():
+                raise InputError(f"{sweep_path}: field 'base' = {json.dumps(base_name)}: scenario file not found")
+            bases[base_name] = load_data(base)
+        data = copy.deepcopy(bases[base_name])
+        for k, v in spec.overrides.items():
+            _set(data, k, v, f"{sweep_path}: overrides")
+        for k, v in assign.items():
+            if k != BASE_KEY:
+                _set(data, k, v, src)
+        resolved = resolve(data, src, validate_fn)
+        for k in list(spec.overrides) + [k for k in assign if k != BASE_KEY]:
+            try:
+                _get(resolved, k)
+            except KeyError:
+                raise InputError(f"{src}: field '{k}' does not exist in the scenario") from None
+        if window is not None:
+            from dynslip.window import friction_field
+
+            field_name, _ = friction_field(resolved, window["field"])
+            if field_name in assign:
+                raise InputError(f"{src}: field '{field_name}' is both swept and searched by the window")
+        members.append(Member(idx, assign, base, data, resolved, _fingerprint(resolved, window)))
+    return members
+
+
+# ---------------------------------------------------------------------------------------
+# Running one member (module level: it travels to dask workers)
+
+
+def _jsonable_summary(summary: dict) -> dict:
+    from dynslip.io import _jsonable
+
+    return json.loads(json.dumps(_jsonable(summary), default=str))
+
+
+def execute_member(
+    member_fn: Callable,
+    data: dict,
+    resolved: dict,
+    window: dict | None,
+    run_dir: str | None,
+) -> dict:
+    """Run one member (and its window search): the record written to its member file.
+
+    Never raises for a failed run: ``status`` is ``ok``, ``failed``
+    (:class:`ComputationError`) or ``error`` (any other exception), with ``error`` its
+    message.
+    """
+    t0 = time.perf_counter()
+    rec: dict[str, Any] = {"status": "ok", "error": "", "summary": {}}
+    with contextlib.ExitStack() as stack:
+        work = Path(run_dir) if run_dir else Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        try:
+            rec["summary"] = _jsonable_summary(member_fn(data, work / "run", None))
+        except ComputationError as err:
+            rec.update(status="failed", error=f"ComputationError: {err}")
+        except Exception as err:  # noqa: BLE001 - a member's failure is data, not a crash of the sweep
+            rec.update(status="error", error=f"{type(err).__name__}: {err}")
+        if window is not None:
+            from dynslip.window import friction_field, scenario_window
+
+            field_name, tied = friction_field(resolved, window["field"])
+            mu0 = float(_get(resolved, field_name))
+            t = rec["summary"].get("trapped") if rec["status"] == "ok" else None
+            res = scenario_window(
+                data, resolved, member_fn, field_name=field_name, tied=tied,
+                lo=window["lo"], hi=window["hi"], coarse=window["coarse"], tol=window["tol"],
+                known={mu0: None if t is None else bool(t)}, work_dir=work,
+            )
+            rec["window"] = {"field": field_name, "tied": tied, **res.to_dict()}
+    rec["wall_s"] = time.perf_counter() - t0
+    return rec
+
+
+def _shape_key(resolved: Any) -> Any:
+    """The resolved scenario with every float blanked: members with equal keys share shapes."""
+    if isinstance(resolved, dict):
+        return {k: _shape_key(v) for k, v in resolved.items()}
+    if isinstance(resolved, list):
+        return [_shape_key(v) for v in resolved]
+    return None if isinstance(resolved, float) else resolved
+
+
+# ---------------------------------------------------------------------------------------
+# Runners
+
+
+def _connect(scheduler: str | None):
+    """A dask client: to ``scheduler``, or to a new LocalCluster on loopback."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is None:
+        cluster = LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None,
+        )
+        return Client(cluster), cluster
+    try:
+        return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
+    except Exception as err:  # noqa: BLE001 - OSError, TimeoutError, ValueError for a bad address
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise InputError(
+            f"--scheduler {scheduler!r}: cannot reach a dask scheduler within {CONNECT_TIMEOUT_S:g} s "
+            f"({reason[:120]}); give an address like tcp://HOST:8786"
+        ) from None
+
+
+def _run_members(
+    pending: list[Member],
+    *,
+    mode: str,
+    scheduler: str | None,
+    member_fn: Callable,
+    window: dict | None,
+    run_dir: Callable[[Member], str | None],
+    done: Callable[[Member, dict], None],
+    batch_fn: Callable | None,
+) -> str:
+    """Run ``pending`` members, calling ``done(member, record)`` as each finishes.
+
+    Returns a note on how the batched mode ran (empty for the other modes).
+    """
+    if mode == "sequential":
+        for m in pending:
+            done(m, execute_member(member_fn, m.data, m.resolved, window, run_dir(m)))
+        return ""
+    if mode == "batched":
+        groups: dict[str, list[Member]] = {}
+        for m in pending:
+            groups.setdefault(json.dumps(_shape_key(m.resolved), sort_keys=True), []).append(m)
+        if batch_fn is None or window is not None:
+            note = (
+                "grouped sequential: the simulator exposes no batched entry point (no run_batch), "
+                f"so each of the {len(groups)} shape groups ran member after member"
+            )
+            for group in groups.values():
+                for m in group:
+                    done(m, execute_member(member_fn, m.data, m.resolved, window, run_dir(m)))
+            return note
+        for group in groups.values():
+            for m, rec in zip(group, batch_fn([m.data for m in group]), strict=True):
+                done(m, rec)
+        return f"batched: {len(groups)} shape groups through run_batch"
+    if mode == "dask":
+        from distributed import as_completed
+
+        client, cluster = _connect(scheduler)
+        try:
+            futures = {
+                client.submit(
+                    execute_member, member_fn, m.data, m.resolved, window, run_dir(m),
+                    key=f"dynslip-member-{m.fingerprint}", pure=False,
+                ): m
+                for m in pending
+            }
+            lost = []
+            for fut in as_completed(futures):
+                m = futures[fut]
+                try:
+                    rec = fut.result()
+                except Exception as err:  # noqa: BLE001 - a lost worker: not written, rerun on resume
+                    lost.append(f"{m.label}: {type(err).__name__}: {err}")
+                    continue
+                done(m, rec)
+            if lost:
+                raise ComputationError(
+                    f"{len(lost)} members could not be run on the cluster (first: {lost[0]}); "
+                    "run the sweep again to resume"
+                )
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        return ""
+    raise InputError(f"mode = {mode!r}: allowed: {', '.join(MODES)}")
+
+
+# ---------------------------------------------------------------------------------------
+# The dataset
+
+
+def _flatten(summary: dict, prefix: str = "") -> dict[str, Any]:
+    out = {}
+    for k, v in summary.items():
+        if k == "units":
+            continue
+        if isinstance(v, dict):
+            out.update(_flatten(v, f"{prefix}{k}_"))
+        elif isinstance(v, (bool, int, float, str)) or v is None:
+            out[prefix + k] = v
+    return out
+
+
+def _coord(values: list) -> np.ndarray:
+    arr = np.asarray(values)
+    return arr if arr.dtype.kind in "biuf" else np.asarray([str(v) for v in values])
+
+
+def assemble(spec: SweepSpec, members: list[Member], records: dict[str, dict], attrs: dict) -> xr.Dataset:
+    """One dataset from the member records: a dimension per swept field (grid) or ``member``."""
+    from dynslip.io import variable
+
+    if spec.grid is not None:
+        grid = spec.grid_values()
+        dims = tuple(grid)
+        shape = tuple(len(v) for v in grid.values())
+        coords = {k: variable(_coord(v), (k,), "1", f"swept field {k}") for k, v in grid.items()}
+        for k in dims:
+            if k != BASE_KEY:
+                coords[k].attrs["units"] = _unit_of_field(k, members)
+    else:
+        dims = (MEMBER_DIM,)
+        shape = (len(members),)
+        keys = list(dict.fromkeys(k for m in members for k in m.assign))
+        coords = {MEMBER_DIM: variable(np.arange(len(members)), dims, "1", "member of the list")}
+        for k in keys:
+            vals = [m.assign.get(k, _base_value(m, k)) for m in members]
+            coords[k] = variable(_coord(vals), dims, "1" if k == BASE_KEY else _unit_of_field(k, members), f"swept field {k}")
+    flat = {m.fingerprint: _flatten(records[m.fingerprint]["summary"]) for m in members}
+    units_decl: dict[str, str] = {}
+    for m in members:
+        units_decl.update(records[m.fingerprint]["summary"].get("units", {}) or {})
+    names = list(dict.fromkeys(["trapped", *KNOWN_VARIABLES, *(k for f in flat.values() for k in f)]))
+    data_vars = {}
+    for name in names:
+        vals = [flat[m.fingerprint].get(name) for m in members]
+        present = [v for v in vals if v is not None]
+        if not present and name not in ("trapped",):
+            continue
+        if present and all(isinstance(v, str) for v in present):
+            arr = np.full(shape, "", dtype=object)
+            fill = [v if isinstance(v, str) else "" for v in vals]
+        else:
+            arr = np.full(shape, np.nan)
+            fill = [float(v) if isinstance(v, (int, float)) and not isinstance(v, str) else np.nan for v in vals]
+        for m, v in zip(members, fill, strict=True):
+            arr[m.index if spec.grid is not None else m.index[0]] = v
+        unit, long_name = KNOWN_VARIABLES.get(name, (units_decl.get(name, "1"), f"{name} (from the member's summary)"))
+        extra = {} if name in KNOWN_VARIABLES or name in units_decl else {"units_note": "not declared by the simulator"}
+        data_vars[name] = variable(arr.astype(str) if arr.dtype == object else arr, dims, unit, long_name, **extra)
+    status = np.full(shape, "missing", dtype=object)
+    error = np.full(shape, "", dtype=object)
+    for m in members:
+        at = m.index if spec.grid is not None else m.index[0]
+        status[at] = records[m.fingerprint]["status"]
+        error[at] = records[m.fingerprint]["error"]
+    data_vars["status"] = variable(status.astype(str), dims, "1", "member status: ok, failed (ComputationError) or error")
+    data_vars["error"] = variable(error.astype(str), dims, "1", "error of a failed member")
+    if spec.window is not None:
+        data_vars.update(_window_vars(spec, members, records, dims, shape))
+    ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)
+    return ds
+
+
+def _window_vars(spec, members, records, dims, shape) -> dict:
+    from dynslip.io import variable
+
+    n_max = max([1] + [len(records[m.fingerprint]["window"]["windows"]) for m in members])
+    wdims = (*dims, WINDOW_DIM)
+    out = {k: np.full((*shape, n_max), np.nan) for k in ("window_lo", "window_hi", "window_lo_err", "window_hi_err")}
+    n = np.full(shape, np.nan)
+    nfail = np.full(shape, np.nan)
+    for m in members:
+        at = m.index if spec.grid is not None else m.index[0]
+        w = records[m.fingerprint]["window"]
+        n[at] = len(w["windows"])
+        nfail[at] = len(w["failed"])
+        for j, d in enumerate(w["windows_detail"]):
+            out["window_lo"][at][j] = d["lo"]["value"]
+            out["window_hi"][at][j] = d["hi"]["value"]
+            out["window_lo_err"][at][j] = d["lo"]["err"]
+            out["window_hi_err"][at][j] = d["hi"]["err"]
+    field_name = records[members[0].fingerprint]["window"]["field"]
+    res = {
+        name: variable(arr, wdims, "1", f"{name.replace('_', ' ')} of the trapping windows of {field_name}")
+        for name, arr in out.items()
+    }
+    res["n_windows"] = variable(n, dims, "1", f"number of trapping windows of {field_name} found")
+    res["window_failed_runs"] = variable(nfail, dims, "1", "failed runs of the window search")
+    return res
+
+
+def _unit_of_field(dotted: str, members: list[Member]) -> str:
+    """The unit a scenario field declares in its schema metadata, or ``"1"``."""
+    try:
+        from dynslip.scenario import _classes
+
+        kind = members[0].resolved.get("kind")
+        cls = _classes().get(kind)
+        if cls is None:
+            return "1"
+        schema = cls.model_json_schema()
+        node, defs = schema, schema.get("$defs", {})
+        for k in dotted.split("."):
+            prop = node.get("properties", {}).get(k, {})
+            ref = prop.get("$ref") or (prop.get("allOf") or [{}])[0].get("$ref")
+            node = defs[ref.split("/")[-1]] if ref else prop
+        unit = node.get("unit", "1")
+        return unit if isinstance(unit, str) else "1"
+    except Exception:  # noqa: BLE001 - units are metadata; never fail a sweep on them
+        return "1"
+
+
+def _base_value(m: Member, k: str):
+    if k == BASE_KEY:
+        return str(m.base.name)
+    try:
+        return _get(m.resolved, k)
+    except KeyError:
+        return math.nan
+
+
+# ---------------------------------------------------------------------------------------
+# The entry point
+
+
+def run_sweep(
+    sweep,
+    *,
+    out: Path | None = None,
+    mode: str | None = None,
+    scheduler: str | None = None,
+    console=None,
+    member_fn: Callable | None = None,
+    validate_fn: Callable | None = None,
+    batch_fn: Callable | None = None,
+    plot: bool = True,
+) -> dict:
+    """``dynslip sweep SWEEP.yaml``: run every member not yet done, then assemble and plot.
+
+    Writes ``<out>/members/*.json`` (one per member, as each finishes), ``<out>/sweep.nc``,
+    ``<out>/sweep.png`` and ``<out>/summary.json``; returns the summary. Raises
+    :class:`InputError` for a bad sweep file, member or scheduler (before anything runs),
+    :class:`ComputationError` when every member failed. ``member_fn(data, out_dir,
+    console) -> summary`` replaces the real simulator (tests, benchmarks).
+    """
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from dynslip.io import provenance, write_json, write_netcdf
+
+    console = console or Console()
+    sweep = Path(sweep)
+    spec = load_spec(sweep)
+    if scheduler is not None:
+        if mode not in (None, "dask"):
+            raise InputError(f"--scheduler {scheduler!r} needs --mode dask (got --mode {mode})")
+        mode = "dask"
+    mode = mode or spec.mode or DEFAULT_MODE
+    if mode not in MODES:
+        raise InputError(f"--mode {mode!r}: allowed: {', '.join(MODES)}")
+    member_fn = member_fn or default_member_fn
+    members = expand(spec, sweep, validate_fn)
+    window = spec.window.model_dump() if spec.window else None
+    out = Path(out) if out is not None else Path(spec.out) if spec.out else Path("outputs") / sweep.stem
+    mdir = out / "members"
+    mdir.mkdir(parents=True, exist_ok=True)
+
+    records: dict[str, dict] = {}
+    for m in members:
+        f = mdir / f"{m.key}.json"
+        if f.is_file():
+            with contextlib.suppress(ValueError, OSError):
+                rec = json.loads(f.read_text())
+                if rec.get("fingerprint") == m.fingerprint:
+                    records[m.fingerprint] = rec
+    pending = list({m.fingerprint: m for m in members if m.fingerprint not in records}.values())
+    n_unique = len({m.fingerprint for m in members})
+    console.print(
+        f"sweep {sweep}: {len(members)} members ({n_unique - len(pending)} already done, "
+        f"{len(pending)} to run), mode {mode}"
+    )
+
+    def run_dir(m: Member) -> str | None:
+        if not spec.keep_runs:
+            return None
+        d = out / "runs" / m.key
+        if d.exists():
+            shutil.rmtree(d)
+        d.mkdir(parents=True)
+        return str(d)
+
+    t0 = time.perf_counter()
+    with Progress(
+        TextColumn("members"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+        console=console, transient=False,
+    ) as bar:
+        task = bar.add_task("members", total=n_unique, completed=n_unique - len(pending))
+
+        def done(m: Member, rec: dict) -> None:
+            rec = {"fingerprint": m.fingerprint, "assign": m.assign, "base": str(m.base),
+                   "scenario": m.resolved, **rec}
+            write_json(mdir / f"{m.key}.json", rec)
+            records[m.fingerprint] = json.loads((mdir / f"{m.key}.json").read_text())
+            bar.advance(task)
+            if rec["status"] != "ok":
+                bar.console.print(f"[yellow]member {m.label}: {rec['status']}: {rec['error'][:200]}[/yellow]")
+
+        note = _run_members(
+            pending, mode=mode, scheduler=scheduler, member_fn=member_fn, window=window,
+            run_dir=run_dir, done=done, batch_fn=batch_fn,
+        )
+    wall = time.perf_counter() - t0
+
+    base_json = json.dumps(members[0].resolved)
+    attrs = provenance(base_json, "sweep")
+    attrs["sweep"] = spec.model_dump_json(by_alias=True)
+    attrs["sweep_file"] = str(sweep)
+    attrs["swept_fields"] = json.dumps(list(spec.grid_values()) if spec.grid is not None
+                                       else list(dict.fromkeys(k for m in members for k in m.assign)))
+    ds = assemble(spec, members, records, attrs)
+    write_netcdf(ds, out / "sweep.nc")
+    statuses = [records[m.fingerprint]["status"] for m in members]
+    summary = {
+        "sweep": str(sweep),
+        "out": str(out),
+        "mode": mode,
+        "batched": note,
+        "n_members": len(members),
+        "n_run": len(pending),
+        "n_ok": statuses.count("ok"),
+        "n_failed": len(statuses) - statuses.count("ok"),
+        "wall_s": wall,
+        "members_per_minute": 60.0 * len(pending) / wall if pending and wall > 0 else None,
+    }
+    write_json(out / "summary.json", summary)
+    if plot:
+        from dynslip.plot_sweep import plot_sweep
+
+        plot_sweep(ds, out / "sweep.png")
+    console.print(
+        f"sweep done: {summary['n_ok']} ok, {summary['n_failed']} failed; {out / 'sweep.nc'}"
+    )
+    if summary["n_ok"] == 0:
+        raise ComputationError(f"{sweep}: every member failed (errors in {out / 'sweep.nc'}, variable 'error')")
+    return summary
