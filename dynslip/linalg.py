@@ -27,6 +27,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import lineax as lx
+import numpy as np
 from jax.flatten_util import ravel_pytree
 from lineax._solver.misc import (  # the helpers lineax's own solvers use
     pack_structures,
@@ -37,15 +38,51 @@ from lineax._solver.misc import (  # the helpers lineax's own solvers use
 
 
 class Structure(eqx.Module):
-    """Sparsity of the state: ``n`` nodes of ``b`` values each, then ``m`` border values."""
+    """Sparsity of the state: ``n`` nodes of ``b`` values each, then ``m`` border values.
+
+    ``core_index`` (length ``n*b``) maps each blocked position to its index in the
+    flat state, ``-1`` for padding (e.g. the pole's fixed rho); ``border_index``
+    (length ``m``) likewise for the border. ``None`` means the identity layout.
+    """
 
     n: int = eqx.field(static=True)
     b: int = eqx.field(static=True)
     m: int = eqx.field(static=True)
+    core_index: tuple | None = eqx.field(static=True, default=None)
+    border_index: tuple | None = eqx.field(static=True, default=None)
 
     @property
     def size(self) -> int:
-        return self.n * self.b + self.m
+        """Length of the flat state (padding excluded)."""
+        if self.core_index is None:
+            return self.n * self.b + self.m
+        return sum(1 for i in self.core_index if i >= 0) + self.m
+
+    def _indices(self):
+        nb = self.n * self.b
+        core = np.arange(nb) if self.core_index is None else np.asarray(self.core_index)
+        border = np.arange(nb, nb + self.m) if self.border_index is None else np.asarray(self.border_index)
+        return core, border
+
+    def to_blocked(self, v):
+        """Flat state vector -> blocked order ``[nodes (padded with 0), border]``."""
+        core, border = self._indices()
+        vc = jnp.where(core >= 0, v[np.maximum(core, 0)], 0.0)
+        return jnp.concatenate([vc, v[border]])
+
+    def from_blocked(self, w):
+        """Blocked order -> flat state vector (padding dropped)."""
+        core, border = self._indices()
+        nb = self.n * self.b
+        keep = np.flatnonzero(core >= 0)
+        out = jnp.zeros(self.size, w.dtype)
+        out = out.at[core[keep]].set(w[keep])
+        return out.at[border].set(w[nb:])
+
+    def padding(self):
+        """Boolean mask over the blocked core: True at padding positions."""
+        core, _ = self._indices()
+        return core < 0
 
 
 def _matvec(operator: lx.AbstractLinearOperator):
@@ -68,6 +105,17 @@ def extract_blocks(mv, mvT, s: Structure):
     """
     n, b, m = s.n, s.b, s.m
     nb = n * b
+    pad = jnp.asarray(s.padding())
+    mv_flat, mvT_flat = mv, mvT
+
+    def mv(v):  # noqa: F811 - blocked-order product, zero on padding
+        r = s.to_blocked(mv_flat(s.from_blocked(v)))
+        return r.at[:nb].set(jnp.where(pad, 0.0, r[:nb]))
+
+    def mvT(w):  # noqa: F811
+        r = s.to_blocked(mvT_flat(s.from_blocked(w)))
+        return r.at[:nb].set(jnp.where(pad, 0.0, r[:nb]))
+
     node = jnp.arange(n)
     # probes[c, k] has ones at component k of every node i with i % 3 == c
     probes = jnp.zeros((3, b, n, b))
@@ -85,6 +133,8 @@ def extract_blocks(mv, mvT, s: Structure):
         return jnp.where(valid[:, None, None], blk, 0.0)
 
     lower, diag, upper = block(-1), block(0), block(+1)
+    # identity on padding so that the factorisation stays regular
+    diag = diag + jnp.eye(b)[None] * pad.reshape(n, b)[:, :, None]
     eye_m = jnp.concatenate([jnp.zeros((m, nb)), jnp.eye(m)], axis=1)
     right = jax.vmap(mv)(eye_m).T  # (nb + m, m): columns of [B; D]
     bottom = jax.vmap(mvT)(eye_m)  # (m, nb + m): rows of [C D]
@@ -156,7 +206,7 @@ def solve_factorised(fac, rhs, s: Structure):
 
 
 def to_dense(lower, diag, upper, B, C, D, s: Structure):
-    """The dense matrix of the blocks (for tests and the dense comparison path)."""
+    """The dense matrix of the blocks, in the flat state order (for tests)."""
     n, b = s.n, s.b
     A = jnp.zeros((n, b, n, b))
     i = jnp.arange(n)
@@ -164,7 +214,12 @@ def to_dense(lower, diag, upper, B, C, D, s: Structure):
     A = A.at[i[1:], :, i[1:] - 1, :].set(lower[1:])
     A = A.at[i[:-1], :, i[:-1] + 1, :].set(upper[:-1])
     A = A.reshape(n * b, n * b)
-    return jnp.block([[A, B], [C, D]])
+    blocked = jnp.block([[A, B], [C, D]])
+    core, border = s._indices()
+    sel = np.concatenate([np.flatnonzero(core >= 0), n * b + np.arange(s.m)])
+    flat_idx = np.concatenate([core[core >= 0], border])
+    out = jnp.zeros((s.size, s.size))
+    return out.at[np.ix_(flat_idx, flat_idx)].set(blocked[np.ix_(sel, sel)])
 
 
 class BorderedBlockTridiagonal(lx.AbstractLinearSolver):
@@ -190,7 +245,8 @@ class BorderedBlockTridiagonal(lx.AbstractLinearSolver):
     def compute(self, state, vector, options):
         del options
         fac, _, packed = state
-        sol = solve_factorised(fac, ravel_vector(vector, packed), self.structure)
+        s = self.structure
+        sol = s.from_blocked(solve_factorised(fac, s.to_blocked(ravel_vector(vector, packed)), s))
         return unravel_solution(sol, packed), lx.RESULTS.successful, {}
 
     def transpose(self, state, options):

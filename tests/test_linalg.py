@@ -65,3 +65,39 @@ def test_diffrax_with_structured_solver_matches_dense():
     ys, steps_s = solve(BorderedBlockTridiagonal(S))
     yd, steps_d = solve(lx.LU())
     np.testing.assert_allclose(ys, yd, rtol=1e-6, atol=1e-8)
+
+
+# A sheet-like layout: y = [rho_1..rho_{K-1}, z_0..z_{K-1}, border(2)], rho_0 fixed at 0.
+K = 9
+SHEET = Structure(
+    n=K,
+    b=2,
+    m=2,
+    core_index=tuple(int(i) for pair in [(-1, K - 1)] + [(j - 1, K - 1 + j) for j in range(1, K)] for i in pair),
+    border_index=(2 * K - 1, 2 * K),
+)
+
+
+def sheet_field(y):
+    rho = jnp.concatenate([jnp.zeros(1), y[: K - 1]])
+    z = y[K - 1 : 2 * K - 1]
+    zb, e = y[2 * K - 1], y[2 * K]
+    x = jnp.stack([rho, z], 1)
+    seg = jnp.linalg.norm(jnp.diff(x, axis=0), axis=1)
+    energy = jnp.sum((seg - 0.3) ** 2 * (1 + rho[1:] + rho[:-1])) + jnp.sum((z - zb) ** 4) + zb**2
+    g = jax.grad(lambda rz: jnp.sum((jnp.linalg.norm(jnp.diff(rz, axis=0), axis=1) - 0.3) ** 2
+                                    * (1 + rz[1:, 0] + rz[:-1, 0])) + jnp.sum((rz[:, 1] - zb) ** 4))(x)
+    return jnp.concatenate([-g[1:, 0], -g[:, 1], jnp.stack([jnp.sum(z) - zb, energy - e])])
+
+
+def test_permuted_layout_blocks_equal_jacfwd():
+    y0 = jnp.asarray(np.random.default_rng(1).normal(size=SHEET.size))
+    jac = jax.jacfwd(sheet_field)(y0)
+    mv = lambda v: jax.jvp(sheet_field, (y0,), (v,))[1]  # noqa: E731
+    mvT = lambda w: jax.vjp(sheet_field, y0)[1](w)[0]  # noqa: E731
+    dense = to_dense(*extract_blocks(mv, mvT, SHEET), SHEET)
+    np.testing.assert_allclose(dense, jac, rtol=1e-10, atol=1e-10 * float(jnp.abs(jac).max()))
+    a = jnp.eye(SHEET.size) - 0.05 * jac
+    rhs = jnp.linspace(-1, 1, SHEET.size)
+    x = lx.linear_solve(lx.MatrixLinearOperator(a), rhs, BorderedBlockTridiagonal(SHEET)).value
+    np.testing.assert_allclose(x, jnp.linalg.solve(a, rhs), rtol=1e-9)
