@@ -21,7 +21,13 @@ import xarray as xr
 
 from dynslip.errors import InputError
 from dynslip.fronts import STATE_COLORS, draw_spacetime, fronts_dataset
-from dynslip.trajectory import STATE_MEANINGS, open_trajectory, stage_names, state_array, time_indices
+from dynslip.trajectory import (
+    STATE_MEANINGS,
+    open_trajectory,
+    stage_names,
+    state_array,
+    time_indices,
+)
 
 FORMATS = ("gif", "mp4")
 DEFAULT_SIZE = (960, 432)
@@ -34,7 +40,9 @@ def parse_size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in str(text).lower().split("x"))
     except ValueError:
-        raise InputError(f"size: {text!r} is not WxH; allowed: two integers in pixels, e.g. 960x432") from None
+        raise InputError(
+            f"size: {text!r} is not WxH; allowed: two integers in pixels, e.g. 960x432"
+        ) from None
     return _check_size((w, h))
 
 
@@ -45,7 +53,9 @@ def _check_size(size) -> tuple[int, int]:
     return w, h
 
 
-def frame_indices(ds: xr.Dataset, t_range=None, max_frames: int | None = DEFAULT_MAX_FRAMES) -> np.ndarray:
+def frame_indices(
+    ds: xr.Dataset, t_range=None, max_frames: int | None = DEFAULT_MAX_FRAMES
+) -> np.ndarray:
     """The saved frames an animation shows: those in ``t_range``, thinned evenly to at most
     ``max_frames`` (first and last kept). :class:`InputError` for a range outside the run."""
     idx = time_indices(ds, t_range)
@@ -61,7 +71,9 @@ def frame_indices(ds: xr.Dataset, t_range=None, max_frames: int | None = DEFAULT
 class _Renderer:
     """A figure whose artists are updated in place for each saved frame."""
 
-    def __init__(self, ds: xr.Dataset, fronts: xr.Dataset, frames: np.ndarray, size, map_frames=None):
+    def __init__(
+        self, ds: xr.Dataset, fronts: xr.Dataset, frames: np.ndarray, size, map_frames=None
+    ):
         import matplotlib
 
         matplotlib.use("Agg")
@@ -74,7 +86,9 @@ class _Renderer:
         self.plt = plt
         w, h = size
         self.fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
-        gs = self.fig.add_gridspec(1, 2, width_ratios=[1.25, 1.0], left=0.07, right=0.98, bottom=0.11, top=0.80, wspace=0.2)
+        gs = self.fig.add_gridspec(
+            1, 2, width_ratios=[1.25, 1.0], left=0.07, right=0.98, bottom=0.11, top=0.80, wspace=0.2
+        )
         self.ax = self.fig.add_subplot(gs[0])
         self.ax_map = self.fig.add_subplot(gs[1])
         self.t = np.asarray(ds["time"].values, dtype=float)
@@ -84,11 +98,17 @@ class _Renderer:
         self.names = stage_names(ds)
         self.stage = np.asarray(ds["stage"].values).astype(int)
         self.scale_n = float(ds.attrs.get("force_scale_N", np.nan))
-        self.front_node = np.asarray(fronts["front_node"].values) if fronts.sizes["track"] else np.zeros((0, self.t.size))
+        self.front_node = (
+            np.asarray(fronts["front_node"].values)
+            if fronts.sizes["track"]
+            else np.zeros((0, self.t.size))
+        )
         self.colors = np.array([matplotlib.colors.to_rgba(c) for c in STATE_COLORS])
 
         sel = frames
-        cz, cr, bz = (np.asarray(ds[v].values, dtype=float)[sel] for v in ("clamp_z", "clamp_rho", "ball_z"))
+        cz, cr, bz = (
+            np.asarray(ds[v].values, dtype=float)[sel] for v in ("clamp_z", "clamp_rho", "ball_z")
+        )
         xmax = np.nanmax(np.r_[np.abs(self.rho[sel]).ravel(), cr, 1.0]) * 1.08
         zlo = np.nanmin(np.r_[self.z[sel].ravel(), cz, bz - 1.0])
         zhi = np.nanmax(np.r_[self.z[sel].ravel(), cz, bz + 1.0])
@@ -103,9 +123,14 @@ class _Renderer:
         self.ax.add_patch(self.ball)
         self.sheet = LineCollection([], linewidths=2.6, capstyle="round", zorder=3)
         self.ax.add_collection(self.sheet)
-        (self.front_pts,) = self.ax.plot([], [], "D", ms=5, mfc="k", mec="w", mew=0.6, zorder=5, ls="none")
+        (self.front_pts,) = self.ax.plot(
+            [], [], "D", ms=5, mfc="k", mec="w", mew=0.6, zorder=5, ls="none"
+        )
         (self.clamp,) = self.ax.plot([], [], "s", ms=8, color="k", zorder=4, ls="none")
-        handles = [Line2D([], [], color=c, lw=3, label=m.replace("_", " ")) for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)]
+        handles = [
+            Line2D([], [], color=c, lw=3, label=m.replace("_", " "))
+            for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)
+        ]
         handles += [
             Line2D([], [], marker="D", mfc="k", mec="w", ls="none", label="stick front"),
             Line2D([], [], marker="s", color="k", ls="none", label="clamp"),
@@ -202,7 +227,9 @@ def animate(
     if fmt == "mp4":
         w, h = 16 * -(-w // 16), 16 * -(-h // 16)
     ds, size, frames = _prepare(trajectory_path, t_range, (w, h), max_frames)
-    out_path = Path(trajectory_path).parent / f"animation.{fmt}" if out_path is None else Path(out_path)
+    out_path = (
+        Path(trajectory_path).parent / f"animation.{fmt}" if out_path is None else Path(out_path)
+    )
     out_path.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_path.with_name(f".{out_path.stem}.tmp{out_path.suffix}")
     renderer = _Renderer(ds, fronts_dataset(ds), frames, size, map_frames=time_indices(ds, t_range))
@@ -230,7 +257,14 @@ def _write_mp4(renderer: _Renderer, frames, path: Path, fps: float) -> None:
     import imageio.v2 as iio2
 
     writer = iio2.get_writer(
-        path, format="FFMPEG", mode="I", fps=fps, codec="libx264", pixelformat="yuv420p", macro_block_size=16, quality=7
+        path,
+        format="FFMPEG",
+        mode="I",
+        fps=fps,
+        codec="libx264",
+        pixelformat="yuv420p",
+        macro_block_size=16,
+        quality=7,
     )
     try:
         for k in frames:
@@ -271,15 +305,22 @@ def describe(path) -> dict:
     path = Path(path)
     if path.suffix.lower() == ".gif":
         arr = iio.imread(path, index=None, plugin="pillow")
-        return {"frames": int(arr.shape[0]), "height": int(arr.shape[1]), "width": int(arr.shape[2])}
+        return {
+            "frames": int(arr.shape[0]),
+            "height": int(arr.shape[1]),
+            "width": int(arr.shape[2]),
+        }
     import imageio.v2 as iio2
 
     reader = iio2.get_reader(path, format="FFMPEG")
     try:
         n = reader.count_frames()
         h, w = reader.get_data(0).shape[:2]
-        return {"frames": int(n), "height": int(h), "width": int(w), "fps": float(reader.get_meta_data()["fps"])}
+        return {
+            "frames": int(n),
+            "height": int(h),
+            "width": int(w),
+            "fps": float(reader.get_meta_data()["fps"]),
+        }
     finally:
         reader.close()
-
-

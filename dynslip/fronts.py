@@ -140,7 +140,11 @@ def _link(prev: list[_Front], new: list[_Front]) -> dict[int, int]:
         for j in range(m - 1, -1, -1):
             cands = [(best[i + 1][j], 1), (best[i][j + 1], 2)]
             a, b = prev[i], new[j]
-            if a.stuck_side == b.stuck_side and _overlap(a.left, b.left) and _overlap(a.right, b.right):
+            if (
+                a.stuck_side == b.stuck_side
+                and _overlap(a.left, b.left)
+                and _overlap(a.right, b.right)
+            ):
                 links, neg = best[i + 1][j + 1]
                 cands.append(((links + 1, neg - abs(a.node - b.node)), 3))
             best[i][j], choice[i][j] = max(cands, key=lambda c: c[0])
@@ -319,23 +323,58 @@ def fronts_dataset(ds: xr.Dataset) -> xr.Dataset:
     rest = rest_times(ds)
     tt, kt, st = ("track", "time"), ("track",), ("stage", "rbar")
     data = {
-        "front_rbar": variable(pos_r, tt, "1", "material radius of the stick front (midpoint of its two nodes)", scale="R"),
-        "front_theta": variable(pos_t, tt, "rad", "polar angle of the stick front (midpoint of its two nodes)"),
-        "front_rbar_speed": variable(spd_r, tt, "1/s", "speed of the stick front in material radius, positive toward the equator", scale="R/s"),
-        "front_theta_speed": variable(spd_t, tt, "rad/s", "speed of the stick front in polar angle, positive toward the equator"),
-        "front_node": variable(node, tt, "1", "index of the pole-side node of the front (-1 where absent)"),
+        "front_rbar": variable(
+            pos_r,
+            tt,
+            "1",
+            "material radius of the stick front (midpoint of its two nodes)",
+            scale="R",
+        ),
+        "front_theta": variable(
+            pos_t, tt, "rad", "polar angle of the stick front (midpoint of its two nodes)"
+        ),
+        "front_rbar_speed": variable(
+            spd_r,
+            tt,
+            "1/s",
+            "speed of the stick front in material radius, positive toward the equator",
+            scale="R/s",
+        ),
+        "front_theta_speed": variable(
+            spd_t,
+            tt,
+            "rad/s",
+            "speed of the stick front in polar angle, positive toward the equator",
+        ),
+        "front_node": variable(
+            node, tt, "1", "index of the pole-side node of the front (-1 where absent)"
+        ),
         "front_slip_state": variable(
-            slip, tt, "1", "state of the slipping node beside the front (0 where absent)",
+            slip,
+            tt,
+            "1",
+            "state of the slipping node beside the front (0 where absent)",
             flag_values=np.array([0, 2, 3], dtype=np.int8),
             flag_meanings="absent slipping_toward_pole slipping_toward_equator",
         ),
-        "stuck_side": variable(side, kt, "1", "which neighbour of the front is stuck", **_flag_attrs(STUCK_SIDES, 1)),
+        "stuck_side": variable(
+            side, kt, "1", "which neighbour of the front is stuck", **_flag_attrs(STUCK_SIDES, 1)
+        ),
         "birth_time": variable(birth_t, kt, "s", "time of the first frame holding the front"),
         "death_time": variable(death_t, kt, "s", "time of the last frame holding the front"),
-        "birth_event": variable(birth_e, kt, "1", "event that created the front", **_flag_attrs(BIRTH_EVENTS)),
-        "death_event": variable(death_e, kt, "1", "event that removed the front", **_flag_attrs(DEATH_EVENTS)),
+        "birth_event": variable(
+            birth_e, kt, "1", "event that created the front", **_flag_attrs(BIRTH_EVENTS)
+        ),
+        "death_event": variable(
+            death_e, kt, "1", "event that removed the front", **_flag_attrs(DEATH_EVENTS)
+        ),
         "n_fronts": variable(np.sum(node >= 0, axis=0), ("time",), "1", "number of stick fronts"),
-        "rest_time": variable(rest, st, "s", "time the node comes to rest for the last time in the stage (NaN: did not slip then stick)"),
+        "rest_time": variable(
+            rest,
+            st,
+            "s",
+            "time the node comes to rest for the last time in the stage (NaN: did not slip then stick)",
+        ),
     }
     coords = {
         "track": variable(np.arange(nk), kt, "1", "front track id"),
@@ -418,7 +457,9 @@ def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict
         outer = int(contact_end.max()) if contact_end.size else None
         entry["n_nodes_came_to_rest"] = int(came.size)
         entry["outermost_contact_rbar_at_end"] = None if outer is None else float(rbar[outer])
-        entry["n_nodes_slipping_at_end"] = int(np.sum(np.isin(state[idx[-1]], (SLIP_POLE, SLIP_EQUATOR))))
+        entry["n_nodes_slipping_at_end"] = int(
+            np.sum(np.isin(state[idx[-1]], (SLIP_POLE, SLIP_EQUATOR)))
+        )
         if came.size:
             t_last = float(np.max(r[came]))
             last_nodes = came[r[came] == t_last]
@@ -454,7 +495,15 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     cmap, norm = state_colormap()
     t = np.asarray(ds["time"].values, dtype=float)
     rbar = np.asarray(ds["rbar"].values, dtype=float)
-    ax.pcolormesh(_edges(rbar), _edges(t), state_array(ds), cmap=cmap, norm=norm, shading="flat", rasterized=True)
+    ax.pcolormesh(
+        _edges(rbar),
+        _edges(t),
+        state_array(ds),
+        cmap=cmap,
+        norm=norm,
+        shading="flat",
+        rasterized=True,
+    )
     ax.plot(ds["rbar_max"].values, t, color="k", lw=0.8, ls=":", label="outermost contact")
     stage = np.asarray(ds["stage"].values).astype(int)
     names = stage_names(ds)
@@ -463,7 +512,14 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
         ax.axhline(tb, color="k", lw=0.6, ls="--")
     for s in np.unique(stage):
         k = np.flatnonzero(stage == s)[0]
-        ax.text(rbar[-1], t[k], f" {names[s] if s < len(names) else s}", va="bottom", ha="right", fontsize=7)
+        ax.text(
+            rbar[-1],
+            t[k],
+            f" {names[s] if s < len(names) else s}",
+            va="bottom",
+            ha="right",
+            fontsize=7,
+        )
     if fronts is not None and fronts.sizes.get("track", 0):
         pos = np.asarray(fronts["front_rbar"].values)
         for k in range(pos.shape[0]):
@@ -483,7 +539,10 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     ax.set_ylabel("time (s)")
     ax.set_xlim(rbar[0], rbar[-1])
     if legend:
-        handles = [Patch(color=c, label=m.replace("_", " ")) for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)]
+        handles = [
+            Patch(color=c, label=m.replace("_", " "))
+            for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)
+        ]
         ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.85)
 
 
@@ -507,7 +566,9 @@ def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path) -> Path:
     axes[0].set_title("stick fronts over the contact state\n(o born, x removed)", fontsize=9)
     pos_t = np.asarray(fronts["front_theta"].values)
     spd = np.asarray(fronts["front_rbar_speed"].values)
-    axes[1].plot(t, ds["theta_max"].values, color="0.5", lw=1, ls=":", label=r"contact edge $\theta_{max}$")
+    axes[1].plot(
+        t, ds["theta_max"].values, color="0.5", lw=1, ls=":", label=r"contact edge $\theta_{max}$"
+    )
     for k in range(pos_t.shape[0]):
         c = STATE_COLORS[1] if fronts["stuck_side"].values[k] == 1 else STATE_COLORS[3]
         axes[1].plot(t, pos_t[k], color=c, lw=1.2)

@@ -49,11 +49,13 @@ def open_trajectory(path) -> xr.Dataset:
     """
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"trajectory: {str(path)!r} does not exist (expected a trajectory.nc file)")
+        raise InputError(
+            f"trajectory: {str(path)!r} does not exist (expected a trajectory.nc file)"
+        )
     try:
         with xr.open_dataset(path, engine="netcdf4") as f:
             ds = f.load()
-    except Exception as exc:  # netCDF4/HDF5 raise many types for a file that is not netCDF
+    except (OSError, ValueError, RuntimeError, KeyError, TypeError) as exc:  # not netCDF
         raise InputError(
             f"trajectory: {str(path)!r} is not a netCDF file ({type(exc).__name__}); "
             "expected a trajectory.nc written by dynslip run"
@@ -119,9 +121,13 @@ def time_indices(ds: xr.Dataset, t_range=None) -> np.ndarray:
     lo, hi = float(t[0]), float(t[-1])
     tol = 1e-9 * max(1.0, abs(hi - lo))
     if t0 is not None and not (lo - tol <= t0 <= hi + tol):
-        raise InputError(f"t_start: {t0!r} s is outside the run; allowed: {lo:g} <= t_start <= {hi:g} s")
+        raise InputError(
+            f"t_start: {t0!r} s is outside the run; allowed: {lo:g} <= t_start <= {hi:g} s"
+        )
     if t1 is not None and not (lo - tol <= t1 <= hi + tol):
-        raise InputError(f"t_end: {t1!r} s is outside the run; allowed: {lo:g} <= t_end <= {hi:g} s")
+        raise InputError(
+            f"t_end: {t1!r} s is outside the run; allowed: {lo:g} <= t_end <= {hi:g} s"
+        )
     t0 = lo if t0 is None else float(t0)
     t1 = hi if t1 is None else float(t1)
     if t1 < t0:

@@ -113,7 +113,9 @@ def test_front_reaching_the_contact_edge_and_the_pole():
         "SSSSSSSSe...",
         "SSSSSSSSS...",
     )
-    assert summary(track_fronts(edge)) == [([0, 1, 2], [5, 6, 7], 1, "run_start", "reached_contact_edge")]
+    assert summary(track_fronts(edge)) == [
+        ([0, 1, 2], [5, 6, 7], 1, "run_start", "reached_contact_edge")
+    ]
     pole = field(
         "SSpppppp....",
         "Sppppppp....",
@@ -147,7 +149,9 @@ def test_pole_nucleation_and_fast_jump_linked_by_domain_overlap():
 
 def test_every_variable_has_units_and_long_name_and_round_trips(tmp_path):
     state = field("SSSeeee...", "SSSSeee...", "SSSSSee...", "SSSSSSS...")
-    ds = synthetic_trajectory(state, stage=[0, 0, 1, 1], rbar=np.linspace(0, 1.8, 10), theta_of_rbar=0.5)
+    ds = synthetic_trajectory(
+        state, stage=[0, 0, 1, 1], rbar=np.linspace(0, 1.8, 10), theta_of_rbar=0.5
+    )
     fr = fronts_dataset(ds)
     check_units(fr)
     for name, var in {**fr.coords, **fr.data_vars}.items():
@@ -173,7 +177,11 @@ def _release(order: str) -> xr.Dataset:
         frames = ["eeeeee....", "eeeeeS....", "eeeSSS....", "eSSSSS....", "SSSSSS...."]
     state = field("eeeeee....", *frames)
     return synthetic_trajectory(
-        state, time=[0, 1, 2, 3, 4, 5], stage=[0, 1, 1, 1, 1, 1], rbar=np.linspace(0, 1.8, 10), theta_of_rbar=0.5
+        state,
+        time=[0, 1, 2, 3, 4, 5],
+        stage=[0, 1, 1, 1, 1, 1],
+        rbar=np.linspace(0, 1.8, 10),
+        theta_of_rbar=0.5,
     )
 
 
