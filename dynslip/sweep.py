@@ -68,6 +68,8 @@ DEFAULT_MODE = "sequential"
 CONNECT_TIMEOUT_S = 10.0
 BASE_KEY = "base"
 MEMBER_DIM = "member"
+#: summary keys not turned into variables (kept by ``status`` and ``error``, or declarations)
+SUMMARY_SKIP = ("units", "status", "message")
 WINDOW_DIM = "window"
 
 #: units and long names of the summary keys the forming runner returns
@@ -174,28 +176,50 @@ def load_spec(path) -> SweepSpec:
 # Members
 
 
+def _step(node, k: str, dotted: str):
+    """One step of a dotted path: a mapping's key, or a list's item by index or by ``name``."""
+    if isinstance(node, dict) and k in node:
+        return node[k]
+    if isinstance(node, list):
+        if k.isdigit() and int(k) < len(node):
+            return node[int(k)]
+        for item in node:
+            if isinstance(item, dict) and item.get("name") == k:
+                return item
+    raise KeyError(dotted)
+
+
 def _get(data: dict, dotted: str):
     node = data
     for k in dotted.split("."):
-        if not isinstance(node, dict) or k not in node:
-            raise KeyError(dotted)
-        node = node[k]
+        node = _step(node, k, dotted)
     return node
 
 
 def _set(data: dict, dotted: str, value, source: str) -> None:
+    """Set a dotted path; list items are named by index or by their ``name`` (stages)."""
     keys = dotted.split(".")
     if not all(keys):
         raise InputError(f"{source}: field '{dotted}': not a dotted path section.key")
     node = data
-    for k in keys[:-1]:
-        nxt = node.get(k)
-        if nxt is None:
-            nxt = node[k] = {}
-        if not isinstance(nxt, dict):
+    for i, k in enumerate(keys[:-1]):
+        if isinstance(node, dict) and node.get(k) is None:
+            node[k] = {}
+        try:
+            node = _step(node, k, dotted)
+        except KeyError:
+            raise InputError(f"{source}: field '{dotted}' does not exist ('{'.'.join(keys[: i + 1])}' not found)") from None
+        if not isinstance(node, (dict, list)):
             raise InputError(f"{source}: field '{dotted}' does not exist ('{k}' is not a section)")
-        node = nxt
-    node[keys[-1]] = value
+    last = keys[-1]
+    if isinstance(node, list):
+        try:
+            item = _step(node, last, dotted)
+        except KeyError:
+            raise InputError(f"{source}: field '{dotted}' does not exist ('{last}' is not an item)") from None
+        node[node.index(item)] = value
+    else:
+        node[last] = value
 
 
 def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dict:
@@ -261,7 +285,8 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
         if base_name not in bases:
             if not base.is_file():
                 raise InputError(f"{sweep_path}: field 'base' = {json.dumps(base_name)}: scenario file not found")
-            bases[base_name] = load_data(base)
+            # members start from the resolved base (defaults filled in): stages can be named
+            bases[base_name] = resolve(load_data(base), str(base), validate_fn)
         data = copy.deepcopy(bases[base_name])
         for k, v in spec.overrides.items():
             _set(data, k, v, f"{sweep_path}: overrides")
@@ -313,6 +338,8 @@ def execute_member(
         work = Path(run_dir) if run_dir else Path(stack.enter_context(tempfile.TemporaryDirectory()))
         try:
             rec["summary"] = _jsonable_summary(member_fn(data, work / "run", None))
+            if rec["summary"].get("status", "ok") != "ok":  # a runner that reports instead of raising
+                rec.update(status="failed", error=str(rec["summary"].get("message", "failed")))
         except ComputationError as err:
             rec.update(status="failed", error=f"ComputationError: {err}")
         except Exception as err:  # noqa: BLE001 - a member's failure is data, not a crash of the sweep
@@ -443,7 +470,7 @@ def _run_members(
 def _flatten(summary: dict, prefix: str = "") -> dict[str, Any]:
     out = {}
     for k, v in summary.items():
-        if k == "units":
+        if k in SUMMARY_SKIP:
             continue
         if isinstance(v, dict):
             out.update(_flatten(v, f"{prefix}{k}_"))

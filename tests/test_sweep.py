@@ -39,9 +39,15 @@ class Protocol(Strict):
     speed: float = Field(1.0, gt=0)
 
 
+class Stage(Strict):
+    name: str
+    clamp_to_z_mm: float
+
+
 class Physics(Strict):
     friction: Friction = Friction()
     protocol: Protocol = Protocol()
+    stages: list[Stage] = [Stage(name="push_down", clamp_to_z_mm=-120.0), Stage(name="raise", clamp_to_z_mm=-20.0)]
     material: Literal["neo_hookean", "gent"] = "neo_hookean"
 
 
@@ -150,6 +156,23 @@ def test_list_sweep_has_a_member_dimension(tmp_path):
     assert list(ds["trapped"].values) == [1.0, 1.0]
     assert ds["theta_max"].values[1] == pytest.approx(1.5 + 0.155 + 0.1)
     assert load_spec(sweep_path).list_ is not None
+
+
+def test_list_items_are_named_by_name_or_index(tmp_path):
+    seen = []
+
+    def member(data, out_dir, console=None):
+        seen.append([st["clamp_to_z_mm"] for st in data["physics"]["stages"]])
+        return fake_member(data, out_dir, console)
+
+    body = {"grid": {"physics.stages.push_down.clamp_to_z_mm": [-80.0, -100.0], "physics.stages.1.clamp_to_z_mm": [-10.0]}}
+    sweep(write_sweep(tmp_path, body), tmp_path / "out", member_fn=member)
+    assert seen == [[-80.0, -10.0], [-100.0, -10.0]]  # the defaults were filled in, then set
+    ds = xr.open_dataset(tmp_path / "out" / "sweep.nc")
+    assert ds["trapped"].dims == ("physics.stages.push_down.clamp_to_z_mm", "physics.stages.1.clamp_to_z_mm")
+    for bad in ("physics.stages.pushdown.clamp_to_z_mm", "physics.stages.7.clamp_to_z_mm"):
+        with pytest.raises(InputError, match=bad.replace(".", r"\.")):
+            sweep(write_sweep(tmp_path, {"grid": {bad: [-80.0]}}, name="bad.yaml"), tmp_path / "o2")
 
 
 def test_sweep_with_windows(tmp_path):

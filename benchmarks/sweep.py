@@ -1,0 +1,101 @@
+"""Sweep throughput (members per minute): sequential, batched and dask runs of a method 2 sweep.
+
+``run() -> dict`` (called by ``benchmarks/run.py``) runs the same small sweep over mu of
+the method 2 scenario three times, once per mode, each into a fresh folder, and reports
+members per minute for each, the ratio to sequential, and an estimate for the issue's
+target (64 members at 100 nodes) from the measured per-member time. Settings, from
+the environment:
+
+- ``DYNSLIP_BENCH_SWEEP_NODES`` (default 20): nodes of every member;
+- ``DYNSLIP_BENCH_SWEEP_MEMBERS`` (default 4): members (values of mu in 0.4..1.6);
+- ``DYNSLIP_BENCH_SWEEP_MODES`` (default ``sequential,batched,dask``).
+
+Every mode starts in a fresh process state only as far as JAX allows: the sequential
+run goes first and pays the compilation in this process; the dask workers are new
+processes and pay it again (with the persistent compilation cache warm). The first
+member's time is reported apart (``first_member_s``) so that compilation is visible.
+
+"batched" is grouped sequential: the forming simulator exposes no batched entry point
+(see :mod:`dynslip.sweep`), so its figure measures the grouping overhead only.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _base(tmp: Path) -> Path:
+    """The method 2 scenario (the shipped file when there is one, else the kind's defaults)."""
+    shipped = ROOT / "scenarios" / "method2.yaml"
+    p = tmp / "method2.yaml"
+    p.write_text(shipped.read_text() if shipped.exists() else yaml.safe_dump({"kind": "forming"}))
+    return p
+
+
+def run() -> dict:
+    from rich.console import Console
+
+    from dynslip.sweep import run_sweep
+
+    nodes = int(os.environ.get("DYNSLIP_BENCH_SWEEP_NODES", "20"))
+    n = int(os.environ.get("DYNSLIP_BENCH_SWEEP_MEMBERS", "4"))
+    modes = os.environ.get("DYNSLIP_BENCH_SWEEP_MODES", "sequential,batched,dask").split(",")
+    console = Console(stderr=True)
+    out: dict = {"nodes": nodes, "members": n, "machine_cores": os.cpu_count()}
+    with tempfile.TemporaryDirectory(prefix="dynslip-bench-sweep-") as tmp:
+        tmp = Path(tmp)
+        base = _base(tmp)
+        mus = [round(0.4 + 1.2 * i / max(n - 1, 1), 6) for i in range(n)]
+        spec = {"base": base.name, "overrides": {"numerics.nodes": nodes}, "grid": {"physics.friction.mu": mus}}
+        path = tmp / "bench_sweep.yaml"
+        path.write_text(yaml.safe_dump(spec))
+        datasets = {}
+        for mode in modes:
+            t0 = time.perf_counter()
+            summary = run_sweep(path, out=tmp / mode, mode=mode, console=console, plot=False)
+            wall = time.perf_counter() - t0
+            members = [json.loads(p.read_text()) for p in (tmp / mode / "members").glob("*.json")]
+            walls = sorted(m["wall_s"] for m in members)
+            out[mode] = {
+                "wall_s": wall,
+                "members_per_minute": 60.0 * n / wall,
+                "member_s_min": walls[0],
+                "member_s_max": walls[-1],
+                "n_ok": summary["n_ok"],
+                "note": summary["batched"] or "",
+            }
+            import xarray as xr
+
+            datasets[mode] = xr.load_dataset(tmp / mode / "sweep.nc")
+        if "sequential" in out:
+            seq = out["sequential"]
+            for mode in modes:
+                out[mode]["speed_vs_sequential"] = out[mode]["members_per_minute"] / seq["members_per_minute"]
+            # the issue's target, from the steady per-member time (compilation excluded)
+            steady = seq["member_s_min"]
+            out["estimate_64_members_s_at_this_N"] = 64 * steady
+        ref = datasets.get("sequential")
+        if ref is not None:
+            import xarray as xr
+
+            same = {}
+            for mode, ds in datasets.items():
+                try:
+                    xr.testing.assert_identical(ref, ds)
+                    same[mode] = True
+                except AssertionError:
+                    same[mode] = False
+            out["identical_to_sequential"] = same
+    return out
+
+
+if __name__ == "__main__":
+    print(json.dumps(run(), indent=2))
