@@ -1,0 +1,246 @@
+"""Schema of the static scenarios: the paper's contact-region model (``static``,
+``figure4``, ``family``) and its 2D case (``cylinder``). See docs/static-model.md.
+
+Physical quantities in the file (R in mm, E in MPa, h0 in mm) set the scales of the
+outputs' SI attributes only: the static results are nondimensional (lengths by R,
+tensions by G h0, forces by G h0 R) and the friction coefficient does not depend on G.
+Every choice the paper leaves open is a field: the initial shape of the march, the
+selection rule of the fully mobilised family, the grid, the mu bracket, tolerances
+and the march's integrator.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, model_validator
+
+from dynslip.scenario import F, ScenarioBase, Strict
+
+__all__ = [
+    "StaticScenario",
+    "Figure4Scenario",
+    "FamilyScenario",
+    "CylinderScenario",
+    "Hookean",
+    "NeoHookean",
+    "MooneyRivlin",
+    "Gent",
+    "Selection",
+    "StaticNumerics",
+]
+
+
+class Hookean(Strict):
+    """Small-strain energy 2((lt-1)^2 + (lp-1)^2 + (lt-1)(lp-1)) (unrelaxed, as in the paper)."""
+
+    model: Literal["hookean"] = "hookean"
+
+
+class NeoHookean(Strict):
+    """neo-Hookean (I1 - 3)/2."""
+
+    model: Literal["neo_hookean"] = "neo_hookean"
+
+
+class MooneyRivlin(Strict):
+    """Mooney-Rivlin C1 (I1 - 3) + C2 (I2 - 3), with 2 C1 + 2 C2 = 1 (units of G)."""
+
+    model: Literal["mooney_rivlin"] = "mooney_rivlin"
+    c1: float = F(0.4, ge=0, le=0.5, description="C1 / G")
+    c2: float = F(0.1, ge=0, le=0.5, description="C2 / G; 2 C1 + 2 C2 must be 1")
+
+    @model_validator(mode="after")
+    def _sum(self):
+        if abs(2 * self.c1 + 2 * self.c2 - 1.0) > 1e-9:
+            raise ValueError(f"2 c1 + 2 c2 must be 1 (shear modulus G), got {2 * self.c1 + 2 * self.c2:g}")
+        return self
+
+
+class Gent(Strict):
+    """Gent -(J_m/2) ln(1 - (I1 - 3)/J_m)."""
+
+    model: Literal["gent"] = "gent"
+    jm: float = F(50.0, gt=0, description="locking parameter J_m (I1 < J_m + 3)")
+
+
+Material = Annotated[Union[Hookean, NeoHookean, MooneyRivlin, Gent], Field(discriminator="model")]  # noqa: UP007
+
+
+def material_of(spec):
+    """The core material (:mod:`dynslip.materials`) of a material section."""
+    from dynslip.materials import make_material
+
+    return make_material(spec.model, jm=getattr(spec, "jm", 50.0), c1=getattr(spec, "c1", 0.5),
+                         c2=getattr(spec, "c2", 0.0))
+
+
+class Selection(Strict):
+    """The one rule that picks the member of the fully mobilised family (same for all models)."""
+
+    rule: Literal["switch_radius", "switch_angle"] = F(
+        "switch_radius",
+        description="switch_radius: F_m changes sign at undeformed radius `value` (units R); "
+        "switch_angle: at polar angle `value` (rad), which is also where the largest stretch sits")
+    value: float = F(0.25, gt=0, description="switch radius (units R) or switch angle (rad)")
+
+
+class Geometry(Strict):
+    """The contact region and the physical scales (paper Section 3.3)."""
+
+    ball_radius_mm: float = F(20.0, unit="mm", gt=0, description="ball radius R (sets the length scale)")
+    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, description="Young's modulus E = 3 G (force scale only)")
+    thickness_mm: float = F(0.15, unit="mm", gt=0, description="sheet thickness h0 (force scale only)")
+    rbar_max: float = F(0.9, gt=0, description="undeformed radius of the lift-off point, units R")
+    theta_max: float = F(1.8, unit="rad", gt=0, lt=math.pi, description="polar angle of the lift-off point")
+
+
+class StaticPhysics(Geometry):
+    """Physics of one static solve."""
+
+    material: Material = F(NeoHookean(), description="strain energy (discriminated on `model`)")
+    initial_shape: Literal["fully_mobilised", "linear"] = F(
+        "fully_mobilised",
+        description="initial shape of the march: the selected fully mobilised member, or "
+        "theta = theta_max rbar / rbar_max (= 2 rbar for the paper's pair)")
+    selection: Selection = F(Selection(), description="selection rule of the fully mobilised member")
+
+
+class StaticNumerics(Strict):
+    """Grid, march and search settings."""
+
+    n_nodes: int = F(100, ge=8, le=2000, description="grid nodes from the pole to rbar_max (paper: 100)")
+    march: Literal["explicit", "diffrax"] = F("explicit", description="march integrator: jitted loop or diffrax")
+    diffrax_solver: Literal["euler", "tsit5"] = F(
+        "euler", description="diffrax solver: euler (constant stable step) or tsit5 (adaptive)")
+    diffrax_rtol: float = F(1e-6, gt=0, lt=1, description="tsit5 relative tolerance")
+    dt_safety: float = F(0.4, gt=0, le=1, description="explicit step as a fraction of h^2 / (2 D)")
+    rest_velocity: float = F(1e-6, gt=0, description="rest when max |d theta/dt| is below this (units rad per time unit)")
+    max_steps: int = F(400_000, ge=100, description="largest number of march steps per mu")
+    mu_bracket: tuple[float, float] = F((0.1, 5.0), description="search bracket for mu [low, high]")
+    mu_tol: float = F(1e-4, gt=0, lt=0.1, description="relative width of the final mu bracket")
+    fv_tol: float = F(1e-3, ge=0, unit="1",
+                      description="F_v counts as vanished at or below this (units G*h0*R; ~ discretisation error at N=100)")
+    ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the fully mobilised shooting ODE")
+    switch_guess: tuple[float, float, float] = F(
+        (2.2, 1.0, 0.25), description="Newton start (pole stretch, mu, switch radius) of the shooting")
+
+    @model_validator(mode="after")
+    def _bracket(self):
+        lo, hi = self.mu_bracket
+        if not (0 <= lo < hi):
+            raise ValueError(f"mu_bracket must satisfy 0 <= low < high, got {list(self.mu_bracket)}")
+        return self
+
+
+class StaticScenario(ScenarioBase):
+    """The paper's static contact-region model for one material (Fig. 4 row)."""
+
+    kind: Literal["static"] = "static"
+    physics: StaticPhysics = F(StaticPhysics(), description="physics")
+    numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
+
+    def run(self, out: Path, console) -> dict:
+        from dynslip.run_static import run_static
+
+        return run_static(self, Path(out), console)
+
+
+class Figure4Physics(Geometry):
+    """The three models of the paper's Fig. 4 (Hookean, neo-Hookean, Gent)."""
+
+    jm: float = F(50.0, gt=0, description="Gent J_m (paper: 50)")
+    initial_shape: Literal["fully_mobilised", "linear"] = F("fully_mobilised", description="as in kind static")
+    selection: Selection = F(Selection(), description="one selection rule for all three models")
+
+
+class Figure4Scenario(ScenarioBase):
+    """The whole 3x3 Fig. 4 of the paper in one run."""
+
+    kind: Literal["figure4"] = "figure4"
+    physics: Figure4Physics = F(Figure4Physics(), description="physics")
+    numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
+
+    def run(self, out: Path, console) -> dict:
+        from dynslip.run_static import run_figure4
+
+        return run_figure4(self, Path(out), console)
+
+
+class FamilyPhysics(Geometry):
+    """The fully mobilised family of the three models, swept along its switch point."""
+
+    jm: float = F(50.0, gt=0, description="Gent J_m")
+    switch_by: Literal["switch_radius", "switch_angle"] = F(
+        "switch_radius", description="parameter of the family")
+    switch_from: float = F(0.15, gt=0, description="first switch value (units R, or rad)")
+    switch_to: float = F(0.32, gt=0, description="last switch value (units R, or rad)")
+    selection: Selection = F(Selection(), description="rule marked on the plot")
+
+    @model_validator(mode="after")
+    def _range(self):
+        if self.switch_to <= self.switch_from:
+            raise ValueError("switch_to must exceed switch_from")
+        if self.switch_by == "switch_radius" and self.switch_to >= self.rbar_max:
+            raise ValueError("switch_to must lie inside the contact region (< rbar_max)")
+        return self
+
+
+class FamilyNumerics(Strict):
+    """Sweep resolution and shooting settings."""
+
+    n_members: int = F(18, ge=2, le=400, description="members along the switch range")
+    ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the shooting ODE")
+    switch_guess: tuple[float, float, float] = F(
+        (2.2, 1.0, 0.25), description="Newton start (pole stretch, mu, switch radius) at the middle member")
+
+
+class FamilyScenario(ScenarioBase):
+    """mu across the fully mobilised family for Hookean, neo-Hookean and Gent."""
+
+    kind: Literal["family"] = "family"
+    physics: FamilyPhysics = F(FamilyPhysics(), description="physics")
+    numerics: FamilyNumerics = F(FamilyNumerics(), description="numerics")
+
+    def run(self, out: Path, console) -> dict:
+        from dynslip.run_static import run_family
+
+        return run_family(self, Path(out), console)
+
+
+class CylinderPhysics(Strict):
+    """A membrane on a rigid cylinder (paper Section 5)."""
+
+    mu: float = F(0.99, ge=0, le=10, description="friction coefficient (paper: static 0.99)")
+    theta_max_from: float = F(0.1, unit="rad", gt=0, lt=math.pi, description="smallest lift-off angle")
+    theta_max_to: float = F(3.0, unit="rad", gt=0, lt=math.pi, description="largest lift-off angle")
+
+    @model_validator(mode="after")
+    def _range(self):
+        if self.theta_max_to <= self.theta_max_from:
+            raise ValueError("theta_max_to must exceed theta_max_from")
+        return self
+
+
+class CylinderNumerics(Strict):
+    """Random admissible friction profiles and their grid."""
+
+    n_profiles: int = F(200, ge=1, le=100_000, description="random admissible friction profiles")
+    n_nodes: int = F(400, ge=8, le=100_000, description="nodes on [0, theta_max]")
+    n_angles: int = F(30, ge=2, le=1000, description="lift-off angles sampled")
+    seed: int = F(0, ge=0, description="random seed")
+
+
+class CylinderScenario(ScenarioBase):
+    """The 2D case: capstan bounds and the vertical force (no invagination in 2D)."""
+
+    kind: Literal["cylinder"] = "cylinder"
+    physics: CylinderPhysics = F(CylinderPhysics(), description="physics")
+    numerics: CylinderNumerics = F(CylinderNumerics(), description="numerics")
+
+    def run(self, out: Path, console) -> dict:
+        from dynslip.run_static import run_cylinder
+
+        return run_cylinder(self, Path(out), console)
