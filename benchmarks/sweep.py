@@ -54,7 +54,11 @@ def run() -> dict:
         tmp = Path(tmp)
         base = _base(tmp)
         mus = [round(0.4 + 1.2 * i / max(n - 1, 1), 6) for i in range(n)]
-        spec = {"base": base.name, "overrides": {"numerics.nodes": nodes}, "grid": {"physics.friction.mu": mus}}
+        spec = {
+            "base": base.name,
+            "overrides": {"numerics.nodes": nodes},
+            "grid": {"physics.friction.mu": mus},
+        }
         path = tmp / "bench_sweep.yaml"
         path.write_text(yaml.safe_dump(spec))
         datasets = {}
@@ -78,7 +82,9 @@ def run() -> dict:
         if "sequential" in out:
             seq = out["sequential"]
             for mode in modes:
-                out[mode]["speed_vs_sequential"] = out[mode]["members_per_minute"] / seq["members_per_minute"]
+                out[mode]["speed_vs_sequential"] = (
+                    out[mode]["members_per_minute"] / seq["members_per_minute"]
+                )
             # the target, from the steady per-member time (compilation excluded)
             steady = seq["member_s_min"]
             out["estimate_64_members_s_at_this_N"] = 64 * steady

@@ -65,9 +65,8 @@ def plot_sweep(ds: xr.Dataset, path) -> Path:
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.4 * nrow), squeeze=False)
     x_dim = dims[0]
     x, ticks = _xvals(ds[x_dim])
-    maps = (
-        len(dims) == 2
-        and all(ds[d].values.dtype.kind in "iuf" and ds.sizes[d] >= 3 for d in dims)
+    maps = len(dims) == 2 and all(
+        ds[d].values.dtype.kind in "iuf" and ds.sizes[d] >= 3 for d in dims
     )
     failed = ds["status"].values != "ok"
     for ax, name in zip(axes.flat, panels, strict=False):
@@ -85,8 +84,12 @@ def plot_sweep(ds: xr.Dataset, path) -> Path:
             ax.set_ylabel(_label(da))
         else:
             for j in range(ds.sizes[dims[1]]):
-                ax.plot(x, da.isel({dims[1]: j}).values.astype(float), "o-",
-                        label=f"{dims[1]}={ds[dims[1]].values[j]}")
+                ax.plot(
+                    x,
+                    da.isel({dims[1]: j}).values.astype(float),
+                    "o-",
+                    label=f"{dims[1]}={ds[dims[1]].values[j]}",
+                )
                 f = failed[:, j]
                 ax.plot(x[f], np.zeros(f.sum()), "rx", ms=8)
             ax.set_ylabel(_label(da))
@@ -120,8 +123,15 @@ def _window_panel(ax, ds: xr.Dataset, dims: list[str], x: np.ndarray, ticks) -> 
             hi = sub["window_hi"].values[i]
             for a, b in zip(lo, hi, strict=True):
                 if np.isfinite(a) and np.isfinite(b):
-                    ax.bar(x[i] + offset, b - a, bottom=a, width=width, color=f"C{g}", alpha=0.7,
-                           label=label)
+                    ax.bar(
+                        x[i] + offset,
+                        b - a,
+                        bottom=a,
+                        width=width,
+                        color=f"C{g}",
+                        alpha=0.7,
+                        label=label,
+                    )
                     label = None
     ax.set_xlabel(dims[0])
     if ticks:

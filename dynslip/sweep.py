@@ -147,7 +147,10 @@ class SweepSpec(_Strict):
         return self
 
     def grid_values(self) -> dict[str, list[Any]]:
-        return {k: (v.values() if isinstance(v, Linspace) else list(v)) for k, v in (self.grid or {}).items()}
+        return {
+            k: (v.values() if isinstance(v, Linspace) else list(v))
+            for k, v in (self.grid or {}).items()
+        }
 
 
 def load_spec(path) -> SweepSpec:
@@ -164,11 +167,21 @@ def load_spec(path) -> SweepSpec:
     try:
         return SweepSpec.model_validate(data)
     except ValidationError as err:
-        e = max(err.errors(), key=lambda e: len(e["loc"]))  # for a union, the branch that got furthest
+        e = max(
+            err.errors(), key=lambda e: len(e["loc"])
+        )  # for a union, the branch that got furthest
         loc = ".".join(str(p) for p in e["loc"] if p not in ("list[any]", "Linspace"))
-        msg = "unknown field (allowed: name, description, base, overrides, grid, list, window, out, mode, keep_runs)" if e["type"] == "extra_forbidden" else e["msg"]
+        msg = (
+            "unknown field (allowed: name, description, base, overrides, grid, list, window, out, mode, keep_runs)"
+            if e["type"] == "extra_forbidden"
+            else e["msg"]
+        )
         value = e.get("input")
-        shown = json.dumps(value) if isinstance(value, (int, float, str, bool, type(None))) else type(value).__name__
+        shown = (
+            json.dumps(value)
+            if isinstance(value, (int, float, str, bool, type(None)))
+            else type(value).__name__
+        )
         raise InputError(f"{path}: field '{loc or '<root>'}' = {shown}: {msg}") from None
 
 
@@ -208,7 +221,9 @@ def _set(data: dict, dotted: str, value, source: str) -> None:
         try:
             node = _step(node, k, dotted)
         except KeyError:
-            raise InputError(f"{source}: field '{dotted}' does not exist ('{'.'.join(keys[: i + 1])}' not found)") from None
+            raise InputError(
+                f"{source}: field '{dotted}' does not exist ('{'.'.join(keys[: i + 1])}' not found)"
+            ) from None
         if not isinstance(node, (dict, list)):
             raise InputError(f"{source}: field '{dotted}' does not exist ('{k}' is not a section)")
     last = keys[-1]
@@ -216,7 +231,9 @@ def _set(data: dict, dotted: str, value, source: str) -> None:
         try:
             item = _step(node, last, dotted)
         except KeyError:
-            raise InputError(f"{source}: field '{dotted}' does not exist ('{last}' is not an item)") from None
+            raise InputError(
+                f"{source}: field '{dotted}' does not exist ('{last}' is not an item)"
+            ) from None
         node[node.index(item)] = value
     else:
         node[last] = value
@@ -284,7 +301,9 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
         base = (root / base_name).resolve()
         if base_name not in bases:
             if not base.is_file():
-                raise InputError(f"{sweep_path}: field 'base' = {json.dumps(base_name)}: scenario file not found")
+                raise InputError(
+                    f"{sweep_path}: field 'base' = {json.dumps(base_name)}: scenario file not found"
+                )
             # members start from the resolved base (defaults filled in): stages can be named
             bases[base_name] = resolve(load_data(base), str(base), validate_fn)
         data = copy.deepcopy(bases[base_name])
@@ -304,7 +323,9 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
 
             field_name, _ = friction_field(resolved, window["field"])
             if field_name in assign:
-                raise InputError(f"{src}: field '{field_name}' is both swept and searched by the window")
+                raise InputError(
+                    f"{src}: field '{field_name}' is both swept and searched by the window"
+                )
         members.append(Member(idx, assign, base, data, resolved, _fingerprint(resolved, window)))
     return members
 
@@ -335,10 +356,14 @@ def execute_member(
     t0 = time.perf_counter()
     rec: dict[str, Any] = {"status": "ok", "error": "", "summary": {}}
     with contextlib.ExitStack() as stack:
-        work = Path(run_dir) if run_dir else Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        work = (
+            Path(run_dir) if run_dir else Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        )
         try:
             rec["summary"] = _jsonable_summary(member_fn(data, work / "run", None))
-            if rec["summary"].get("status", "ok") != "ok":  # a runner that reports instead of raising
+            if (
+                rec["summary"].get("status", "ok") != "ok"
+            ):  # a runner that reports instead of raising
                 rec.update(status="failed", error=str(rec["summary"].get("message", "failed")))
         except ComputationError as err:
             rec.update(status="failed", error=f"ComputationError: {err}")
@@ -351,9 +376,17 @@ def execute_member(
             mu0 = float(_get(resolved, field_name))
             t = rec["summary"].get("trapped") if rec["status"] == "ok" else None
             res = scenario_window(
-                data, resolved, member_fn, field_name=field_name, tied=tied,
-                lo=window["lo"], hi=window["hi"], coarse=window["coarse"], tol=window["tol"],
-                known={mu0: None if t is None else bool(t)}, work_dir=work,
+                data,
+                resolved,
+                member_fn,
+                field_name=field_name,
+                tied=tied,
+                lo=window["lo"],
+                hi=window["hi"],
+                coarse=window["coarse"],
+                tol=window["tol"],
+                known={mu0: None if t is None else bool(t)},
+                work_dir=work,
             )
             rec["window"] = {"field": field_name, "tied": tied, **res.to_dict()}
     rec["wall_s"] = time.perf_counter() - t0
@@ -379,7 +412,10 @@ def _connect(scheduler: str | None):
 
     if scheduler is None:
         cluster = LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
             dashboard_address=None,
         )
         return Client(cluster), cluster
@@ -436,8 +472,14 @@ def _run_members(
         try:
             futures = {
                 client.submit(
-                    execute_member, member_fn, m.data, m.resolved, window, run_dir(m),
-                    key=f"dynslip-member-{m.fingerprint}", pure=False,
+                    execute_member,
+                    member_fn,
+                    m.data,
+                    m.resolved,
+                    window,
+                    run_dir(m),
+                    key=f"dynslip-member-{m.fingerprint}",
+                    pure=False,
                 ): m
                 for m in pending
             }
@@ -484,7 +526,9 @@ def _coord(values: list) -> np.ndarray:
     return arr if arr.dtype.kind in "biuf" else np.asarray([str(v) for v in values])
 
 
-def assemble(spec: SweepSpec, members: list[Member], records: dict[str, dict], attrs: dict) -> xr.Dataset:
+def assemble(
+    spec: SweepSpec, members: list[Member], records: dict[str, dict], attrs: dict
+) -> xr.Dataset:
     """One dataset from the member records: a dimension per swept field (grid) or ``member``."""
     from dynslip.io import variable
 
@@ -503,12 +547,19 @@ def assemble(spec: SweepSpec, members: list[Member], records: dict[str, dict], a
         coords = {MEMBER_DIM: variable(np.arange(len(members)), dims, "1", "member of the list")}
         for k in keys:
             vals = [m.assign.get(k, _base_value(m, k)) for m in members]
-            coords[k] = variable(_coord(vals), dims, "1" if k == BASE_KEY else _unit_of_field(k, members), f"swept field {k}")
+            coords[k] = variable(
+                _coord(vals),
+                dims,
+                "1" if k == BASE_KEY else _unit_of_field(k, members),
+                f"swept field {k}",
+            )
     flat = {m.fingerprint: _flatten(records[m.fingerprint]["summary"]) for m in members}
     units_decl: dict[str, str] = {}
     for m in members:
         units_decl.update(records[m.fingerprint]["summary"].get("units", {}) or {})
-    names = list(dict.fromkeys(["trapped", *KNOWN_VARIABLES, *(k for f in flat.values() for k in f)]))
+    names = list(
+        dict.fromkeys(["trapped", *KNOWN_VARIABLES, *(k for f in flat.values() for k in f)])
+    )
     data_vars = {}
     for name in names:
         vals = [flat[m.fingerprint].get(name) for m in members]
@@ -520,19 +571,32 @@ def assemble(spec: SweepSpec, members: list[Member], records: dict[str, dict], a
             fill = [v if isinstance(v, str) else "" for v in vals]
         else:
             arr = np.full(shape, np.nan)
-            fill = [float(v) if isinstance(v, (int, float)) and not isinstance(v, str) else np.nan for v in vals]
+            fill = [
+                float(v) if isinstance(v, (int, float)) and not isinstance(v, str) else np.nan
+                for v in vals
+            ]
         for m, v in zip(members, fill, strict=True):
             arr[m.index if spec.grid is not None else m.index[0]] = v
-        unit, long_name = KNOWN_VARIABLES.get(name, (units_decl.get(name, "1"), f"{name} (from the member's summary)"))
-        extra = {} if name in KNOWN_VARIABLES or name in units_decl else {"units_note": "not declared by the simulator"}
-        data_vars[name] = variable(arr.astype(str) if arr.dtype == object else arr, dims, unit, long_name, **extra)
+        unit, long_name = KNOWN_VARIABLES.get(
+            name, (units_decl.get(name, "1"), f"{name} (from the member's summary)")
+        )
+        extra = (
+            {}
+            if name in KNOWN_VARIABLES or name in units_decl
+            else {"units_note": "not declared by the simulator"}
+        )
+        data_vars[name] = variable(
+            arr.astype(str) if arr.dtype == object else arr, dims, unit, long_name, **extra
+        )
     status = np.full(shape, "missing", dtype=object)
     error = np.full(shape, "", dtype=object)
     for m in members:
         at = m.index if spec.grid is not None else m.index[0]
         status[at] = records[m.fingerprint]["status"]
         error[at] = records[m.fingerprint]["error"]
-    data_vars["status"] = variable(status.astype(str), dims, "1", "member status: ok, failed (ComputationError) or error")
+    data_vars["status"] = variable(
+        status.astype(str), dims, "1", "member status: ok, failed (ComputationError) or error"
+    )
     data_vars["error"] = variable(error.astype(str), dims, "1", "error of a failed member")
     if spec.window is not None:
         data_vars.update(_window_vars(spec, members, records, dims, shape))
@@ -545,7 +609,10 @@ def _window_vars(spec, members, records, dims, shape) -> dict:
 
     n_max = max([1] + [len(records[m.fingerprint]["window"]["windows"]) for m in members])
     wdims = (*dims, WINDOW_DIM)
-    out = {k: np.full((*shape, n_max), np.nan) for k in ("window_lo", "window_hi", "window_lo_err", "window_hi_err")}
+    out = {
+        k: np.full((*shape, n_max), np.nan)
+        for k in ("window_lo", "window_hi", "window_lo_err", "window_hi_err")
+    }
     n = np.full(shape, np.nan)
     nfail = np.full(shape, np.nan)
     for m in members:
@@ -560,7 +627,9 @@ def _window_vars(spec, members, records, dims, shape) -> dict:
             out["window_hi_err"][at][j] = d["hi"]["err"]
     field_name = records[members[0].fingerprint]["window"]["field"]
     res = {
-        name: variable(arr, wdims, "1", f"{name.replace('_', ' ')} of the trapping windows of {field_name}")
+        name: variable(
+            arr, wdims, "1", f"{name.replace('_', ' ')} of the trapping windows of {field_name}"
+        )
         for name, arr in out.items()
     }
     res["n_windows"] = variable(n, dims, "1", f"number of trapping windows of {field_name} found")
@@ -640,7 +709,13 @@ def run_sweep(
     member_fn = member_fn or default_member_fn
     members = expand(spec, sweep, validate_fn)
     window = spec.window.model_dump() if spec.window else None
-    out = Path(out) if out is not None else Path(spec.out) if spec.out else Path("outputs") / sweep.stem
+    out = (
+        Path(out)
+        if out is not None
+        else Path(spec.out)
+        if spec.out
+        else Path("outputs") / sweep.stem
+    )
     mdir = out / "members"
     mdir.mkdir(parents=True, exist_ok=True)
 
@@ -670,23 +745,40 @@ def run_sweep(
 
     t0 = time.perf_counter()
     with Progress(
-        TextColumn("members"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-        console=console, transient=False,
+        TextColumn("members"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=False,
     ) as bar:
         task = bar.add_task("members", total=n_unique, completed=n_unique - len(pending))
 
         def done(m: Member, rec: dict) -> None:
-            rec = {"fingerprint": m.fingerprint, "assign": m.assign, "base": str(m.base),
-                   "scenario": m.resolved, **rec}
+            rec = {
+                "fingerprint": m.fingerprint,
+                "assign": m.assign,
+                "base": str(m.base),
+                "scenario": m.resolved,
+                **rec,
+            }
             write_json(mdir / f"{m.key}.json", rec)
             records[m.fingerprint] = json.loads((mdir / f"{m.key}.json").read_text())
             bar.advance(task)
             if rec["status"] != "ok":
-                bar.console.print(f"[yellow]member {m.label}: {rec['status']}: {rec['error'][:200]}[/yellow]")
+                bar.console.print(
+                    f"[yellow]member {m.label}: {rec['status']}: {rec['error'][:200]}[/yellow]"
+                )
 
         note = _run_members(
-            pending, mode=mode, scheduler=scheduler, member_fn=member_fn, window=window,
-            run_dir=run_dir, done=done, batch_fn=batch_fn,
+            pending,
+            mode=mode,
+            scheduler=scheduler,
+            member_fn=member_fn,
+            window=window,
+            run_dir=run_dir,
+            done=done,
+            batch_fn=batch_fn,
         )
     wall = time.perf_counter() - t0
 
@@ -694,8 +786,11 @@ def run_sweep(
     attrs = provenance(base_json, "sweep")
     attrs["sweep"] = spec.model_dump_json(by_alias=True)
     attrs["sweep_file"] = str(sweep)
-    attrs["swept_fields"] = json.dumps(list(spec.grid_values()) if spec.grid is not None
-                                       else list(dict.fromkeys(k for m in members for k in m.assign)))
+    attrs["swept_fields"] = json.dumps(
+        list(spec.grid_values())
+        if spec.grid is not None
+        else list(dict.fromkeys(k for m in members for k in m.assign))
+    )
     ds = assemble(spec, members, records, attrs)
     write_netcdf(ds, out / "sweep.nc")
     statuses = [records[m.fingerprint]["status"] for m in members]
@@ -720,5 +815,7 @@ def run_sweep(
         f"sweep done: {summary['n_ok']} ok, {summary['n_failed']} failed; {out / 'sweep.nc'}"
     )
     if summary["n_ok"] == 0:
-        raise ComputationError(f"{sweep}: every member failed (errors in {out / 'sweep.nc'}, variable 'error')")
+        raise ComputationError(
+            f"{sweep}: every member failed (errors in {out / 'sweep.nc'}, variable 'error')"
+        )
     return summary

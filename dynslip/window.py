@@ -101,7 +101,9 @@ def _grid(lo: float, hi: float, coarse: int) -> list[float]:
 def check_range(lo: float, hi: float, coarse: int, tol: float, source: str = "window") -> None:
     """Raise :class:`InputError` unless ``lo < hi`` (finite), ``coarse >= 2`` and ``tol > 0``."""
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        raise InputError(f"{source}: range [lo, hi] = [{lo}, {hi}]: need finite lo < hi (an empty range)")
+        raise InputError(
+            f"{source}: range [lo, hi] = [{lo}, {hi}]: need finite lo < hi (an empty range)"
+        )
     if coarse < 2:
         raise InputError(f"{source}: coarse = {coarse}: need at least 2 scan points")
     if not (tol > 0):
@@ -352,7 +354,11 @@ def run_window(
             raise InputError(f"{path}: window range: {field_name} = {mu}: must be >= 0")
     check_range(lo, hi, coarse, tol, str(path))
     for mu in (lo, hi):
-        resolve(member_at(data, resolved, field_name, tied, mu), f"{path} ({field_name}={mu})", validate_fn)
+        resolve(
+            member_at(data, resolved, field_name, tied, mu),
+            f"{path} ({field_name}={mu})",
+            validate_fn,
+        )
 
     out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_window"
     out.mkdir(parents=True, exist_ok=True)
@@ -363,21 +369,42 @@ def run_window(
         lines.append(f"{field_name} = {mu:.6g}: {word}")
         console.print(f"  {field_name} = {mu:.6g}: {word}")
 
-    console.print(f"window search over {field_name} in [{lo}, {hi}], {coarse} coarse points, tol {tol}")
-    res = scenario_window(
-        data, resolved, member_fn, field_name=field_name, tied=tied, lo=lo, hi=hi,
-        coarse=coarse, tol=tol, work_dir=out, console=None, progress=progress,
+    console.print(
+        f"window search over {field_name} in [{lo}, {hi}], {coarse} coarse points, tol {tol}"
     )
-    result = {"scenario": str(path), "overrides": list(overrides), "field": field_name, "tied": tied,
-              **res.to_dict()}
+    res = scenario_window(
+        data,
+        resolved,
+        member_fn,
+        field_name=field_name,
+        tied=tied,
+        lo=lo,
+        hi=hi,
+        coarse=coarse,
+        tol=tol,
+        work_dir=out,
+        console=None,
+        progress=progress,
+    )
+    result = {
+        "scenario": str(path),
+        "overrides": list(overrides),
+        "field": field_name,
+        "tied": tied,
+        **res.to_dict(),
+    }
     write_json(out / "window.json", result)
     if res.evaluations and all(v is None for v in res.evaluations.values()):
-        raise ComputationError(f"{path}: every run of the window search failed (see {out / 'window.json'})")
+        raise ComputationError(
+            f"{path}: every run of the window search failed (see {out / 'window.json'})"
+        )
     from dynslip.plot_sweep import plot_window
 
     plot_window(result, out / "window.png")
     shown = ", ".join(f"[{w.lo.value:.4g}, {w.hi.value:.4g}]" for w in res.windows) or "none"
-    console.print(f"trapping windows of {field_name}: {shown} (tol {tol}, resolution {res.resolution:.3g})")
+    console.print(
+        f"trapping windows of {field_name}: {shown} (tol {tol}, resolution {res.resolution:.3g})"
+    )
     if res.failed:
         console.print(f"[yellow]{len(res.failed)} failed runs: {res.failed}[/yellow]")
     return result

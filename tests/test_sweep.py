@@ -47,7 +47,12 @@ class Stage(Strict):
 class Physics(Strict):
     friction: Friction = Friction()
     protocol: Protocol = Protocol()
-    stages: list[Stage] = [Stage(name="push_down", clamp_to_z_mm=-120.0), Stage(name="raise", clamp_to_z_mm=-20.0)]
+    stages: list[Stage] = Field(
+        default_factory=lambda: [
+            Stage(name="push_down", clamp_to_z_mm=-120.0),
+            Stage(name="raise", clamp_to_z_mm=-20.0),
+        ]
+    )
     material: Literal["neo_hookean", "gent"] = "neo_hookean"
 
 
@@ -112,13 +117,22 @@ def write_sweep(tmp_path: Path, body: dict, name="study.yaml") -> Path:
 
 GRID = {
     "overrides": {"numerics.nodes": 20},
-    "grid": {"physics.protocol.depth": [4.0, 6.0], "physics.friction.mu": {"start": 0.2, "stop": 1.0, "num": 5}},
+    "grid": {
+        "physics.protocol.depth": [4.0, 6.0],
+        "physics.friction.mu": {"start": 0.2, "stop": 1.0, "num": 5},
+    },
 }
 
 
 def sweep(path, out, **kw):
-    return run_sweep(path, out=out, member_fn=kw.pop("member_fn", fake_member), validate_fn=fake_validate,
-                     plot=kw.pop("plot", False), **kw)
+    return run_sweep(
+        path,
+        out=out,
+        member_fn=kw.pop("member_fn", fake_member),
+        validate_fn=fake_validate,
+        plot=kw.pop("plot", False),
+        **kw,
+    )
 
 
 def test_grid_sweep_dataset(tmp_path):
@@ -148,11 +162,19 @@ def test_grid_sweep_dataset(tmp_path):
 
 
 def test_list_sweep_has_a_member_dimension(tmp_path):
-    body = {"list": [{"physics.friction.mu": 0.5}, {"physics.friction.mu": 1.55, "physics.material": "gent"}]}
+    body = {
+        "list": [
+            {"physics.friction.mu": 0.5},
+            {"physics.friction.mu": 1.55, "physics.material": "gent"},
+        ]
+    }
     sweep(sweep_path := write_sweep(tmp_path, body), tmp_path / "out")
     ds = xr.open_dataset(tmp_path / "out" / "sweep.nc")
     assert ds["trapped"].dims == ("member",)
-    assert list(ds["physics.material"].values) == ["neo_hookean", "gent"]  # the base value filled in
+    assert list(ds["physics.material"].values) == [
+        "neo_hookean",
+        "gent",
+    ]  # the base value filled in
     assert list(ds["trapped"].values) == [1.0, 1.0]
     assert ds["theta_max"].values[1] == pytest.approx(1.5 + 0.155 + 0.1)
     assert load_spec(sweep_path).list_ is not None
@@ -165,18 +187,29 @@ def test_list_items_are_named_by_name_or_index(tmp_path):
         seen.append([st["clamp_to_z_mm"] for st in data["physics"]["stages"]])
         return fake_member(data, out_dir, console)
 
-    body = {"grid": {"physics.stages.push_down.clamp_to_z_mm": [-80.0, -100.0], "physics.stages.1.clamp_to_z_mm": [-10.0]}}
+    body = {
+        "grid": {
+            "physics.stages.push_down.clamp_to_z_mm": [-80.0, -100.0],
+            "physics.stages.1.clamp_to_z_mm": [-10.0],
+        }
+    }
     sweep(write_sweep(tmp_path, body), tmp_path / "out", member_fn=member)
     assert seen == [[-80.0, -10.0], [-100.0, -10.0]]  # the defaults were filled in, then set
     ds = xr.open_dataset(tmp_path / "out" / "sweep.nc")
-    assert ds["trapped"].dims == ("physics.stages.push_down.clamp_to_z_mm", "physics.stages.1.clamp_to_z_mm")
+    assert ds["trapped"].dims == (
+        "physics.stages.push_down.clamp_to_z_mm",
+        "physics.stages.1.clamp_to_z_mm",
+    )
     for bad in ("physics.stages.pushdown.clamp_to_z_mm", "physics.stages.7.clamp_to_z_mm"):
         with pytest.raises(InputError, match=bad.replace(".", r"\.")):
             sweep(write_sweep(tmp_path, {"grid": {bad: [-80.0]}}, name="bad.yaml"), tmp_path / "o2")
 
 
 def test_sweep_with_windows(tmp_path):
-    body = {"grid": {"physics.protocol.depth": [2.0, 6.0]}, "window": {"lo": 0.0, "hi": 2.4, "coarse": 25, "tol": 1e-3}}
+    body = {
+        "grid": {"physics.protocol.depth": [2.0, 6.0]},
+        "window": {"lo": 0.0, "hi": 2.4, "coarse": 25, "tol": 1e-3},
+    }
     sweep(write_sweep(tmp_path, body), tmp_path / "out", plot=True)
     ds = xr.open_dataset(tmp_path / "out" / "sweep.nc")
     for d in (2.0, 6.0):
@@ -200,10 +233,19 @@ def test_killed_sweep_resumes_with_every_member_once(tmp_path):
         "from dynslip.sweep import run_sweep\n"
         f"run_sweep({str(path)!r}, out={str(out)!r}, member_fn=slow_member, validate_fn=fake_validate, plot=False)\n"
     )
-    env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
-           "DYNSLIP_TEST_LOG": str(log), "DYNSLIP_TEST_SLEEP": "0.4"}
-    proc = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, start_new_session=True)
+    env = {
+        **os.environ,
+        "PYTHONPATH": f"{HERE}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
+        "DYNSLIP_TEST_LOG": str(log),
+        "DYNSLIP_TEST_SLEEP": "0.4",
+    }
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(list((out / "members").glob("*.json"))) < 3:
         assert proc.poll() is None, proc.stderr.read().decode()
@@ -222,7 +264,9 @@ def test_killed_sweep_resumes_with_every_member_once(tmp_path):
 
     summary = sweep(path, out, member_fn=counting)
     assert summary["n_run"] == 10 - len(before) == len(calls)
-    done_before = {(m["assign"]["physics.protocol.depth"], m["assign"]["physics.friction.mu"]) for m in before}
+    done_before = {
+        (m["assign"]["physics.protocol.depth"], m["assign"]["physics.friction.mu"]) for m in before
+    }
     rerun = {(c["protocol"]["depth"], c["friction"]["mu"]) for c in calls}
     assert not done_before & rerun  # nothing finished before the kill ran again
     after = _members(out)
@@ -251,14 +295,21 @@ def test_sequential_batched_and_dask_give_identical_datasets(tmp_path):
     assert batched["batched"].startswith("grouped sequential")
     cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the fake travels to the workers
     try:
-        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                          dashboard_address=None) as cluster:
+        with LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster:
             sweep(path, tmp_path / "dask", mode="dask", scheduler=cluster.scheduler_address)
     finally:
         cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
     dss = [xr.open_dataset(tmp_path / d / "sweep.nc") for d in ("seq", "bat", "dask")]
     assert list((dss[0]["status"] == "ok").sum("physics.material").values) == [2, 0]
-    assert (dss[0]["n_windows"] == 2).all() and (dss[0]["window_failed_runs"].sel({"physics.protocol.depth": 6.0}) == 1).all()
+    assert (dss[0]["n_windows"] == 2).all() and (
+        dss[0]["window_failed_runs"].sel({"physics.protocol.depth": 6.0}) == 1
+    ).all()
     for other in dss[1:]:
         xr.testing.assert_identical(dss[0], other)
 
@@ -268,12 +319,21 @@ def test_bad_inputs_are_one_line_input_errors(tmp_path, monkeypatch):
         "no field": ({"grid": {"physics.friction.mux": [0.1]}}, "physics.friction.mux"),
         "no section": ({"grid": {"physics.friction.mu.x": [0.1]}}, "physics.friction.mu"),
         "empty list": ({"grid": {"physics.friction.mu": []}}, "empty range"),
-        "empty linspace": ({"grid": {"physics.friction.mu": {"start": 0, "stop": 1, "num": 0}}}, "num"),
+        "empty linspace": (
+            {"grid": {"physics.friction.mu": {"start": 0, "stop": 1, "num": 0}}},
+            "num",
+        ),
         "not a number": ({"grid": {"physics.friction.mu": [0.5, "high"]}}, "physics.friction.mu"),
-        "bad override": ({"overrides": {"physics.depth": 3}, "grid": {"physics.friction.mu": [0.5]}}, "physics.depth"),
+        "bad override": (
+            {"overrides": {"physics.depth": 3}, "grid": {"physics.friction.mu": [0.5]}},
+            "physics.depth",
+        ),
         "both": ({"grid": {"physics.friction.mu": [0.5]}, "list": [{}]}, "exactly one"),
         "unknown key": ({"grid": {"physics.friction.mu": [0.5]}, "gird": 1}, "gird"),
-        "empty window": ({"grid": {"physics.protocol.depth": [5]}, "window": {"lo": 1, "hi": 1}}, "empty range"),
+        "empty window": (
+            {"grid": {"physics.protocol.depth": [5]}, "window": {"lo": 1, "hi": 1}},
+            "empty range",
+        ),
     }
     ran = []
     for label, (body, needle) in cases.items():
@@ -295,13 +355,19 @@ def test_bad_inputs_are_one_line_input_errors(tmp_path, monkeypatch):
     for argv, needle in [
         (["sweep", str(bad)], "physics.friction.mu"),
         (["sweep", str(ok), "--scheduler", "tcp://127.0.0.1:9"], "cannot reach"),
-        (["sweep", str(ok), "--scheduler", "tcp://127.0.0.1:9", "--mode", "sequential"], "--mode dask"),
+        (
+            ["sweep", str(ok), "--scheduler", "tcp://127.0.0.1:9", "--mode", "sequential"],
+            "--mode dask",
+        ),
         (["sweep", str(tmp_path / "missing.yaml")], "not found"),
     ]:
         proc_err = _cli(cli, argv)
         assert proc_err[0] == 2, (argv, proc_err)
         lines = proc_err[1].strip().splitlines()
-        assert len(lines) == 1 and needle in lines[0] and "Traceback" not in proc_err[1], (argv, proc_err)
+        assert len(lines) == 1 and needle in lines[0] and "Traceback" not in proc_err[1], (
+            argv,
+            proc_err,
+        )
 
 
 def _cli(cli, argv):
@@ -310,20 +376,40 @@ def _cli(cli, argv):
 
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        rc = cli.main([*argv, "--out", str(Path(argv[1]).with_suffix(".out"))] if len(argv) > 1 else argv)
+        rc = cli.main(
+            [*argv, "--out", str(Path(argv[1]).with_suffix(".out"))] if len(argv) > 1 else argv
+        )
     return rc, err.getvalue()
 
 
 def test_run_window_on_a_scenario(tmp_path):
     from dynslip.window import run_window
 
-    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"kind": "fake", "physics": {"protocol": {"depth": 4.0}}}))
-    res = run_window(tmp_path / "s.yaml", ["numerics.nodes=20"], lo=0.0, hi=2.0, coarse=21, tol=1e-3,
-                     out=tmp_path / "w", member_fn=fake_member, validate_fn=fake_validate)
+    (tmp_path / "s.yaml").write_text(
+        yaml.safe_dump({"kind": "fake", "physics": {"protocol": {"depth": 4.0}}})
+    )
+    res = run_window(
+        tmp_path / "s.yaml",
+        ["numerics.nodes=20"],
+        lo=0.0,
+        hi=2.0,
+        coarse=21,
+        tol=1e-3,
+        out=tmp_path / "w",
+        member_fn=fake_member,
+        validate_fn=fake_validate,
+    )
     np.testing.assert_allclose(res["windows"], [[0.4, 0.7], [1.5, 1.7]], atol=1e-3)
     assert json.loads((tmp_path / "w" / "window.json").read_text())["windows"] == res["windows"]
     assert (tmp_path / "w" / "window.png").stat().st_size > 0
     with pytest.raises(InputError, match="empty range"):
-        run_window(tmp_path / "s.yaml", lo=1.0, hi=0.5, member_fn=fake_member, validate_fn=fake_validate)
+        run_window(
+            tmp_path / "s.yaml", lo=1.0, hi=0.5, member_fn=fake_member, validate_fn=fake_validate
+        )
     with pytest.raises(InputError, match="physics.friction.muu"):
-        run_window(tmp_path / "s.yaml", ["physics.friction.muu=1"], member_fn=fake_member, validate_fn=fake_validate)
+        run_window(
+            tmp_path / "s.yaml",
+            ["physics.friction.muu=1"],
+            member_fn=fake_member,
+            validate_fn=fake_validate,
+        )

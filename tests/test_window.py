@@ -100,7 +100,8 @@ def test_every_window_wider_than_the_coarse_step_is_found(a, widths, gaps):
 
 
 @pytest.mark.parametrize(
-    ("lo", "hi", "coarse", "tol"), [(1.0, 1.0, 5, 0.1), (2.0, 1.0, 5, 0.1), (0.0, 1.0, 1, 0.1), (0.0, 1.0, 5, 0.0)]
+    ("lo", "hi", "coarse", "tol"),
+    [(1.0, 1.0, 5, 0.1), (2.0, 1.0, 5, 0.1), (0.0, 1.0, 1, 0.1), (0.0, 1.0, 5, 0.0)],
 )
 def test_bad_ranges_are_input_errors(lo, hi, coarse, tol):
     with pytest.raises(InputError):
