@@ -25,10 +25,12 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-__all__ = ["Stage", "Protocol", "StopRule", "BALL_HOLD", "BALL_FORCE"]
+__all__ = ["Stage", "Protocol", "StopRule", "BALL_HOLD", "BALL_FORCE", "CLAMP_POSITION", "CLAMP_FORCE"]
 
 BALL_HOLD = 0
 BALL_FORCE = 1
+CLAMP_POSITION = 0
+CLAMP_FORCE = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,7 +63,10 @@ class StopRule:
 class Stage:
     """One stage of a protocol (nondimensional lengths and forces, seconds).
 
-    ``clamp_vz``, ``clamp_vrho``: clamp velocity (R/s). ``ball_mode``: ``BALL_HOLD``
+    ``clamp_mode``: ``CLAMP_POSITION`` (the clamp moves at ``clamp_vz``, ``clamp_vrho``,
+    R/s) or ``CLAMP_FORCE`` (the clamp lets go gradually: its force on the sheet,
+    (rho, z) components, ramps from its value at the stage start, or
+    ``clamp_force_start``, to ``clamp_force_end``; the edge then moves with drag). ``ball_mode``: ``BALL_HOLD``
     (ball centre moves at ``ball_vz``) or ``BALL_FORCE`` (hold reaction ramps from the
     value at the stage start, or ``ball_force_start`` if given, to ``ball_force_end``
     over the stage's duration).
@@ -75,6 +80,9 @@ class Stage:
     ball_vz: float = 0.0
     ball_force_start: float | None = None
     ball_force_end: float = 0.0
+    clamp_mode: int = CLAMP_POSITION
+    clamp_force_start: tuple[float, float] | None = None
+    clamp_force_end: tuple[float, float] = (0.0, 0.0)
 
     @property
     def max_duration(self) -> float:
@@ -117,6 +125,8 @@ class Protocol:
         t, rho, z = 0.0, self.clamp_rho0, self.clamp_z0
         out = [(t, rho, z)]
         for s in self.stages:
+            if s.clamp_mode != CLAMP_POSITION:
+                break  # a clamp under force control goes where the sheet takes it
             t += s.max_duration
             rho += s.clamp_vrho * s.max_duration
             z += s.clamp_vz * s.max_duration

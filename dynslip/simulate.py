@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.friction import AbstractFriction, Coulomb
-from dynslip.protocols import BALL_HOLD, Protocol
+from dynslip.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
 from dynslip.sheet import SheetModel
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
@@ -52,37 +52,40 @@ N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
 
 
 class Layout(eqx.Module):
-    """Slices of the flat state vector for a sheet of ``n`` nodes."""
+    """Slices of the flat state vector for a sheet of ``n`` nodes.
+
+    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4)]``: node ``n-1`` is the clamped
+    edge (moved by the protocol, or free under a force when the clamp lets go).
+    """
 
     n: int = eqx.field(static=True)
 
     @property
     def size(self) -> int:
-        return (self.n - 2) + (self.n - 1) + 1 + N_ACC
+        return (self.n - 1) + self.n + 1 + N_ACC
 
-    def unpack(self, y, zc, rhoc):
+    def unpack(self, y):
         n = self.n
-        rho = jnp.concatenate([jnp.zeros(1), y[: n - 2], jnp.reshape(rhoc, (1,))])
-        z = jnp.concatenate([y[n - 2 : 2 * n - 3], jnp.reshape(zc, (1,))])
-        zb = y[2 * n - 3]
-        acc = y[2 * n - 2 : 2 * n - 2 + N_ACC]
+        rho = jnp.concatenate([jnp.zeros(1), y[: n - 1]])
+        z = y[n - 1 : 2 * n - 1]
+        zb = y[2 * n - 1]
+        acc = y[2 * n : 2 * n + N_ACC]
         return rho, z, zb, acc
 
     def pack(self, rho, z, zb, acc):
-        n = self.n
-        return jnp.concatenate([rho[1 : n - 1], z[: n - 1], jnp.reshape(zb, (1,)), acc])
+        return jnp.concatenate([rho[1:], z, jnp.reshape(zb, (1,)), acc])
 
 
 class StageArgs(eqx.Module):
     """Everything the vector field needs besides the state: all arrays (one compile)."""
 
     t0: jnp.ndarray
-    zc0: jnp.ndarray
-    rhoc0: jnp.ndarray
+    clamp_mode: jnp.ndarray  # CLAMP_POSITION or CLAMP_FORCE
     vzc: jnp.ndarray
     vrhoc: jnp.ndarray
+    fc0: jnp.ndarray  # (2,) clamp force on the sheet (rho, z) at the ramp's start (force mode)
+    fc1: jnp.ndarray  # (2,) ... at its end
     ball_mode: jnp.ndarray
-    zb0: jnp.ndarray
     vzb: jnp.ndarray
     f0: jnp.ndarray
     f1: jnp.ndarray
@@ -93,13 +96,14 @@ class StageArgs(eqx.Module):
     ball_drag: jnp.ndarray  # eta_b (G h0 R s / R)
     weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
 
-    def clamp(self, t):
-        s = t - self.t0
-        return self.zc0 + self.vzc * s, self.rhoc0 + self.vrhoc * s
+    def frac(self, t):
+        return jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
 
     def ball_force(self, t):
-        frac = jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
-        return self.f0 + (self.f1 - self.f0) * frac
+        return self.f0 + (self.f1 - self.f0) * self.frac(t)
+
+    def clamp_force(self, t):
+        return self.fc0 + (self.fc1 - self.fc0) * self.frac(t)
 
 
 def _f(x):
@@ -108,27 +112,35 @@ def _f(x):
 
 def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     """Rates and the quantities derived on the way (shared by the vector field and frames)."""
-    zc, rhoc = args.clamp(t)
-    rho, z, zb, _ = layout.unpack(y, zc, rhoc)
+    rho, z, zb, _ = layout.unpack(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag)
     g_rho, g_z, _ = k["grads"]
-    cz, crho = g_z[-1], g_rho[-1]
-    held = args.ball_mode == BALL_HOLD
-    f_app = args.ball_force(t)
-    vb = jnp.where(held, args.vzb, (f_app + cz + args.weight) / args.ball_drag)
-    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, f_app)
-    u = k["u"]
-    v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
-    free = jnp.arange(layout.n) < layout.n - 1
     eta_a = k["eta_a"]
-    d_drag = jnp.sum(jnp.where(free, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
-    d_fric = jnp.sum(jnp.where(free, (k["ft"] - k["S"]) * k["S"] / eta_a, 0.0))
-    w_clamp = cz * args.vzc + crho * args.vrhoc
+    u = k["u"]
+    pinned = args.clamp_mode == CLAMP_POSITION
+    # Clamp: prescribed velocity (its force on the sheet is dE/dx_c), or a ramped force
+    # with the edge node moving like any free node (drag relative to the ball).
+    f_app = args.clamp_force(t)
+    u_c_free = (f_app - jnp.stack([g_rho[-1], g_z[-1]])) / eta_a[-1]
+    crho = jnp.where(pinned, g_rho[-1], f_app[0])
+    cz = jnp.where(pinned, g_z[-1], f_app[1])
+    held = args.ball_mode == BALL_HOLD
+    fb = args.ball_force(t)
+    vb = jnp.where(held, args.vzb, (fb + cz + args.weight) / args.ball_drag)
+    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, fb)
+    u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
+    u = u.at[:, -1].set(u_c)
+    v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
+    moving = (jnp.arange(layout.n) < layout.n - 1) | ~pinned  # nodes with constitutive drag
+    d_drag = jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
+    last = jnp.arange(layout.n) == layout.n - 1
+    d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
+    w_clamp = cz * v[1, -1] + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
     dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
     dy = layout.pack(v[0], v[1], vb, dacc)
     return dy, {"clamp_force": cz, "clamp_force_rho": crho, "ball_reaction": f_hold, "ball_v": vb,
-                "zc": zc, "rhoc": rhoc, "rho": rho, "z": z, "zb": zb, "kin": k}
+                "zc": z[-1], "rhoc": rho[-1], "rho": rho, "z": z, "zb": zb, "kin": k}
 
 
 def vector_field(model: SheetModel, layout: Layout):
@@ -191,7 +203,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     dy, aux = evaluate(model, layout, t, y, args)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(rho, z, zb, args.friction, args.eps, args.drag, contact_threshold)
-    acc = layout.unpack(y, aux["zc"], aux["rhoc"])[3]
+    acc = layout.unpack(y)[3]
     contact = d["contact"]
     idx = jnp.arange(layout.n)
     any_c = jnp.any(contact)
@@ -214,7 +226,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
 def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet: float, zb: float):
     """Flat sheet at height ``z_sheet``, uniformly pre-stretched radially (rho = lambda rbar)."""
     rho = pre_stretch * model.mesh.rbar
-    z = jnp.full(layout.n, z_sheet)
+    z = jnp.full(layout.n, _f(z_sheet))
     return layout.pack(rho, z, _f(zb), jnp.zeros(N_ACC))
 
 
@@ -231,12 +243,14 @@ class Result:
     e0: float = 0.0
 
 
-def _stage_args(stage, t0, zc0, rhoc0, zb0, f_start, friction, eps, drag, ball_drag, weight):
+def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_drag, weight):
     dur = stage.max_duration
     f0 = f_start if stage.ball_force_start is None else stage.ball_force_start
+    fc0 = fc_start if stage.clamp_force_start is None else stage.clamp_force_start
     return StageArgs(
-        t0=_f(t0), zc0=_f(zc0), rhoc0=_f(rhoc0), vzc=_f(stage.clamp_vz), vrhoc=_f(stage.clamp_vrho),
-        ball_mode=jnp.asarray(stage.ball_mode, jnp.int32), zb0=_f(zb0), vzb=_f(stage.ball_vz),
+        t0=_f(t0), clamp_mode=jnp.asarray(stage.clamp_mode, jnp.int32), vzc=_f(stage.clamp_vz),
+        vrhoc=_f(stage.clamp_vrho), fc0=_f(fc0), fc1=_f(stage.clamp_force_end),
+        ball_mode=jnp.asarray(stage.ball_mode, jnp.int32), vzb=_f(stage.ball_vz),
         f0=_f(f0), f1=_f(stage.ball_force_end), ramp=_f(dur), friction=friction, eps=_f(eps),
         drag=_f(drag), ball_drag=_f(ball_drag), weight=_f(weight),
     )
@@ -270,12 +284,12 @@ def simulate(
     y = initial_state(model, layout, pre_stretch, z_sheet, protocol.ball_z0)
     rtol, atol = _f(settings.rtol), _f(settings.atol)
     t = 0.0
-    zc, rhoc = protocol.clamp_z0, protocol.clamp_rho0
     frames: list = []
     stage_end: list = []
     stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0}
     dt_guess = 1e-3 * settings.save_interval
     reaction = 0.0
+    clamp_reaction = (0.0, 0.0)
     t_wall0 = _time.perf_counter()
     failed = None
     e0 = None
@@ -290,8 +304,8 @@ def simulate(
         return rec
 
     for si, stage in enumerate(protocol.stages):
-        zb_now = float(y[2 * layout.n - 3])
-        args = _stage_args(stage, t, zc, rhoc, zb_now, reaction, friction, eps, drag, ball_drag, weight)
+        zb_now = float(y[2 * layout.n - 1])
+        args = _stage_args(stage, t, zb_now, reaction, clamp_reaction, friction, eps, drag, ball_drag, weight)
         if si == 0:
             rec = record(t, y, args, 0)
             e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
@@ -344,10 +358,10 @@ def simulate(
                         break
                 else:
                     rest_since = None
-        zc, rhoc = (float(v) for v in args.clamp(_f(t)))
         reaction = float(frames[-1]["ball_reaction"])
+        clamp_reaction = (float(frames[-1]["clamp_force_rho"]), float(frames[-1]["clamp_force"]))
         stage_end.append({"name": stage.name, "t_start": t_start, "t_end": t, "condition_met": bool(met),
-                          "clamp_z": zc})
+                          "clamp_z": float(frames[-1]["clamp_z"])})
         if failed:
             break
     stats["wall_s"] = _time.perf_counter() - t_wall0

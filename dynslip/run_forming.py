@@ -1,0 +1,281 @@
+"""Runner of ``kind: forming`` scenarios: core objects, progress bar, trajectory.nc, summary, figures.
+
+The CLI hands :func:`run_forming` its staging folder and swaps it in on success. The
+trajectory is rewritten (atomically, ``complete = 0``) at every stage end and every
+``FLUSH_FRAMES`` frames, so an interrupted run leaves a readable partial file; a failed
+run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit 3).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+
+from dynslip import io
+from dynslip.errors import ComputationError, InputError
+
+__all__ = ["run_forming", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
+
+FLUSH_FRAMES = 25
+
+PER_NODE = {
+    "rho": ("1", "deformed distance from the axis", "R"),
+    "z": ("1", "deformed height (ball centre at the origin when ball_z = 0)", "R"),
+    "theta": ("1", "polar angle on the ball where in contact (NaN where free)", None),
+    "lambda_theta": ("1", "meridional stretch", None),
+    "lambda_phi": ("1", "hoop stretch", None),
+    "T_theta": ("1", "relaxed meridional tension per deformed length", "G*h0"),
+    "T_phi": ("1", "relaxed hoop tension per deformed length", "G*h0"),
+    "pressure": ("1", "contact pressure F_N", "G*h0/R"),
+    "friction": ("1", "meridional friction force density on the sheet, + toward the equator", "G*h0/R"),
+    "slip_velocity": ("1/s", "meridional slip speed relative to the ball, + toward the equator (R/s)", "R"),
+    "mu_mobilised": ("1", "|friction| / pressure where in contact", None),
+}
+PER_TIME = {
+    "stage": ("1", "index into stage_names", None),
+    "clamp_z": ("1", "clamp height", "R"),
+    "clamp_rho": ("1", "clamp radius", "R"),
+    "clamp_force": ("1", "axial force the clamp exerts on the sheet, + along +z", "G*h0*R"),
+    "clamp_force_rho": ("1", "radial force the clamp exerts on the sheet, + outward", "G*h0*R"),
+    "ball_z": ("1", "ball centre height", "R"),
+    "ball_reaction": ("1", "force of the hold on the ball, + along +z (0 once released)", "G*h0*R"),
+    "theta_max": ("1", "largest polar angle in contact", None),
+    "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
+    "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),
+    "work_ball": ("1", "accumulated work of the hold (and gravity) on the ball", "G*h0*R^2"),
+    "energy_elastic": ("1", "stored relaxed elastic energy (pre-stretch included)", "G*h0*R^2"),
+    "energy_penalty": ("1", "contact penalty energy", "G*h0*R^2"),
+    "dissipation_friction": ("1", "accumulated friction dissipation", "G*h0*R^2"),
+    "dissipation_drag": ("1", "accumulated drag dissipation (ball drag included)", "G*h0*R^2"),
+    "energy_residual": ("1", "work - (change of stored energy) - dissipation", "G*h0*R^2"),
+}
+STATE_MEANINGS = "free stuck slipping_toward_pole slipping_toward_equator"
+
+
+def build_core(sc):
+    """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
+    from dynslip.friction import Coulomb
+    from dynslip.materials import make_material
+    from dynslip.scenario_forming import build_protocol
+    from dynslip.sheet import Penalty, SheetModel, make_mesh
+    from dynslip.simulate import Settings
+
+    p, nu = sc.physics, sc.numerics
+    r = p.ball_radius_mm
+    m = p.material
+    material = make_material(m.model, jm=m.jm, c1=m.c1, c2=0.5 - m.c1)
+    r_edge = p.rim_radius_mm / r / p.pre_stretch
+    mesh = make_mesh(nu.nodes, r_edge)
+    model = SheetModel(mesh, material, Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width)))
+    protocol = build_protocol(sc)
+    weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0
+    settings = Settings(solver=nu.solver, rtol=nu.rtol, atol=nu.atol, pcoeff=nu.pid_pcoeff, icoeff=nu.pid_icoeff,
+                        max_steps=nu.max_steps, save_interval=nu.save_interval_s,
+                        contact_threshold=nu.contact_threshold)
+    kwargs = dict(
+        friction=Coulomb(mu=jnp.asarray(p.friction.mu), eps=jnp.asarray(nu.friction_smoothing)),
+        eps=nu.friction_smoothing, drag=nu.drag_time_s, ball_drag=nu.drag_time_s * 4 * math.pi * nu.ball_drag,
+        pre_stretch=p.pre_stretch, z_sheet=(r + p.sheet_gap_mm) / r, weight=weight, settings=settings,
+    )
+    return model, protocol, kwargs
+
+
+def _attrs_scale(scale):
+    return {"scale": scale} if scale else {}
+
+
+def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None) -> xr.Dataset:
+    """The trajectory contract (docs/trajectory-contract.md) from the driver's frames."""
+    p = sc.physics
+    time = np.array([f["time"] for f in frames])
+    data = {}
+    for name, (units, long_name, scale) in PER_NODE.items():
+        arr = np.stack([np.asarray(f[name], float) for f in frames])
+        data[name] = io.variable(arr, ("time", "rbar"), units, long_name, **_attrs_scale(scale))
+    state = np.stack([np.asarray(f["state"], np.int8) for f in frames])
+    data["state"] = io.variable(state, ("time", "rbar"), "1", "contact and slip state of the node",
+                                flag_values=np.array([0, 1, 2, 3], np.int8), flag_meanings=STATE_MEANINGS)
+    scal = {k: np.array([float(f[k]) for f in frames]) for k in PER_TIME if k not in ("energy_residual", "stage")}
+    scal["stage"] = np.array([int(f["stage"]) for f in frames], np.int16)
+    scal["energy_residual"] = (scal["work_clamp"] + scal["work_ball"]
+                               - (scal["energy_elastic"] + scal["energy_penalty"] - e0)
+                               - scal["dissipation_friction"] - scal["dissipation_drag"])
+    for name, (units, long_name, scale) in PER_TIME.items():
+        data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
+    coords = {
+        "time": io.variable(time, ("time",), "s", "physical time of the saved frame"),
+        "rbar": io.variable(np.asarray(rbar), ("rbar",), "1", "undeformed (material) radius / R", scale="R"),
+    }
+    attrs = io.provenance(sc.to_json(), "trajectory")
+    attrs["kind"] = "trajectory"
+    attrs.update({
+        "complete": int(bool(complete)),
+        "R_m": p.ball_radius_mm * 1e-3,
+        "G_Pa": p.youngs_modulus_MPa * 1e6 / 3.0,
+        "h0_m": p.thickness_um * 1e-6,
+        "force_scale_N": p.force_scale_N,
+        "stage_names": json.dumps(list(stage_names)),
+        "contact_threshold": sc.numerics.contact_threshold,
+        "energy_initial": float(e0),
+        "mu": p.friction.mu,
+        "friction_smoothing": sc.numerics.friction_smoothing,
+    })
+    if extra_attrs:
+        attrs.update(extra_attrs)
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def summarize(sc, ds: xr.Dataset, result) -> dict:
+    """summary.json: the end state, the friction it needs, energy balance, solver statistics."""
+    p = sc.physics
+    end = ds.isel(time=-1)
+    failed = result.failed is not None
+    contact = np.asarray(end["state"]) > 0
+    theta_max = float(end["theta_max"])
+    rbar_max = float(end["rbar_max"])
+    lt = np.asarray(end["lambda_theta"])
+    lp = np.asarray(end["lambda_phi"])
+    i_t = int(np.nanargmax(lt))
+    mu_mob = np.asarray(end["mu_mobilised"])
+    mu_needed = float(np.nanmax(mu_mob[contact])) if contact.any() else float("nan")
+    stage_names = [s.name for s in p.stages]
+    slack = next((s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None)
+    work = np.abs(ds["work_clamp"].values) + np.abs(ds["work_ball"].values)
+    work_scale = float(np.max(work)) if work.size else float("nan")
+    resid = ds["energy_residual"].values
+    last = result.stage_end[-1] if result.stage_end else None
+    at_rest = bool(last and last["condition_met"] and _stage_until(p, last["name"]) == "rest"
+                   and len(result.stage_end) == len(stage_names))
+    reaction = float(end["ball_reaction"])
+    if failed:
+        trapped = None
+    else:
+        trapped = bool(at_rest and np.isfinite(theta_max) and theta_max > math.pi / 2
+                       and abs(reaction) < sc.numerics.trap_reaction_tol)
+    st = result.stats
+    summary = {
+        "status": "failed" if failed else "ok",
+        "message": result.failed or "",
+        "trapped": trapped,
+        "theta_max": theta_max,
+        "rbar_max": rbar_max,
+        "opening_radius": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
+        "rest_state_check": {
+            "sin_theta_max": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
+            "rbar_max": rbar_max,
+            "holds": bool(np.isfinite(theta_max) and math.sin(theta_max) <= rbar_max),
+            "hoop_stretch_at_lift_off": (math.sin(theta_max) / rbar_max) if rbar_max > 0 else float("nan"),
+            "paper_rough": {"theta_max": 1.8, "rbar_max": 0.9},
+        },
+        "largest_stretch": {
+            "lambda_theta": float(lt[i_t]),
+            "rbar": float(ds["rbar"].values[i_t]),
+            "theta": float(end["theta"].values[i_t]),
+            "in_contact": bool(contact[i_t]),
+            "lambda_phi_max": float(np.nanmax(lp)),
+            "path_max_lambda_theta": float(np.nanmax(ds["lambda_theta"].values)),
+        },
+        "mu": p.friction.mu,
+        "mu_needed": mu_needed,
+        "contact_nodes": int(contact.sum()),
+        "slack_rim_height": {
+            "reached": bool(slack["condition_met"]) if slack else None,
+            "z_R": slack["clamp_z"] if slack else None,
+            "z_mm": slack["clamp_z"] * p.ball_radius_mm if slack else None,
+        },
+        "end_at_rest": at_rest,
+        "ball_reaction_end": reaction,
+        "ball_z_end": float(end["ball_z"]),
+        "clamp_force_end": float(end["clamp_force"]),
+        "energy_balance": {
+            "residual_end": float(resid[-1]),
+            "residual_max_abs": float(np.max(np.abs(resid))),
+            "work_scale": work_scale,
+            "relative_residual": float(np.max(np.abs(resid)) / work_scale) if work_scale > 0 else float("nan"),
+            "initial_energy": float(ds.attrs["energy_initial"]),
+        },
+        "stages": result.stage_end,
+        "solver": {
+            "steps": st["steps"], "accepted": st["accepted"], "rejected": st["rejected"],
+            "segments": st["segments"], "compile_s": st["compile_s"], "run_s": st["run_s"],
+            "time_per_step_ms": st["time_per_step_ms"], "wall_s": st.get("wall_s"),
+        },
+        "nodes": sc.numerics.nodes,
+    }
+    return summary
+
+
+def _stage_until(p, name):
+    return next(s.until for s in p.stages if s.name == name)
+
+
+def _progress(console, total):
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    prog = Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("t = {task.fields[t]:.1f} s"),
+                    TimeElapsedColumn(), console=console, transient=False)
+    return prog, prog.add_task("compiling", total=total, t=0.0)
+
+
+def run_forming(sc, out: Path, console=None) -> dict:
+    """Run a forming scenario into ``out``; return the summary (raises ComputationError on failure)."""
+    from rich.console import Console
+
+    from dynslip.materials import MaterialRangeError  # noqa: F401  (documented error type)
+    from dynslip.plot_forming import make_figures
+    from dynslip.simulate import simulate
+
+    console = console or Console(stderr=True)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    model, protocol, kw = build_core(sc)
+    names = protocol.names
+    rbar = np.asarray(model.mesh.rbar)
+    total = sum(s.max_duration for s in protocol.stages)
+    frames_seen: list = []
+    prog, task = _progress(console, total)
+    state = {"e0": None}
+
+    def flush(frames, complete=False):
+        if not frames:
+            return
+        e0 = state["e0"] if state["e0"] is not None else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
+        ds = to_dataset(sc, frames, rbar, e0, complete, names)
+        io.write_netcdf(ds, out / "trajectory.nc")
+        return ds
+
+    def on_frame(rec):
+        frames_seen.append(rec)
+        if len(frames_seen) == 1:
+            state["e0"] = float(rec["energy_elastic"] + rec["energy_penalty"])
+        prog.update(task, completed=min(rec["time"], total), t=rec["time"],
+                    description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})")
+        if len(frames_seen) % FLUSH_FRAMES == 0:
+            flush(frames_seen)
+
+    try:
+        with prog:
+            result = simulate(model, protocol, on_frame=on_frame, **kw)
+    except KeyboardInterrupt:
+        flush(frames_seen)
+        raise
+    if result.failed:
+        ds = flush(result.frames)
+        if ds is not None:
+            io.write_json(out / "summary.json", summarize(sc, ds, result))
+        raise ComputationError(f"{result.failed}; partial trajectory kept in {out / 'trajectory.nc'}")
+    ds = to_dataset(sc, result.frames, rbar, result.e0, True, names)
+    io.check_units(ds)
+    io.write_netcdf(ds, out / "trajectory.nc")
+    summary = summarize(sc, ds, result)
+    io.write_json(out / "summary.json", summary)
+    make_figures(ds, out)
+    return summary
+
+
+__all__ += ["InputError"]

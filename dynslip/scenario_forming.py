@@ -1,0 +1,249 @@
+"""Schema of ``kind: forming`` scenarios: the whole sheet loaded along a keyframed path.
+
+Physical units in the file (mm, mm/s, s, N, MPa, um, g); the runner converts them to the
+nondimensional core (lengths by the ball radius R, forces by G h0 R, time in s).
+Heights are measured from the ball centre, upward. See docs/forming.md.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Literal
+
+from pydantic import model_validator
+
+from dynslip.scenario import F, ScenarioBase, Strict
+
+__all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec", "FrictionSpec"]
+
+
+class MaterialSpec(Strict):
+    """The sheet's strain energy (physics.md Section 2)."""
+
+    model: Literal["gent", "neo_hookean", "mooney_rivlin", "hookean"] = F(
+        "gent", description="strain energy; hookean is refused beyond stretch 3")
+    jm: float = F(50.0, gt=0, description="Gent locking parameter J_m")
+    c1: float = F(0.5, ge=0, le=0.5, description="Mooney-Rivlin C1 (C2 = 1/2 - C1)")
+
+
+class FrictionSpec(Strict):
+    """Friction between sheet and ball."""
+
+    law: Literal["coulomb"] = F("coulomb", description="ideal Coulomb, overdamped soft threshold")
+    mu: float = F(0.8, ge=0, le=10, description="friction coefficient")
+
+
+class StageSpec(Strict):
+    """One stage: clamp motion, what holds the ball, and when the stage ends."""
+
+    name: str = F(..., min_length=1, description="stage name (unique)")
+    clamp_to_z_mm: float | None = F(None, unit="mm",
+                                    description="clamp height to move to (from the ball centre); needs clamp_speed_mm_s")
+    clamp_speed_mm_s: float | None = F(None, unit="mm/s", gt=0, description="speed of a clamp_to_z_mm move")
+    clamp_velocity_mm_s: float = F(0.0, unit="mm/s",
+                                   description="signed vertical clamp velocity (up > 0) for stages ended by a condition or duration")
+    duration_s: float | None = F(None, unit="s", gt=0,
+                                 description="stage duration; for condition stages the longest it may run")
+    until: Literal["duration", "clamp_force_below", "rest"] = F(
+        "duration", description="stop rule: the duration, the clamp's axial force below a threshold, or rest")
+    force_threshold_N: float | None = F(None, unit="N", gt=0, description="threshold of until: clamp_force_below")
+    rest_rate_mm_s: float | None = F(None, unit="mm/s", gt=0,
+                                     description="until: rest: largest slip speed and ball speed below this")
+    rest_hold_s: float | None = F(None, unit="s", gt=0, description="until: rest: for this long")
+    clamp: Literal["move", "let_go", "free"] = F(
+        "move", description="move: the clamp holds the edge and moves as given; let_go: its force on the sheet is "
+        "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held")
+    ball: Literal["hold", "release", "free"] = F(
+        "hold", description="hold: ball held in place; release: the hold's reaction ramped to zero over the "
+        "stage; free: no hold")
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.clamp != "move" and (self.clamp_to_z_mm is not None or self.clamp_velocity_mm_s != 0.0):
+            raise ValueError(f"clamp: {self.clamp} prescribes no clamp motion; drop clamp_to_z_mm / clamp_velocity_mm_s")
+        if self.clamp_to_z_mm is not None:
+            if self.clamp_speed_mm_s is None:
+                raise ValueError("clamp_to_z_mm needs clamp_speed_mm_s")
+            if self.clamp_velocity_mm_s != 0.0:
+                raise ValueError("overlapping clamp motions: give clamp_to_z_mm (with clamp_speed_mm_s) "
+                                 "or clamp_velocity_mm_s, not both")
+            if self.duration_s is not None:
+                raise ValueError("overlapping timing: a clamp_to_z_mm move takes |dz|/speed; drop duration_s")
+            if self.until != "duration":
+                raise ValueError("a clamp_to_z_mm move ends at its target: use until: duration")
+        elif self.clamp_speed_mm_s is not None:
+            raise ValueError("clamp_speed_mm_s without clamp_to_z_mm")
+        elif self.duration_s is None:
+            raise ValueError("duration_s is required (the duration, or the longest a condition stage may run)")
+        if self.until == "clamp_force_below":
+            if self.force_threshold_N is None:
+                raise ValueError("until: clamp_force_below needs force_threshold_N")
+            if self.clamp != "move":
+                raise ValueError("until: clamp_force_below needs a clamp that holds the edge (clamp: move)")
+            if self.clamp_velocity_mm_s == 0.0 and self.ball == "hold":
+                raise ValueError("until: clamp_force_below with a clamp and ball at rest can never hold "
+                                 "(nothing unloads the sheet)")
+        if self.until == "rest":
+            if self.rest_rate_mm_s is None or self.rest_hold_s is None:
+                raise ValueError("until: rest needs rest_rate_mm_s and rest_hold_s")
+            if self.rest_hold_s >= self.duration_s:
+                raise ValueError("until: rest can never hold: rest_hold_s must be shorter than duration_s")
+        return self
+
+
+def _default_stages() -> list[StageSpec]:
+    return [
+        StageSpec(name="push_down", clamp_to_z_mm=-120.0, clamp_speed_mm_s=2.0),
+        StageSpec(name="hold", duration_s=10.0),
+        StageSpec(name="raise", clamp_velocity_mm_s=1.0, duration_s=300.0, until="clamp_force_below",
+                  force_threshold_N=0.02),
+        StageSpec(name="release", ball="release", duration_s=20.0),
+        StageSpec(name="rest", ball="free", duration_s=200.0, until="rest", rest_rate_mm_s=0.002, rest_hold_s=10.0),
+    ]
+
+
+class FormingPhysics(Strict):
+    """Geometry, material, friction and the loading path (physical units)."""
+
+    ball_radius_mm: float = F(20.0, unit="mm", gt=0, description="ball radius R")
+    ball_mass_g: float = F(2.7, unit="g", ge=0, description="ball mass (only with gravity on)")
+    thickness_um: float = F(150.0, unit="um", gt=0, description="sheet thickness h0")
+    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, description="Young's modulus E (G = E/3)")
+    material: MaterialSpec = MaterialSpec()
+    friction: FrictionSpec = FrictionSpec()
+    rim_radius_mm: float = F(50.8, unit="mm", gt=0, description="clamp (tube rim) radius")
+    pre_stretch: float = F(1.05, ge=1.0, le=1.5,
+                           description="radial stretch of the clamped sheet (the disc inside the band has "
+                           "material radius rim_radius / pre_stretch)")
+    sheet_gap_mm: float = F(0.4, unit="mm", gt=0, description="initial height of the flat sheet above the ball top")
+    gravity: bool = F(False, description="ball weight on (off by default: a downward-opening membrane pocket "
+                      "cannot carry it; physics.md Section 4)")
+    stages: list[StageSpec] = F(default_factory=_default_stages, description="the loading path, in order")
+
+    @model_validator(mode="after")
+    def _geometry(self):
+        if not self.stages:
+            raise ValueError("stages: empty protocol (need at least one stage)")
+        names = [s.name for s in self.stages]
+        if len(set(names)) != len(names):
+            raise ValueError(f"stages: duplicate stage names {sorted({n for n in names if names.count(n) > 1})}")
+        if self.rim_radius_mm <= self.ball_radius_mm:
+            raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the ball "
+                             f"(radius {self.ball_radius_mm} mm)")
+        z = self.ball_radius_mm + self.sheet_gap_mm
+        known = True
+        let_go = False
+        for s in self.stages:
+            if let_go and s.clamp == "move":
+                raise ValueError(f"stages.{s.name}: the clamp cannot hold the edge again once it has let go")
+            let_go = let_go or s.clamp != "move"
+            if s.clamp_to_z_mm is not None:
+                if not known:
+                    raise ValueError(f"stages.{s.name}: clamp_to_z_mm after a condition stage (start height "
+                                     "unknown): use clamp_velocity_mm_s with duration_s")
+                if abs(s.clamp_to_z_mm - z) < 1e-9:
+                    raise ValueError(f"stages.{s.name}: empty stage (clamp already at {z} mm)")
+                z = s.clamp_to_z_mm
+            else:
+                z += s.clamp_velocity_mm_s * s.duration_s
+                if s.until != "duration":
+                    known = False
+        return self
+
+    @property
+    def force_scale_N(self) -> float:
+        g = self.youngs_modulus_MPa * 1e6 / 3.0
+        return g * self.thickness_um * 1e-6 * self.ball_radius_mm * 1e-3
+
+
+class FormingNumerics(Strict):
+    """Mesh, drag, solver and regularisations (nondimensional unless a unit is given)."""
+
+    nodes: int = F(50, ge=6, le=4000, description="nodes from the pole to the clamp")
+    drag_time_s: float = F(0.1, unit="s", gt=0,
+                           description="drag time tau = eta R^2/(G h0) of the overdamped sheet; loading is "
+                           "slow when a stage lasts >> tau (docs/forming.md)")
+    ball_drag: float = F(1.0, gt=0, description="ball drag as a multiple of the sheet drag over the ball's area 4 pi R^2")
+    solver: Literal["kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F("kvaerno5", description="stiff solver")
+    rtol: float = F(1e-5, gt=0, lt=1, description="relative tolerance")
+    atol: float = F(1e-7, gt=0, lt=1, description="absolute tolerance")
+    pid_pcoeff: float = F(0.3, ge=0, le=1, description="PID controller proportional coefficient")
+    pid_icoeff: float = F(0.3, gt=0, le=1, description="PID controller integral coefficient")
+    penalty_stiffness: float = F(1e4, gt=0, unit="1",
+                                 description="contact penalty stiffness k, units G h0 / R^3 per reference area")
+    penalty_width: float = F(1e-3, gt=0, description="penalty smoothing width w, units of R (C^2 penalty)")
+    friction_smoothing: float = F(1e-3, ge=0,
+                                  description="force-space smoothing epsilon of the Coulomb law, units G h0 / R "
+                                  "(exactly stuck below mu F_N - epsilon); 0 is the ideal law")
+    contact_threshold: float = F(1e-2, gt=0, description="contact where the pressure exceeds this (G h0 / R)")
+    max_steps: int = F(50000, ge=100, description="step limit per save segment")
+    save_interval_s: float = F(2.0, unit="s", gt=0, description="time between saved frames (and condition checks)")
+    trap_reaction_tol: float = F(1e-3, gt=0,
+                                 description="trapped needs |ball reaction| below this (units G h0 R) at the end")
+
+
+class FormingScenario(ScenarioBase):
+    """Whole-sheet forming (method 2 by default): the pocket as the end state of a loading path."""
+
+    kind: Literal["forming"] = "forming"
+    physics: FormingPhysics = FormingPhysics()
+    numerics: FormingNumerics = FormingNumerics()
+
+    @model_validator(mode="after")
+    def _cross(self):
+        # The clamp path must stay outside the ball (checked on the keyframes; condition stages at their
+        # longest reach).
+        from dynslip.protocols import Protocol  # pure core, cheap
+
+        try:
+            prot = build_protocol(self)
+        except ValueError as err:
+            raise ValueError(f"physics.stages: {err}") from None
+        if prot.clamp_min_distance_to_ball() <= 1.0:
+            raise ValueError("physics.stages: the clamp path enters the ball")
+        assert isinstance(prot, Protocol)
+        return self
+
+    def run(self, out: Path, console) -> dict:
+        from dynslip.run_forming import run_forming
+
+        return run_forming(self, Path(out), console)
+
+
+def build_protocol(sc: FormingScenario):
+    """The core :class:`dynslip.protocols.Protocol` (nondimensional) of a scenario."""
+    from dynslip.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage, StopRule
+
+    p = sc.physics
+    r = p.ball_radius_mm
+    fs = p.force_scale_N
+    z = (r + p.sheet_gap_mm) / r
+    stages = []
+    for s in p.stages:
+        if s.clamp_to_z_mm is not None:
+            dz = s.clamp_to_z_mm / r - z
+            dur = abs(dz) * r / s.clamp_speed_mm_s
+            vz = math.copysign(s.clamp_speed_mm_s / r, dz)
+        else:
+            dur = s.duration_s
+            vz = s.clamp_velocity_mm_s / r
+        z += vz * dur
+        stop = StopRule(
+            kind=s.until, duration=dur,
+            force=(s.force_threshold_N or 0.0) / fs,
+            rate=(s.rest_rate_mm_s or 0.0) / r,
+            hold=s.rest_hold_s or 0.0,
+        )
+        ckw = {"clamp_vz": vz}
+        if s.clamp == "let_go":
+            ckw = {"clamp_mode": CLAMP_FORCE}
+        elif s.clamp == "free":
+            ckw = {"clamp_mode": CLAMP_FORCE, "clamp_force_start": (0.0, 0.0)}
+        if s.ball == "hold":
+            stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD, **ckw))
+        elif s.ball == "release":
+            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_end=0.0, **ckw))
+        else:
+            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0, **ckw))
+    return Protocol(tuple(stages), clamp_rho0=p.rim_radius_mm / r, clamp_z0=(r + p.sheet_gap_mm) / r, ball_z0=0.0)
