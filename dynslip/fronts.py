@@ -14,9 +14,13 @@ Fronts are linked from one saved frame to the next into *tracks*. Along the meri
 stuck/slipping field is a sequence of *domains* (maximal runs of stuck or of slipping
 in-contact nodes). A front at frame ``k`` (between domains ``L`` and ``R``) continues as a
 front at frame ``k+1`` (between ``L'`` and ``R'``) only if the stuck side is on the same
-side and ``L'`` overlaps ``L`` and ``R'`` overlaps ``R`` (node sets); among the allowed
-pairings, an order-preserving one (fronts cannot cross in 1D) with the most links and then
-the least total displacement is chosen (dynamic programming). No speed limit is assumed.
+side and ``L'`` overlaps ``L`` and ``R'`` overlaps ``R`` (node sets), or lies within
+``reach`` nodes of it (default one node: a one-node stuck band travelling through slipping
+sheet moves by more than its width between frames). Among the allowed pairings an
+order-preserving one (fronts cannot cross in 1D) with the most links and then the least
+cost is chosen by dynamic programming; the cost is the displacement in nodes, plus 0.5 if
+the slip direction beside the front changed, plus 0.25 per side linked only by reach.
+Apart from ``reach``, no speed limit is assumed.
 Speeds are finite differences along a track (``numpy.gradient``, second order inside).
 
 Events: a track is born ``run_start`` (present in the first frame), ``nucleated`` (a new
@@ -85,6 +89,7 @@ class _Front:
     right: tuple[int, int]  # domain on the equator side
     left_at_pole: bool
     right_at_edge: bool  # the equator-side domain ends at the contact edge (or the sheet edge)
+    slip_state: int  # state flag of the slipping node beside the front (2 or 3)
 
 
 def _categories(state_row: np.ndarray) -> np.ndarray:
@@ -102,7 +107,8 @@ def _runs(cat: np.ndarray) -> list[tuple[int, int, int]]:
 
 def fronts_in_frame(state_row) -> list[_Front]:
     """The stick fronts of one frame, ordered from the pole outward."""
-    cat = _categories(np.asarray(state_row))
+    state_row = np.asarray(state_row)
+    cat = _categories(state_row)
     runs = _runs(cat)
     out = []
     for j in range(len(runs) - 1):
@@ -118,19 +124,39 @@ def fronts_in_frame(state_row) -> list[_Front]:
                 right=(d, e),
                 left_at_pole=a == 0,
                 right_at_edge=right_at_edge,
+                slip_state=int(state_row[d] if c == STUCK else state_row[b]),
             )
         )
     return out
 
 
-def _overlap(p: tuple[int, int], q: tuple[int, int]) -> bool:
-    return p[0] <= q[1] and q[0] <= p[1]
+def _gap(p: tuple[int, int], q: tuple[int, int]) -> int:
+    """Nodes between two node ranges (0 when they overlap, 1 when adjacent, ...)."""
+    return max(0, q[0] - p[1], p[0] - q[1])
 
 
-def _link(prev: list[_Front], new: list[_Front]) -> dict[int, int]:
+def _link_cost(a: _Front, b: _Front, reach: int) -> float | None:
+    """Cost of continuing front ``a`` as ``b`` one frame later; None when not allowed.
+
+    Allowed: same stuck side, and each side's domain overlaps its predecessor or lies
+    within ``reach`` nodes of it (a domain narrower than its step, such as a one-node stuck
+    band travelling through slipping sheet). Cost: the displacement in nodes, plus 0.5 if
+    the slip direction beside the front changed, plus 0.25 per side linked only by reach.
+    """
+    if a.stuck_side != b.stuck_side:
+        return None
+    gl, gr = _gap(a.left, b.left), _gap(a.right, b.right)
+    if gl > reach or gr > reach:
+        return None
+    return (
+        abs(a.node - b.node) + 0.5 * (a.slip_state != b.slip_state) + 0.25 * ((gl > 0) + (gr > 0))
+    )
+
+
+def _link(prev: list[_Front], new: list[_Front], reach: int = 1) -> dict[int, int]:
     """Order-preserving pairing of fronts in consecutive frames: {index in prev: index in new}.
 
-    Maximises the number of links, then minimises the total displacement (in nodes).
+    Maximises the number of links, then minimises the total cost (:func:`_link_cost`).
     """
     n, m = len(prev), len(new)
     # best[i][j] = (links, -displacement) using prev[i:] and new[j:]
@@ -139,14 +165,10 @@ def _link(prev: list[_Front], new: list[_Front]) -> dict[int, int]:
     for i in range(n - 1, -1, -1):
         for j in range(m - 1, -1, -1):
             cands = [(best[i + 1][j], 1), (best[i][j + 1], 2)]
-            a, b = prev[i], new[j]
-            if (
-                a.stuck_side == b.stuck_side
-                and _overlap(a.left, b.left)
-                and _overlap(a.right, b.right)
-            ):
+            cost = _link_cost(prev[i], new[j], reach)
+            if cost is not None:
                 links, neg = best[i + 1][j + 1]
-                cands.append(((links + 1, neg - abs(a.node - b.node)), 3))
+                cands.append(((links + 1, neg - cost), 3))
             best[i][j], choice[i][j] = max(cands, key=lambda c: c[0])
     out, i, j = {}, 0, 0
     while i < n and j < m:
@@ -209,8 +231,11 @@ class Track:
     death_event: str = "run_end"
 
 
-def track_fronts(state) -> list[Track]:
+def track_fronts(state, reach: int = 1) -> list[Track]:
     """Find and link the stick fronts of a ``state`` field (time, rbar) of contract flags.
+
+    ``reach``: how many nodes beyond overlap a domain may move between two frames and still
+    be the same domain (see :func:`_link_cost`).
 
     Returns the tracks in order of birth (then of position). Pure numpy; the positions
     are node indices (the front of a track at ``frames[k]`` lies between ``nodes[k]`` and
@@ -223,12 +248,9 @@ def track_fronts(state) -> list[Track]:
     prev_ids: list[int] = []
     cats = [_categories(row) for row in state]
 
-    def slip_state(k, f):
-        return int(state[k, f.node + 1] if f.stuck_side == 1 else state[k, f.node])
-
     for k in range(nt):
         cur = fronts_in_frame(state[k])
-        links = _link(prev, cur) if k > 0 else {}
+        links = _link(prev, cur, reach) if k > 0 else {}
         cur_ids = [-1] * len(cur)
         for i, j in links.items():
             cur_ids[j] = prev_ids[i]
@@ -243,7 +265,7 @@ def track_fronts(state) -> list[Track]:
             t = tracks[cur_ids[j]]
             t.frames.append(k)
             t.nodes.append(f.node)
-            t.slip_states.append(slip_state(k, f))
+            t.slip_states.append(f.slip_state)
         prev, prev_ids = cur, cur_ids
     return tracks
 

@@ -147,6 +147,28 @@ def test_pole_nucleation_and_fast_jump_linked_by_domain_overlap():
     assert summary(track_fronts(state)) == [([1, 2], [0, 6], 2, "nucleated_at_pole", "run_end")]
 
 
+def test_stuck_band_travelling_inward_through_slipping_sheet():
+    # slip back toward the pole starts at the contact edge and spreads inward, behind a
+    # one-node stuck band (the pattern of a whole-sheet run while the clamp is raised)
+    state = field(
+        "SeeeeeeS....",
+        "SeeeeeSp....",
+        "SeeeeSpp....",
+        "SeeeSppp....",
+        "SeeSpppp....",
+        "SeSppppp....",
+        "SSpppppp....",
+        "Spppppp.....",
+    )
+    assert summary(track_fronts(state)) == [
+        ([0, 1, 2, 3, 4, 5], [0] * 6, 1, "run_start", "merged"),
+        ([0, 1, 2, 3, 4, 5], [6, 5, 4, 3, 2, 1], 2, "run_start", "merged"),
+        ([1, 2, 3, 4, 5, 6, 7], [6, 5, 4, 3, 2, 1, 0], 1, "nucleated_at_contact_edge", "run_end"),
+    ]
+    # without reach the band is a new domain every frame: fronts die and are reborn
+    assert len(track_fronts(state, reach=0)) > 3
+
+
 def test_every_variable_has_units_and_long_name_and_round_trips(tmp_path):
     state = field("SSSeeee...", "SSSSeee...", "SSSSSee...", "SSSSSSS...")
     ds = synthetic_trajectory(
