@@ -70,6 +70,9 @@ BASE_KEY = "base"
 MEMBER_DIM = "member"
 #: summary keys not turned into variables (kept by ``status`` and ``error``, or declarations)
 SUMMARY_SKIP = ("units", "status", "message")
+#: wall-clock measures: kept in the member files, left out of the dataset (which must not
+#: depend on the runner or the machine's load)
+TIMING_SUFFIXES = ("compile_s", "run_s", "wall_s", "time_per_step_ms")
 WINDOW_DIM = "window"
 
 #: units and long names of the summary keys the forming runner returns
@@ -516,7 +519,9 @@ def _flatten(summary: dict, prefix: str = "") -> dict[str, Any]:
             continue
         if isinstance(v, dict):
             out.update(_flatten(v, f"{prefix}{k}_"))
-        elif isinstance(v, (bool, int, float, str)) or v is None:
+        elif (isinstance(v, (bool, int, float, str)) or v is None) and not (prefix + k).endswith(
+            TIMING_SUFFIXES
+        ):
             out[prefix + k] = v
     return out
 
@@ -648,8 +653,12 @@ def _unit_of_field(dotted: str, members: list[Member]) -> str:
             return "1"
         schema = cls.model_json_schema()
         node, defs = schema, schema.get("$defs", {})
-        for k in dotted.split("."):
+        keys = iter(dotted.split("."))
+        for k in keys:
             prop = node.get("properties", {}).get(k, {})
+            if "items" in prop:  # a list: the next key names an item (by name or index)
+                prop = prop["items"]
+                next(keys, None)
             ref = prop.get("$ref") or (prop.get("allOf") or [{}])[0].get("$ref")
             node = defs[ref.split("/")[-1]] if ref else prop
         unit = node.get("unit", "1")
