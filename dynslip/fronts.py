@@ -527,6 +527,11 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
         rasterized=True,
     )
     ax.plot(ds["rbar_max"].values, t, color="k", lw=0.8, ls=":", label="outermost contact")
+    rmax = np.asarray(ds["rbar_max"].values, dtype=float)
+    rmax = rmax[np.isfinite(rmax)]
+    right = (
+        rbar[-1] if rmax.size == 0 else min(rbar[-1], 1.25 * rmax.max() + 2 * (rbar[1] - rbar[0]))
+    )
     stage = np.asarray(ds["stage"].values).astype(int)
     names = stage_names(ds)
     for k in np.flatnonzero(np.diff(stage) != 0) + 1:
@@ -535,7 +540,7 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     for s in np.unique(stage):
         k = np.flatnonzero(stage == s)[0]
         ax.text(
-            rbar[-1],
+            right,
             t[k],
             f" {names[s] if s < len(names) else s}",
             va="bottom",
@@ -559,13 +564,15 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
                 ax.plot(pos[k, ok[-1]], t[ok[-1]], "x", ms=4, color="k")
     ax.set_xlabel(r"material radius $\bar r / R$")
     ax.set_ylabel("time (s)")
-    ax.set_xlim(rbar[0], rbar[-1])
+    ax.set_xlim(rbar[0], right)
     if legend:
         handles = [
             Patch(color=c, label=m.replace("_", " "))
             for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)
         ]
-        ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.85)
+        ax.legend(
+            handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2
+        )
 
 
 def _edges(x: np.ndarray) -> np.ndarray:
@@ -583,7 +590,7 @@ def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path) -> Path:
     import matplotlib.pyplot as plt
 
     t = np.asarray(ds["time"].values, dtype=float)
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.6), constrained_layout=True)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 5.2), constrained_layout=True)
     draw_spacetime(axes[0], ds, fronts)
     axes[0].set_title("stick fronts over the contact state\n(o born, x removed)", fontsize=9)
     pos_t = np.asarray(fronts["front_theta"].values)
