@@ -185,6 +185,8 @@ def load_spec(path) -> SweepSpec:
             if isinstance(value, (int, float, str, bool, type(None)))
             else type(value).__name__
         )
+        if not loc and e["type"] == "value_error":  # a check across fields: its message names them
+            raise InputError(f"{path}: {msg.removeprefix('Value error, ')}") from None
         raise InputError(f"{path}: field '{loc or '<root>'}' = {shown}: {msg}") from None
 
 
@@ -436,12 +438,11 @@ def _run_members(
     pending: list[Member],
     *,
     mode: str,
-    scheduler: str | None,
+    client,
     member_fn: Callable,
     window: dict | None,
     run_dir: Callable[[Member], str | None],
     done: Callable[[Member, dict], None],
-    batch_fn: Callable | None,
 ) -> str:
     """Run ``pending`` members, calling ``done(member, record)`` as each finishes.
 
@@ -455,55 +456,43 @@ def _run_members(
         groups: dict[str, list[Member]] = {}
         for m in pending:
             groups.setdefault(json.dumps(_shape_key(m.resolved), sort_keys=True), []).append(m)
-        if batch_fn is None or window is not None:
-            note = (
-                "grouped sequential: the simulator exposes no batched entry point (no run_batch), "
-                f"so each of the {len(groups)} shape groups ran member after member"
-            )
-            for group in groups.values():
-                for m in group:
-                    done(m, execute_member(member_fn, m.data, m.resolved, window, run_dir(m)))
-            return note
         for group in groups.values():
-            for m, rec in zip(group, batch_fn([m.data for m in group]), strict=True):
-                done(m, rec)
-        return f"batched: {len(groups)} shape groups through run_batch"
+            for m in group:
+                done(m, execute_member(member_fn, m.data, m.resolved, window, run_dir(m)))
+        return (
+            "grouped sequential: the forming simulator exposes no batched entry point, so each "
+            f"of the {len(groups)} shape groups ran member after member"
+        )
     if mode == "dask":
         from distributed import as_completed
 
-        client, cluster = _connect(scheduler)
-        try:
-            futures = {
-                client.submit(
-                    execute_member,
-                    member_fn,
-                    m.data,
-                    m.resolved,
-                    window,
-                    run_dir(m),
-                    key=f"dynslip-member-{m.fingerprint}",
-                    pure=False,
-                ): m
-                for m in pending
-            }
-            lost = []
-            for fut in as_completed(futures):
-                m = futures[fut]
-                try:
-                    rec = fut.result()
-                except Exception as err:  # noqa: BLE001 - a lost worker: not written, rerun on resume
-                    lost.append(f"{m.label}: {type(err).__name__}: {err}")
-                    continue
-                done(m, rec)
-            if lost:
-                raise ComputationError(
-                    f"{len(lost)} members could not be run on the cluster (first: {lost[0]}); "
-                    "run the sweep again to resume"
-                )
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        futures = {
+            client.submit(
+                execute_member,
+                member_fn,
+                m.data,
+                m.resolved,
+                window,
+                run_dir(m),
+                key=f"dynslip-member-{m.fingerprint}",
+                pure=False,
+            ): m
+            for m in pending
+        }
+        lost = []
+        for fut in as_completed(futures):
+            m = futures[fut]
+            try:
+                rec = fut.result()
+            except Exception as err:  # noqa: BLE001 - a lost worker: not written, rerun on resume
+                lost.append(f"{m.label}: {type(err).__name__}: {err}")
+                continue
+            done(m, rec)
+        if lost:
+            raise ComputationError(
+                f"{len(lost)} members could not be run on the cluster (first: {lost[0]}); "
+                "run the sweep again to resume"
+            )
         return ""
     raise InputError(f"mode = {mode!r}: allowed: {', '.join(MODES)}")
 
@@ -689,7 +678,6 @@ def run_sweep(
     console=None,
     member_fn: Callable | None = None,
     validate_fn: Callable | None = None,
-    batch_fn: Callable | None = None,
     plot: bool = True,
 ) -> dict:
     """``dynslip sweep SWEEP.yaml``: run every member not yet done, then assemble and plot.
@@ -738,10 +726,6 @@ def run_sweep(
                     records[m.fingerprint] = rec
     pending = list({m.fingerprint: m for m in members if m.fingerprint not in records}.values())
     n_unique = len({m.fingerprint for m in members})
-    console.print(
-        f"sweep {sweep}: {len(members)} members ({n_unique - len(pending)} already done, "
-        f"{len(pending)} to run), mode {mode}"
-    )
 
     def run_dir(m: Member) -> str | None:
         if not spec.keep_runs:
@@ -752,15 +736,28 @@ def run_sweep(
         d.mkdir(parents=True)
         return str(d)
 
-    t0 = time.perf_counter()
-    with Progress(
-        TextColumn("members"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=False,
-    ) as bar:
+    with contextlib.ExitStack() as stack:
+        client = None
+        if mode == "dask" and pending:  # before anything is printed: unreachable is bad input
+            client, cluster = _connect(scheduler)
+            stack.callback(client.close)
+            if cluster is not None:
+                stack.callback(cluster.close)
+        console.print(
+            f"sweep {sweep}: {len(members)} members ({n_unique - len(pending)} already done, "
+            f"{len(pending)} to run), mode {mode}"
+        )
+        t0 = time.perf_counter()
+        bar = stack.enter_context(
+            Progress(
+                TextColumn("members"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TimeElapsedColumn(),
+                console=console,
+                transient=False,
+            )
+        )
         task = bar.add_task("members", total=n_unique, completed=n_unique - len(pending))
 
         def done(m: Member, rec: dict) -> None:
@@ -782,12 +779,11 @@ def run_sweep(
         note = _run_members(
             pending,
             mode=mode,
-            scheduler=scheduler,
+            client=client,
             member_fn=member_fn,
             window=window,
             run_dir=run_dir,
             done=done,
-            batch_fn=batch_fn,
         )
     wall = time.perf_counter() - t0
 

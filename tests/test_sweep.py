@@ -415,3 +415,26 @@ def test_run_window_on_a_scenario(tmp_path):
             member_fn=fake_member,
             validate_fn=fake_validate,
         )
+
+
+def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
+    """The real scenario schema (kind: forming): every case stops before anything runs."""
+    pytest.importorskip("dynslip.scenario_forming")
+    from dynslip import cli
+
+    monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(sweep_mod, "default_member_fn", lambda *a: pytest.fail("a member ran"))
+    (tmp_path / "m2.yaml").write_text("kind: forming\nnumerics: {nodes: 20}\n")
+    cases = [
+        ({"grid": {"physics.friction.mux": [0.5]}}, [], "physics.friction.mux"),
+        ({"grid": {"physics.stages.push_dwn.clamp_to_z_mm": [-80.0]}}, [], "push_dwn"),
+        ({"grid": {"physics.friction.mu": [0.5, "abc"]}}, [], "physics.friction.mu"),
+        ({"grid": {"physics.friction.mu": []}}, [], "empty range"),
+        ({"grid": {"physics.friction.mu": [0.5]}}, ["--scheduler", "tcp://127.0.0.1:9"], "cannot reach"),
+    ]
+    for i, (body, extra, needle) in enumerate(cases):
+        p = tmp_path / f"s{i}.yaml"
+        p.write_text(yaml.safe_dump({"base": "m2.yaml", **body}))
+        rc, err = _cli(cli, ["sweep", str(p), *extra])
+        lines = err.strip().splitlines()
+        assert rc == 2 and len(lines) == 1 and needle in lines[0], (body, rc, err)
