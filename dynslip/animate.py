@@ -87,7 +87,7 @@ class _Renderer:
         w, h = size
         self.fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
         gs = self.fig.add_gridspec(
-            1, 2, width_ratios=[1.25, 1.0], left=0.07, right=0.98, bottom=0.11, top=0.80, wspace=0.2
+            1, 2, width_ratios=[1.25, 1.0], left=0.07, right=0.98, bottom=0.2, top=0.84, wspace=0.2
         )
         self.ax = self.fig.add_subplot(gs[0])
         self.ax_map = self.fig.add_subplot(gs[1])
@@ -135,7 +135,7 @@ class _Renderer:
             Line2D([], [], marker="D", mfc="k", mec="w", ls="none", label="stick front"),
             Line2D([], [], marker="s", color="k", ls="none", label="clamp"),
         ]
-        self.fig.legend(handles=handles, fontsize=7, loc="upper right", ncol=3, frameon=False)
+        self.fig.legend(handles=handles, fontsize=7, loc="lower center", ncol=6, frameon=False)
         self.title = self.fig.suptitle("", fontsize=10, x=0.02, ha="left")
 
         mf = sel if map_frames is None else map_frames
