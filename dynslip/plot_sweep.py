@@ -15,7 +15,15 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-PANELS = ["trapped", "theta_max", "rbar_max", "opening_radius", "mu_needed", "release_force"]
+PANELS = [
+    "trapped",
+    "theta_max",
+    "rbar_max",
+    "opening_radius",
+    "largest_stretch_lambda_theta",
+    "mu_needed",
+    "release_force",
+]
 
 
 def _mpl():
@@ -97,7 +105,7 @@ def plot_sweep(ds: xr.Dataset, path) -> Path:
         ax.set_xlabel(x_dim)
         if ticks:
             ax.set_xticks(x, ticks, rotation=20, fontsize=7)
-        ax.set_title(da.attrs.get("long_name", name)[:48] + note, fontsize=8)
+        ax.set_title(name + note, fontsize=9)
     if has_window:
         ax = axes.flat[len(panels)]
         _window_panel(ax, ds, dims, x, ticks)
