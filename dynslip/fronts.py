@@ -408,6 +408,11 @@ def fronts_dataset(ds: xr.Dataset) -> xr.Dataset:
     out.attrs.update(provenance(ds.attrs.get("scenario", "{}"), "fronts"))
     out.attrs["source_git_commit"] = ds.attrs.get("git_commit", "unknown")
     out.attrs["stage_names"] = json.dumps(names)
+    jumps = [int(np.max(np.abs(np.diff(tr.nodes)))) for tr in tracks if len(tr.nodes) > 1]
+    out.attrs["max_front_step_nodes"] = max(jumps, default=0)
+    out.attrs["unresolved_events"] = sum(
+        (tr.birth_event == "unresolved") + (tr.death_event == "unresolved") for tr in tracks
+    )
     out.attrs["stage_summary"] = json.dumps(stage_summary(ds, out))
     return out
 

@@ -63,6 +63,7 @@ def test_front_moving_at_known_speed_outward(step):
     np.testing.assert_allclose(fr.front_rbar_speed.values[0], step * h / dt, rtol=1e-12)
     np.testing.assert_allclose(fr.front_theta_speed.values[0], 0.5 * step * h / dt, rtol=1e-12)
     assert set(fr.front_slip_state.values[0]) == {3}
+    assert fr.attrs["max_front_step_nodes"] == step and fr.attrs["unresolved_events"] == 0
 
 
 def test_slip_spreading_from_the_contact_edge_toward_the_pole():
