@@ -487,6 +487,7 @@ def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict
         entry["n_nodes_slipping_at_end"] = int(
             np.sum(np.isin(state[idx[-1]], (SLIP_POLE, SLIP_EQUATOR)))
         )
+        entry["stuck_inside_fraction"] = _stuck_inside_fraction(state[idx])
         if came.size:
             t_last = float(np.max(r[came]))
             last_nodes = came[r[came] == t_last]
@@ -496,6 +497,47 @@ def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict
             entry["outermost_contact_rests_last"] = bool(outer is not None and outer in last_nodes)
             entry["rest_order_spearman"] = _spearman(rbar[came], r[came])
         out.append(entry)
+    return out
+
+
+def _stuck_inside_fraction(state: np.ndarray) -> float | None:
+    """Of the frames with both stuck and slipping sheet off the pole (node 0 excluded: it
+    cannot slip), the fraction in which every stuck node lies inward of every slipping
+    node (the sheet near the pole at rest while the outer sheet slips). None if no frame
+    has both."""
+    s = state[:, 1:]
+    slipping = (s == SLIP_POLE) | (s == SLIP_EQUATOR)
+    stuck = s == STUCK
+    both = slipping.any(axis=1) & stuck.any(axis=1)
+    if not both.any():
+        return None
+    n = s.shape[1]
+    idx = np.arange(n)
+    last_stuck = np.where(stuck, idx, -1).max(axis=1)
+    first_slip = np.where(slipping, idx, n).min(axis=1)
+    return float(np.mean(last_stuck[both] < first_slip[both]))
+
+
+def summary_lines(stages: list[dict]) -> list[str]:
+    """One line per stage for the command line: front direction and rest order."""
+    out = []
+    for e in stages:
+        if not e.get("frames"):
+            out.append(f"{e['name']}: no saved frame")
+            continue
+        line = (
+            f"{e['name']} ({e['t_start_s']:.4g}-{e['t_end_s']:.4g} s): {e['n_tracks']} front(s), "
+            f"travel {e['front_direction'].replace('_', ' ')}"
+        )
+        if e.get("last_to_rest_rbar"):
+            line += (
+                f"; last to come to rest at rbar = {max(e['last_to_rest_rbar']):.3g} "
+                f"(t = {e['last_rest_time_s']:.4g} s); outermost contact rests last: "
+                f"{'yes' if e['outermost_contact_rests_last'] else 'no'}"
+            )
+        if e.get("n_nodes_slipping_at_end"):
+            line += f"; {e['n_nodes_slipping_at_end']} node(s) still slipping at the end"
+        out.append(line)
     return out
 
 

@@ -16,6 +16,7 @@ from dynslip.fronts import (
     fronts_dataset,
     fronts_in_frame,
     stage_summary,
+    summary_lines,
     track_fronts,
     write_fronts,
 )
@@ -221,12 +222,15 @@ def test_stage_summary_rest_order_and_front_direction():
     assert rel["rest_order_spearman"] > 0.9
     assert rel["n_nodes_came_to_rest"] == 6
     assert out[0]["front_direction"] == "none"
+    assert rel["stuck_inside_fraction"] == 1.0  # stuck from the pole out, slip outside
+    assert "outermost contact rests last: yes" in summary_lines(out)[1]
 
     inward = stage_summary(_release("inward"))[1]
     assert inward["front_direction"] == "toward_pole"
     assert inward["direction_stuck_toward_equator"] == "toward_pole"
     assert inward["last_to_rest_rbar"] == [0.0]
     assert inward["outermost_contact_rests_last"] is False
+    assert inward["stuck_inside_fraction"] == 0.0
     assert inward["rest_order_spearman"] < -0.9
 
 
