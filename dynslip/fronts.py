@@ -666,18 +666,20 @@ def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path) -> Path:
     return path
 
 
-def write_fronts(trajectory_path, out_dir=None) -> dict[str, Path]:
+def run_fronts(trajectory_path, out_dir=None) -> list[Path]:
     """``dynslip fronts``: write ``fronts.nc``, ``fronts.png`` and ``fronts_summary.json``.
 
-    ``out_dir`` defaults to the trajectory's folder. Returns the paths by kind.
+    ``out_dir`` defaults to the trajectory's folder. Returns the three paths in that order.
+    A file that is not a trajectory of this format version raises
+    :class:`~dynslip.errors.InputError`.
     """
     trajectory_path = Path(trajectory_path)
     ds = open_trajectory(trajectory_path)
     out_dir = trajectory_path.parent if out_dir is None else Path(out_dir)
     fr = fronts_dataset(ds)
-    summary = json.loads(fr.attrs["stage_summary"])
-    return {
-        "dataset": write_netcdf(fr, out_dir / "fronts.nc"),
-        "figure": plot_fronts(ds, fr, out_dir / "fronts.png"),
-        "summary": write_json(out_dir / "fronts_summary.json", {"stages": summary}),
-    }
+    stages = json.loads(fr.attrs["stage_summary"])
+    return [
+        write_netcdf(fr, out_dir / "fronts.nc"),
+        plot_fronts(ds, fr, out_dir / "fronts.png"),
+        write_json(out_dir / "fronts_summary.json", {"stages": stages}),
+    ]

@@ -15,10 +15,10 @@ from dynslip.fronts import (
     DEATH_EVENTS,
     fronts_dataset,
     fronts_in_frame,
+    run_fronts,
     stage_summary,
     summary_lines,
     track_fronts,
-    write_fronts,
 )
 from dynslip.io import check_units, write_netcdf
 from dynslip.trajectory import synthetic_trajectory
@@ -186,11 +186,12 @@ def test_every_variable_has_units_and_long_name_and_round_trips(tmp_path):
     assert tuple(flags) == DEATH_EVENTS
     assert tuple(fr.birth_event.attrs["flag_meanings"].split()) == BIRTH_EVENTS
     traj = write_netcdf(ds, tmp_path / "run" / "trajectory.nc")
-    paths = write_fronts(traj, tmp_path / "fronts")
-    back = xr.open_dataset(paths["dataset"])
+    nc, png, summ = run_fronts(traj, tmp_path / "fronts")
+    assert [nc.name, png.name, summ.name] == ["fronts.nc", "fronts.png", "fronts_summary.json"]
+    back = xr.open_dataset(nc)
     xr.testing.assert_allclose(back.front_rbar.load(), fr.front_rbar)
-    assert paths["figure"].stat().st_size > 0
-    assert json.loads(paths["summary"].read_text())["stages"][1]["name"] == "release"
+    assert png.stat().st_size > 0
+    assert json.loads(summ.read_text())["stages"][1]["name"] == "release"
 
 
 def _release(order: str) -> xr.Dataset:
@@ -232,6 +233,16 @@ def test_stage_summary_rest_order_and_front_direction():
     assert inward["outermost_contact_rests_last"] is False
     assert inward["stuck_inside_fraction"] == 0.0
     assert inward["rest_order_spearman"] < -0.9
+
+
+def test_run_fronts_refuses_a_file_that_is_not_a_trajectory(tmp_path):
+    from dynslip.errors import InputError
+
+    bad = tmp_path / "trajectory.nc"
+    bad.write_text("not netcdf")
+    with pytest.raises(InputError, match="not a netCDF file"):
+        run_fronts(bad)
+    assert not (tmp_path / "fronts.nc").exists()
 
 
 def test_rest_time_counts_only_slip_then_stick():
