@@ -430,7 +430,11 @@ def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
         ({"grid": {"physics.stages.push_dwn.clamp_to_z_mm": [-80.0]}}, [], "push_dwn"),
         ({"grid": {"physics.friction.mu": [0.5, "abc"]}}, [], "physics.friction.mu"),
         ({"grid": {"physics.friction.mu": []}}, [], "empty range"),
-        ({"grid": {"physics.friction.mu": [0.5]}}, ["--scheduler", "tcp://127.0.0.1:9"], "cannot reach"),
+        (
+            {"grid": {"physics.friction.mu": [0.5]}},
+            ["--scheduler", "tcp://127.0.0.1:9"],
+            "cannot reach",
+        ),
     ]
     for i, (body, extra, needle) in enumerate(cases):
         p = tmp_path / f"s{i}.yaml"
@@ -438,3 +442,47 @@ def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
         rc, err = _cli(cli, ["sweep", str(p), *extra])
         lines = err.strip().splitlines()
         assert rc == 2 and len(lines) == 1 and needle in lines[0], (body, rc, err)
+    # the window command: an empty range, a field that does not exist
+    m2 = str(tmp_path / "m2.yaml")
+    for argv, needle in [
+        (["window", m2, "--lo", "1.0", "--hi", "0.5"], "empty range"),
+        (["window", m2, "--set", "physics.friction.muu=1"], "physics.friction.muu"),
+    ]:
+        rc, err = _cli(cli, argv)
+        lines = err.strip().splitlines()
+        assert rc == 2 and len(lines) == 1 and needle in lines[0], (argv, rc, err)
+
+
+@pytest.mark.slow
+def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
+    """Method 2 at 20 nodes: inside each window the ball is trapped, outside it is not."""
+    from dynslip.sweep import default_member_fn
+    from dynslip.window import run_window
+
+    base = scenarios_dir / "method2.yaml"
+    if not base.exists():
+        pytest.skip("scenarios/method2.yaml not shipped yet")
+    sets = ["numerics.nodes=20"]
+    res = run_window(base, sets, lo=0.4, hi=1.6, coarse=4, tol=0.2, out=tmp_path / "w")
+    data = scenario_mod.load_data(base, sets)
+
+    def trapped(mu):
+        d = json.loads(json.dumps(data))
+        d.setdefault("physics", {}).setdefault("friction", {})["mu"] = mu
+        return default_member_fn(d, tmp_path / f"direct_{mu:.3f}")["trapped"]
+
+    evaluated = {m for m, _ in res["evaluations"]}
+    checks = []
+    windows = res["windows"]
+
+    def outside(mu):  # outside every window by more than an edge's uncertainty (tol / 2)
+        return 0.4 < mu < 1.6 and all(not (a - 0.1 <= mu <= b + 0.1) for a, b in windows)
+
+    for lo, hi in windows:
+        checks.append((0.5 * (lo + hi), True))
+        checks += [(mu, False) for mu in (lo - 0.15, hi + 0.15) if outside(mu)]
+    if not res["windows"]:
+        checks = [(0.55, False), (1.25, False)]
+    for mu, expected in checks:
+        assert mu not in evaluated
+        assert trapped(mu) is expected, (mu, res["windows"])
