@@ -50,6 +50,9 @@ def run() -> dict:
     modes = os.environ.get("DYNSLIP_BENCH_SWEEP_MODES", "sequential,batched,dask").split(",")
     console = Console(stderr=True)
     out: dict = {"nodes": nodes, "members": n, "machine_cores": os.cpu_count()}
+    out["load_average_before"] = os.getloadavg()[
+        0
+    ]  # the machine is shared: figures scale with load
     with tempfile.TemporaryDirectory(prefix="dynslip-bench-sweep-") as tmp:
         tmp = Path(tmp)
         base = _base(tmp)
@@ -69,6 +72,7 @@ def run() -> dict:
             members = [json.loads(p.read_text()) for p in (tmp / mode / "members").glob("*.json")]
             walls = sorted(m["wall_s"] for m in members)
             out[mode] = {
+                "load_average_1min": os.getloadavg()[0],
                 "wall_s": wall,
                 "members_per_minute": 60.0 * n / wall,
                 "member_s_min": walls[0],
