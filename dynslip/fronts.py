@@ -601,13 +601,16 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
             ax.plot(pos[k, ok], t[ok], color="k", lw=1.2)
         births = np.asarray(fronts["birth_event"].values)
         deaths = np.asarray(fronts["death_event"].values)
+        t_birth = np.asarray(fronts["birth_time"].values, dtype=float)
+        t_death = np.asarray(fronts["death_time"].values, dtype=float)
         for k in range(pos.shape[0]):
             ok = np.flatnonzero(np.isfinite(pos[k]))
             if ok.size == 0:
                 continue
-            if BIRTH_EVENTS[births[k]] != "run_start":
+            # events only where they happen inside the time range shown
+            if BIRTH_EVENTS[births[k]] != "run_start" and t_birth[k] == t[ok[0]]:
                 ax.plot(pos[k, ok[0]], t[ok[0]], "o", ms=3.5, mfc="w", mec="k")
-            if DEATH_EVENTS[deaths[k]] != "run_end":
+            if DEATH_EVENTS[deaths[k]] != "run_end" and t_death[k] == t[ok[-1]]:
                 ax.plot(pos[k, ok[-1]], t[ok[-1]], "x", ms=4, color="k")
     ax.set_xlabel(r"material radius $\bar r / R$")
     ax.set_ylabel("time (s)")
