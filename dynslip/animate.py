@@ -20,12 +20,17 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.fronts import STATE_COLORS, draw_spacetime, fronts_dataset
+from dynslip.fronts import (
+    STATE_COLORS,
+    _rest_speed,
+    draw_spacetime,
+    fronts_dataset,
+    motion_state,
+)
 from dynslip.trajectory import (
     STATE_MEANINGS,
     open_trajectory,
     stage_names,
-    state_array,
     time_indices,
 )
 
@@ -92,7 +97,7 @@ class _Renderer:
         self.ax = self.fig.add_subplot(gs[0])
         self.ax_map = self.fig.add_subplot(gs[1])
         self.t = np.asarray(ds["time"].values, dtype=float)
-        self.state = state_array(ds)
+        self.state = motion_state(ds, _rest_speed(fronts))
         self.rho = np.asarray(ds["rho"].transpose("time", "rbar").values, dtype=float)
         self.z = np.asarray(ds["z"].transpose("time", "rbar").values, dtype=float)
         self.names = stage_names(ds)
@@ -208,13 +213,16 @@ def animate(
     size=DEFAULT_SIZE,
     fmt: str = "gif",
     max_frames: int | None = DEFAULT_MAX_FRAMES,
+    rest_speed: float | None = None,
 ) -> Path:
     """Write an animation of a run; one frame per saved frame shown; returns its path.
 
     ``t_range``: ``(t_start, t_end)`` in seconds (either may be ``None``); ``size``:
     (width, height) in pixels (rounded up to multiples of 16 for MP4); ``fmt``: ``"gif"``
     or ``"mp4"``; ``out_path`` defaults to ``animation.<fmt>`` beside the trajectory;
-    ``max_frames`` thins the saved frames evenly when the range holds more. Bad options, a
+    ``max_frames`` thins the saved frames evenly when the range holds more; ``rest_speed``
+    (R/s, optional) colours slipping nodes slower than this as stuck
+    (:func:`dynslip.fronts.motion_state`; default: the state flags as saved). Bad options, a
     file that is not a trajectory of this format version, or a range outside the run raise
     :class:`~dynslip.errors.InputError`.
     """
@@ -232,7 +240,8 @@ def animate(
     )
     out_path.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_path.with_name(f".{out_path.stem}.tmp{out_path.suffix}")
-    renderer = _Renderer(ds, fronts_dataset(ds), frames, size, map_frames=time_indices(ds, t_range))
+    fronts = fronts_dataset(ds, rest_speed)
+    renderer = _Renderer(ds, fronts, frames, size, map_frames=time_indices(ds, t_range))
     try:
         if fmt == "gif":
             _write_gif(renderer, frames, tmp, fps)
@@ -273,7 +282,13 @@ def _write_mp4(renderer: _Renderer, frames, path: Path, fps: float) -> None:
         writer.close()
 
 
-def save_frame_png(trajectory_path, out_path, time: float | None = None, size=DEFAULT_SIZE) -> Path:
+def save_frame_png(
+    trajectory_path,
+    out_path,
+    time: float | None = None,
+    size=DEFAULT_SIZE,
+    rest_speed: float | None = None,
+) -> Path:
     """Write the animation frame at the saved frame nearest ``time`` (s; default the last)
     as a PNG. :class:`InputError` for a time outside the run."""
     ds = open_trajectory(trajectory_path)
@@ -284,7 +299,8 @@ def save_frame_png(trajectory_path, out_path, time: float | None = None, size=DE
     else:
         time_indices(ds, (float(time), None))  # InputError for a time outside the run
         k = int(np.argmin(np.abs(t - float(time))))
-    renderer = _Renderer(ds, fronts_dataset(ds), np.array([k]), size, map_frames=np.arange(t.size))
+    fronts = fronts_dataset(ds, rest_speed)
+    renderer = _Renderer(ds, fronts, np.array([k]), size, map_frames=np.arange(t.size))
     try:
         from PIL import Image
 

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from dynslip.errors import InputError
 from dynslip.io import provenance, save_figure, variable, write_json, write_netcdf
 from dynslip.trajectory import (
     FREE,
@@ -277,15 +278,34 @@ def _flag_attrs(meanings, start=0) -> dict:
     }
 
 
-def rest_times(ds: xr.Dataset) -> np.ndarray:
+def motion_state(ds: xr.Dataset, rest_speed: float | None = None) -> np.ndarray:
+    """The state flags (time, rbar) the analysis uses.
+
+    ``rest_speed=None``: the trajectory's ``state`` (the force criterion: a node at the
+    friction limit counts as slipping even where it does not move). A number (R/s): nodes
+    flagged slipping whose ``|slip_velocity|`` is at most ``rest_speed`` count as stuck
+    (at rest), so that fronts separate moving from resting sheet.
+    """
+    state = state_array(ds)
+    if rest_speed is None:
+        return state
+    if not (np.isfinite(rest_speed) and rest_speed >= 0):
+        raise InputError(f"rest_speed: {rest_speed!r}; allowed: a speed >= 0 in R/s, or None")
+    v = np.abs(np.asarray(ds["slip_velocity"].transpose("time", "rbar").values, dtype=float))
+    at_rest = ((state == SLIP_POLE) | (state == SLIP_EQUATOR)) & ~(v > float(rest_speed))
+    return np.where(at_rest, STUCK, state).astype(np.int8)
+
+
+def rest_times(ds: xr.Dataset, rest_speed: float | None = None) -> np.ndarray:
     """When each node comes to rest for the last time in each stage: array (stage, rbar), s.
 
     A node *comes to rest* at the first frame of its final run of ``stuck`` frames within
     the stage, provided it was slipping in the frame before (which may be the last frame of
     the previous stage). NaN where the node did not slip and then stick in the stage: at
-    rest throughout, still slipping, or free at the end of the stage.
+    rest throughout, still slipping, or free at the end of the stage. ``rest_speed``: see
+    :func:`motion_state`.
     """
-    state = state_array(ds)
+    state = motion_state(ds, rest_speed)
     t = np.asarray(ds["time"].values, dtype=float)
     stage = np.asarray(ds["stage"].values).astype(int)
     n_stage = max(len(stage_names(ds)), int(stage.max()) + 1)
@@ -305,16 +325,17 @@ def rest_times(ds: xr.Dataset) -> np.ndarray:
     return out
 
 
-def fronts_dataset(ds: xr.Dataset) -> xr.Dataset:
+def fronts_dataset(ds: xr.Dataset, rest_speed: float | None = None) -> xr.Dataset:
     """The stick fronts of a trajectory as a dataset (dims ``track``, ``time``, ``stage``).
 
     Per track and time (NaN where the track does not exist): position in ``rbar`` and in
     ``theta``, speeds, the slip direction of the slipping neighbour. Per track: stuck side,
     birth and death times and events (CF flags). Per stage and node: the rest time
     (:func:`rest_times`). The stage summary (:func:`stage_summary`) is the JSON attribute
-    ``stage_summary``.
+    ``stage_summary``. ``rest_speed`` (R/s, optional): slipping nodes slower than this count
+    as stuck (:func:`motion_state`); recorded in the attribute ``rest_speed``.
     """
-    state = state_array(ds)
+    state = motion_state(ds, rest_speed)
     t = np.asarray(ds["time"].values, dtype=float)
     rbar = np.asarray(ds["rbar"].values, dtype=float)
     theta = np.asarray(ds["theta"].transpose("time", "rbar").values, dtype=float)
@@ -342,7 +363,7 @@ def fronts_dataset(ds: xr.Dataset) -> xr.Dataset:
     death_e = np.array([DEATH_EVENTS.index(tr.death_event) for tr in tracks], dtype=np.int8)
     side = np.array([tr.stuck_side for tr in tracks], dtype=np.int8)
     names = stage_names(ds)
-    rest = rest_times(ds)
+    rest = rest_times(ds, rest_speed)
     tt, kt, st = ("track", "time"), ("track",), ("stage", "rbar")
     data = {
         "front_rbar": variable(
@@ -413,6 +434,12 @@ def fronts_dataset(ds: xr.Dataset) -> xr.Dataset:
     out.attrs["unresolved_events"] = sum(
         (tr.birth_event == "unresolved") + (tr.death_event == "unresolved") for tr in tracks
     )
+    out.attrs["rest_speed"] = "none" if rest_speed is None else float(rest_speed)
+    out.attrs["classification"] = (
+        "state flags (force criterion)"
+        if rest_speed is None
+        else f"state flags, slipping nodes with |slip_velocity| <= {float(rest_speed):g} R/s counted stuck"
+    )
     out.attrs["stage_summary"] = json.dumps(stage_summary(ds, out))
     return out
 
@@ -439,11 +466,12 @@ def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict
     and rest time (positive: rest spreads outward).
     """
     fronts = fronts_dataset(ds) if fronts is None else fronts
+    rest_speed = _rest_speed(fronts)
     names = stage_names(ds)
     t = np.asarray(ds["time"].values, dtype=float)
     stage = np.asarray(ds["stage"].values).astype(int)
     rbar = np.asarray(ds["rbar"].values, dtype=float)
-    state = state_array(ds)
+    state = motion_state(ds, rest_speed)
     pos = np.asarray(fronts["front_rbar"].values)
     side = np.asarray(fronts["stuck_side"].values)
     rest = np.asarray(fronts["rest_time"].values)
@@ -557,8 +585,16 @@ def state_colormap():
     return ListedColormap(STATE_COLORS), BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], 4)
 
 
+def _rest_speed(fronts: xr.Dataset | None) -> float | None:
+    v = None if fronts is None else fronts.attrs.get("rest_speed", "none")
+    return None if v is None or isinstance(v, str) else float(v)
+
+
 def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend: bool = True):
-    """Draw the space-time map of ``state`` (rbar across, time up) on ``ax``, fronts on top."""
+    """Draw the space-time map of ``state`` (rbar across, time up) on ``ax``, fronts on top.
+
+    The state is classified as the fronts were (:func:`motion_state`, attribute
+    ``rest_speed`` of ``fronts``)."""
     from matplotlib.patches import Patch
 
     cmap, norm = state_colormap()
@@ -567,7 +603,7 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     ax.pcolormesh(
         _edges(rbar),
         _edges(t),
-        state_array(ds),
+        motion_state(ds, _rest_speed(fronts)),
         cmap=cmap,
         norm=norm,
         shading="flat",
@@ -669,17 +705,18 @@ def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path) -> Path:
     return path
 
 
-def run_fronts(trajectory_path, out_dir=None) -> list[Path]:
+def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None) -> list[Path]:
     """``dynslip fronts``: write ``fronts.nc``, ``fronts.png`` and ``fronts_summary.json``.
 
-    ``out_dir`` defaults to the trajectory's folder. Returns the three paths in that order.
+    ``out_dir`` defaults to the trajectory's folder; ``rest_speed`` (R/s): see
+    :func:`motion_state`. Returns the three paths in that order.
     A file that is not a trajectory of this format version raises
     :class:`~dynslip.errors.InputError`.
     """
     trajectory_path = Path(trajectory_path)
     ds = open_trajectory(trajectory_path)
     out_dir = trajectory_path.parent if out_dir is None else Path(out_dir)
-    fr = fronts_dataset(ds)
+    fr = fronts_dataset(ds, rest_speed)
     stages = json.loads(fr.attrs["stage_summary"])
     return [
         write_netcdf(fr, out_dir / "fronts.nc"),

@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from dynslip.errors import InputError
 from dynslip.fronts import (
     BIRTH_EVENTS,
     DEATH_EVENTS,
     fronts_dataset,
     fronts_in_frame,
+    motion_state,
     run_fronts,
     stage_summary,
     summary_lines,
@@ -235,9 +237,28 @@ def test_stage_summary_rest_order_and_front_direction():
     assert inward["rest_order_spearman"] < -0.9
 
 
-def test_run_fronts_refuses_a_file_that_is_not_a_trajectory(tmp_path):
-    from dynslip.errors import InputError
+def test_rest_speed_counts_slow_slipping_nodes_as_stuck():
+    # flagged slipping at the friction limit, but the inner ones barely move
+    state = field("Seeeep..", "Seeepp..", "Seeppp..")
+    ds = synthetic_trajectory(state, stage=[0, 0, 0], stage_names=("raise",))
+    v = np.array([[0, 1e-6, 1e-6, 0.1, 0.1, -0.1, 0, 0]] * 3, dtype=float)
+    v[1, 4], v[2, 3] = -1e-6, -0.1  # node 4 at rest at frame 1; node 3 moving back at 2
+    ds["slip_velocity"] = (("time", "rbar"), v, ds.slip_velocity.attrs)
+    assert len(track_fronts(motion_state(ds))) == 1  # force criterion: only the pole front
+    moving = motion_state(ds, rest_speed=1e-4)
+    np.testing.assert_array_equal(moving[:, :6], field("SSSeep", "SSSeSp", "SSSppp")[:, :6])
+    fr = fronts_dataset(ds, rest_speed=1e-4)
+    assert fr.attrs["rest_speed"] == 1e-4
+    assert list(fr.front_node.values[0]) == [2, 2, 2]
+    assert summary(track_fronts(moving))[1:] == [
+        ([1], [3], 2, "nucleated", "merged"),
+        ([1], [4], 1, "nucleated", "merged"),
+    ]
+    with pytest.raises(InputError, match="rest_speed"):
+        fronts_dataset(ds, rest_speed=-1.0)
 
+
+def test_run_fronts_refuses_a_file_that_is_not_a_trajectory(tmp_path):
     bad = tmp_path / "trajectory.nc"
     bad.write_text("not netcdf")
     with pytest.raises(InputError, match="not a netCDF file"):
