@@ -31,7 +31,7 @@ class FrictionSpec(Strict):
     """Friction between sheet and ball."""
 
     law: Literal["coulomb"] = F("coulomb", description="ideal Coulomb, overdamped soft threshold")
-    mu: float = F(0.8, ge=0, le=10, description="friction coefficient")
+    mu: float = F(1.0, ge=0, le=10, description="friction coefficient")
 
 
 class StageSpec(Strict):
@@ -93,13 +93,15 @@ class StageSpec(Strict):
 
 
 def _default_stages() -> list[StageSpec]:
+    """The default method 2 path (scenarios/method2.yaml): push down, hold, the rim lets the
+    sheet go, the ball's hold is released, hold until at rest."""
     return [
-        StageSpec(name="push_down", clamp_to_z_mm=-120.0, clamp_speed_mm_s=2.0),
+        StageSpec(name="push_down", clamp_to_z_mm=-160.0, clamp_speed_mm_s=2.0),
         StageSpec(name="hold", duration_s=10.0),
-        StageSpec(name="raise", clamp_velocity_mm_s=1.0, duration_s=300.0, until="clamp_force_below",
-                  force_threshold_N=0.02),
-        StageSpec(name="release", ball="release", duration_s=20.0),
-        StageSpec(name="rest", ball="free", duration_s=200.0, until="rest", rest_rate_mm_s=0.002, rest_hold_s=10.0),
+        StageSpec(name="let_go", clamp="let_go", duration_s=10.0),
+        StageSpec(name="release", clamp="free", ball="release", duration_s=10.0),
+        StageSpec(name="rest", clamp="free", ball="free", duration_s=200.0, until="rest", rest_rate_mm_s=0.002,
+                  rest_hold_s=10.0),
     ]
 
 
