@@ -390,7 +390,7 @@ def _shoot(material, p, theta_s, rbar_max, rtol, by_radius=0.0):
     ye = b.ys[-1]
     lp_e = jnp.sin(ye[0]) / rbar_max
     switch = (1.0 - by_radius) * (ys[0] - theta_s) + by_radius * (rs - theta_s)
-    return jnp.stack([switch, ye[0], _tt_scalar(material, ye[1], lp_e)]), ye
+    return jnp.stack([switch, ye[0], _tt_scalar(material, ye[1], lp_e)]), ys[0]
 
 
 class Member(NamedTuple):
@@ -411,8 +411,9 @@ def _solve_member_jit(material, value, by_radius, theta_max, rbar_max, guess, rt
         return res - jnp.stack([0.0, theta_max, 0.0])
 
     sol = optx.root_find(fn, optx.Newton(rtol=atol, atol=atol), guess, max_steps=60, throw=False)
-    res = fn(sol.value, None)
-    return sol.value, jnp.max(jnp.abs(res))
+    res, theta_s = _shoot(material, sol.value, value, rbar_max, rtol, by_radius)
+    res = res - jnp.stack([0.0, theta_max, 0.0])
+    return sol.value, jnp.max(jnp.abs(res)), theta_s
 
 
 def solve_member(material, value, theta_max, rbar_max, guess=(2.0, 1.0, 0.25), *,
@@ -429,19 +430,14 @@ def solve_member(material, value, theta_max, rbar_max, guess=(2.0, 1.0, 0.25), *
     if by not in ("switch_angle", "switch_radius"):
         raise ValueError(f"unknown switch parameter {by!r}")
     by_radius = 1.0 if by == "switch_radius" else 0.0
-    p, res = _solve_member_jit(material, jnp.asarray(value, float), jnp.asarray(by_radius),
+    p, res, theta_s = _solve_member_jit(material, jnp.asarray(value, float), jnp.asarray(by_radius),
                                jnp.asarray(theta_max, float), jnp.asarray(rbar_max, float),
                                jnp.asarray(guess, float), rtol, atol)
     p = np.asarray(p)
     res = float(res)
     ok = bool(np.isfinite(res) and res < 1e-6 and p[0] > 0 and 0 < p[2] < rbar_max and p[1] > 0)
-    theta_s = float(_theta_at(material, p, rbar_max, rtol)) if ok else float("nan")
+    theta_s = float(theta_s) if ok else float("nan")
     return Member(float(p[0]), float(p[1]), float(p[2]), theta_s, res, ok)
-
-
-def _theta_at(material, p, rbar_max, rtol):
-    th, _ = _sample_jit(material, p[0], p[1], p[2], rbar_max, jnp.asarray([p[2]]), rtol)
-    return th[0]
 
 
 def solve_family(material, values, theta_max, rbar_max, guess=(2.0, 1.0, 0.25), **kw):
@@ -474,9 +470,14 @@ def _sample_jit(material, lam0, mu, rs, rbar_max, rgrid, rtol):
 
 def sample_member(material, member: Member, rbar_max, rbar, rtol=1e-10):
     """theta and lambda_theta of a member at the radii ``rbar`` (from the ODE, not the grid)."""
+    rbar = np.asarray(rbar, float)
+    # Pad to a fixed length (a power of two, at least 1024) so that every grid size up to it
+    # shares one compiled function.
+    size = max(1024, 1 << int(np.ceil(np.log2(max(len(rbar), 1)))))
+    padded = np.concatenate([rbar, np.full(size - len(rbar), rbar_max)])
     th, lt = _sample_jit(material, member.lam0, member.mu, member.rbar_s, rbar_max,
-                         jnp.asarray(rbar, float), rtol)
-    return np.asarray(th), np.asarray(lt)
+                         jnp.asarray(padded), rtol)
+    return np.asarray(th)[: len(rbar)], np.asarray(lt)[: len(rbar)]
 
 
 # --------------------------------------------------------------------------- checks
