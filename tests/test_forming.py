@@ -252,3 +252,47 @@ def test_runner_raises_computation_error_not_a_verdict(tmp_path):
     sc = validate_data({"kind": "forming", "numerics": {"nodes": 12, "max_steps": 100}}, "x")
     with pytest.raises(ComputationError):
         sc.run(tmp_path, None)
+
+
+# ----------------------------------------------------------------------------- slow checks
+
+
+@pytest.mark.slow
+def test_mesh_convergence_of_the_end_state():
+    """theta(rbar) at the nodes of the coarsest mesh (shared by all: N - 1 doubles) on the
+    contact region of the held push-down end state; report the measured order."""
+    thetas = []
+    for n in (17, 33, 65):
+        model = SheetModel(make_mesh(n, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
+        res = simulate(model, push_protocol(), friction=Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3)),
+                       eps=1e-3, drag=0.1, ball_drag=0.1 * 4 * math.pi, pre_stretch=PRE, z_sheet=Z0,
+                       settings=Settings(save_interval=1.0))
+        assert res.failed is None
+        step = (n - 1) // 16
+        thetas.append(np.asarray(res.frames[-1]["theta"])[::step])
+    both = np.isfinite(thetas[0]) & np.isfinite(thetas[1]) & np.isfinite(thetas[2])
+    both[np.flatnonzero(both)[-1]] = False  # the lift-off node moves between meshes
+    d1 = float(np.max(np.abs(thetas[0][both] - thetas[1][both])))
+    d2 = float(np.max(np.abs(thetas[1][both] - thetas[2][both])))
+    order = math.log2(d1 / d2)
+    print(f"mesh convergence: max|dtheta| 17->33 {d1:.3e}, 33->65 {d2:.3e}, measured order {order:.2f}")
+    assert d2 < d1
+    assert order > 0.5
+
+
+@pytest.mark.slow
+def test_default_method2_traps_the_ball(tmp_path, scenarios_dir):
+    """The shipped scenario at its default resolution: the ball trapped (contact past the
+    equator, at rest, reaction zero); the numbers are reported, not tuned."""
+    from dynslip.scenario import load
+
+    sc = load(scenarios_dir / "method2.yaml")
+    s = sc.run(tmp_path, None)
+    print(json.dumps({k: s[k] for k in ("trapped", "theta_max", "rbar_max", "opening_radius", "rest_state_check",
+                                        "largest_stretch", "mu_needed", "energy_balance", "solver")}, indent=1))
+    assert s["status"] == "ok"
+    assert s["trapped"] is True
+    assert s["theta_max"] > math.pi / 2
+    assert s["energy_balance"]["relative_residual"] < 1e-2
+    for name in ("meridian.png", "theta_rbar.png", "state_map.png", "trajectory.nc", "summary.json"):
+        assert (tmp_path / name).exists()
