@@ -25,11 +25,14 @@ Speeds are finite differences along a track (``numpy.gradient``, second order in
 
 Events: a track is born ``run_start`` (present in the first frame), ``nucleated`` (a new
 domain appeared inside another), ``nucleated_at_contact_edge`` (a new domain at the outer
-end of the contact region), ``nucleated_at_pole``, or ``contact_gained`` (one of its
-nodes was free the frame before). It dies ``merged`` (the interior domain beside it
+end of the contact region), ``nucleated_at_pole``, ``contact_gained`` (one of its
+nodes was free the frame before), or ``domain_switched`` (a domain wider than
+``reach + 1`` nodes beside it changed state as a whole between two frames). It dies ``merged`` (the interior domain beside it
 vanished, so the domains on either side merged; its neighbour front dies with it),
 ``reached_contact_edge`` (the outermost domain vanished), ``reached_pole`` (the domain
-holding the pole vanished), ``contact_lost`` (one of its nodes left contact), or
+holding the pole vanished), ``contact_lost`` (one of its nodes left contact),
+``domain_switched`` (a domain wider than ``reach + 1`` nodes beside it changed state as a
+whole, for example all the slipping sheet coming to rest at once), or
 ``run_end`` (still present in the last frame). ``unresolved`` marks a change the rules
 above do not explain (for example a front jumping further than a domain's width between
 two saved frames); its presence says the frames are too far apart.
@@ -63,6 +66,7 @@ BIRTH_EVENTS = (
     "nucleated_at_contact_edge",
     "nucleated_at_pole",
     "contact_gained",
+    "domain_switched",
     "unresolved",
 )
 DEATH_EVENTS = (
@@ -71,6 +75,7 @@ DEATH_EVENTS = (
     "reached_contact_edge",
     "reached_pole",
     "contact_lost",
+    "domain_switched",
     "unresolved",
 )
 STUCK_SIDES = ("stuck_toward_pole", "stuck_toward_equator")
@@ -188,13 +193,22 @@ def _vanished(dom: tuple[int, int], cat: int, cat_next: np.ndarray) -> bool:
     return not np.any(cat_next[dom[0] : dom[1] + 1] == cat)
 
 
-def _birth_event(f: _Front, cat_prev: np.ndarray) -> str:
+def _switched(dom: tuple[int, int], cat_other: np.ndarray, reach: int) -> bool:
+    """A domain wider than ``reach + 1`` nodes, all in contact in the other frame."""
+    return dom[1] - dom[0] + 1 > reach + 1 and bool(np.all(cat_other[dom[0] : dom[1] + 1] != 0))
+
+
+def _birth_event(f: _Front, cat_prev: np.ndarray, reach: int = 1) -> str:
     if cat_prev[f.node] == 0 or cat_prev[f.node + 1] == 0:
         return "contact_gained"
     lcat = STUCK if f.stuck_side == 1 else _MOVING
     rcat = _MOVING if f.stuck_side == 1 else STUCK
     new_left = _vanished(f.left, lcat, cat_prev)
     new_right = _vanished(f.right, rcat, cat_prev)
+    if (new_left and _switched(f.left, cat_prev, reach)) or (
+        new_right and _switched(f.right, cat_prev, reach)
+    ):
+        return "domain_switched"
     if new_right and f.right_at_edge:
         return "nucleated_at_contact_edge"
     if new_left and f.left_at_pole:
@@ -204,13 +218,17 @@ def _birth_event(f: _Front, cat_prev: np.ndarray) -> str:
     return "unresolved"
 
 
-def _death_event(f: _Front, cat_next: np.ndarray) -> str:
+def _death_event(f: _Front, cat_next: np.ndarray, reach: int = 1) -> str:
     if cat_next[f.node] == 0 or cat_next[f.node + 1] == 0:
         return "contact_lost"
     lcat = STUCK if f.stuck_side == 1 else _MOVING
     rcat = _MOVING if f.stuck_side == 1 else STUCK
     gone_left = _vanished(f.left, lcat, cat_next)
     gone_right = _vanished(f.right, rcat, cat_next)
+    if (gone_left and _switched(f.left, cat_next, reach)) or (
+        gone_right and _switched(f.right, cat_next, reach)
+    ):
+        return "domain_switched"
     if gone_right and f.right_at_edge:
         return "reached_contact_edge"
     if gone_left and f.left_at_pole:
@@ -257,10 +275,10 @@ def track_fronts(state, reach: int = 1) -> list[Track]:
             cur_ids[j] = prev_ids[i]
         for i, f in enumerate(prev):
             if i not in links:
-                tracks[prev_ids[i]].death_event = _death_event(f, cats[k])
+                tracks[prev_ids[i]].death_event = _death_event(f, cats[k], reach)
         for j, f in enumerate(cur):
             if cur_ids[j] < 0:
-                event = "run_start" if k == 0 else _birth_event(f, cats[k - 1])
+                event = "run_start" if k == 0 else _birth_event(f, cats[k - 1], reach)
                 tracks.append(Track([], [], f.stuck_side, [], birth_event=event))
                 cur_ids[j] = len(tracks) - 1
             t = tracks[cur_ids[j]]
@@ -570,7 +588,7 @@ def summary_lines(stages: list[dict]) -> list[str]:
 
 
 def _spearman(x: np.ndarray, y: np.ndarray) -> float | None:
-    if x.size < 2:
+    if x.size < 2 or np.all(y == y[0]) or np.all(x == x[0]):
         return None
     from scipy.stats import spearmanr
 

@@ -128,6 +128,22 @@ def test_front_reaching_the_contact_edge_and_the_pole():
     assert summary(track_fronts(pole)) == [([0, 1], [1, 0], 1, "run_start", "reached_pole")]
 
 
+def test_a_wide_domain_switching_at_once_is_named_so():
+    # all of the slipping sheet comes to rest between two frames, then starts again
+    state = field(
+        "SSeeeeee....",
+        "SSSSSSSS....",
+        "SSeeeeee....",
+    )
+    assert summary(track_fronts(state)) == [
+        ([0], [1], 1, "run_start", "domain_switched"),
+        ([2], [1], 1, "domain_switched", "run_end"),
+    ]
+    # a two-node domain is within reach + 1: it reaches the contact edge
+    edge = field("SSSSSSee....", "SSSSSSSS....")
+    assert summary(track_fronts(edge)) == [([0], [5], 1, "run_start", "reached_contact_edge")]
+
+
 def test_contact_lost_and_gained():
     lost = field(
         "SSSSSeee....",
