@@ -576,8 +576,10 @@ def summary_lines(stages: list[dict]) -> list[str]:
             f"travel {e['front_direction'].replace('_', ' ')}"
         )
         if e.get("last_to_rest_rbar"):
+            n_last = len(e["last_to_rest_rbar"])
+            at_once = f" ({n_last} nodes at once)" if n_last > 1 else ""
             line += (
-                f"; last to come to rest at rbar = {max(e['last_to_rest_rbar']):.3g} "
+                f"; last to come to rest at rbar = {max(e['last_to_rest_rbar']):.3g}{at_once} "
                 f"(t = {e['last_rest_time_s']:.4g} s); outermost contact rests last: "
                 f"{'yes' if e['outermost_contact_rests_last'] else 'no'}"
             )
