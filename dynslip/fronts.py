@@ -2,7 +2,8 @@ r"""Stick fronts: the boundaries between stuck and slipping sheet, tracked throu
 
 A *stick front* sits between two adjacent nodes ``i, i+1`` that are both in contact with
 the ball, one stuck (``state == 1``) and the other slipping (``state`` 2 or 3; the
-contract's flags, :mod:`dynslip.trajectory`). Its position is the midpoint of the two
+contract's flags, :mod:`dynslip.trajectory`; or, with ``rest_speed``, stuck or slower
+than it, :func:`motion_state`). Its position is the midpoint of the two
 nodes, in the material radius and in the polar angle:
 
 .. math::  \bar r_f = (\bar r_i + \bar r_{i+1})/2, \qquad \theta_f = (\theta_i + \theta_{i+1})/2 .
@@ -20,15 +21,15 @@ sheet moves by more than its width between frames). Among the allowed pairings a
 order-preserving one (fronts cannot cross in 1D) with the most links and then the least
 cost is chosen by dynamic programming; the cost is the displacement in nodes, plus 0.5 if
 the slip direction beside the front changed, plus 0.25 per side linked only by reach.
-Apart from ``reach``, no speed limit is assumed.
-Speeds are finite differences along a track (``numpy.gradient``, second order inside).
+Apart from ``reach``, no speed limit is assumed. Speeds are finite differences along a track (``numpy.gradient``, second order inside).
 
 Events: a track is born ``run_start`` (present in the first frame), ``nucleated`` (a new
 domain appeared inside another), ``nucleated_at_contact_edge`` (a new domain at the outer
 end of the contact region), ``nucleated_at_pole``, ``contact_gained`` (one of its
 nodes was free the frame before), or ``domain_switched`` (a domain wider than
-``reach + 1`` nodes beside it changed state as a whole between two frames). It dies ``merged`` (the interior domain beside it
-vanished, so the domains on either side merged; its neighbour front dies with it),
+``reach + 1`` nodes beside it changed state as a whole between two frames). It dies
+``merged`` (the interior domain beside it vanished, so the domains on either side merged;
+its neighbour front dies with it),
 ``reached_contact_edge`` (the outermost domain vanished), ``reached_pole`` (the domain
 holding the pole vanished), ``contact_lost`` (one of its nodes left contact),
 ``domain_switched`` (a domain wider than ``reach + 1`` nodes beside it changed state as a
