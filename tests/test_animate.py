@@ -43,6 +43,9 @@ def test_gif_has_one_frame_per_saved_frame_in_range(traj, tmp_path):
     t = np.linspace(0.0, 3.5, NT)
     assert info["frames"] == int(np.sum((t >= 0.5) & (t <= 3.0))) == 6
     assert (info["width"], info["height"]) == (400, 240)
+    from PIL import Image
+
+    assert Image.open(out).info["duration"] == 250  # ms per frame at 4 frames per second
 
 
 def test_frames_differ_and_default_path(traj):
