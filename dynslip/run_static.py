@@ -63,6 +63,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
                             by=selection.rule, rtol=num.ode_rtol)
     t_bvp = time.perf_counter() - t0
     out: dict = {"model": model, "rbar": rbar, "h": h, "member": member, "t_bvp_s": t_bvp,
+                 "fv_tol": num.fv_tolerance(),
                  "rule": _rule_text(selection), "paper_mu": paper_mu(model, jm)}
     if member.converged:
         th_m, _ = S.sample_member(material, member, rbar_max, rbar, rtol=num.ode_rtol)
@@ -85,7 +86,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
     t0 = time.perf_counter()
     try:
         sr = S.search_mu(material, theta0, h, num.mu_bracket[0], num.mu_bracket[1], mu_tol=num.mu_tol,
-                         fv_tol=num.fv_tol, **march_kw)
+                         fv_tol=num.fv_tolerance(), **march_kw)
     except ComputationError as err:
         part = err.partial
         out.update(status="failed", error=f"{LABEL.get(model, model)}: {err}", theta=np.asarray(part["theta"][0]),
@@ -204,6 +205,7 @@ def _summary(res: dict) -> dict:
     for k in ("evaluations", "march_steps", "march_converged", "t_bvp_s", "t_search_s"):
         if k in res:
             s[k] = res[k]
+    s["fv_tolerance"] = res.get("fv_tol")
     if "fv_bracket" in res:
         s["mu_bracket"] = list(res["mu_bracket"])
         s["F_v_at_bracket_ends"] = list(res["fv_bracket"])

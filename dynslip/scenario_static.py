@@ -121,11 +121,16 @@ class StaticNumerics(Strict):
     max_steps: int = F(400_000, ge=100, description="largest number of march steps per mu")
     mu_bracket: tuple[float, float] = F((0.1, 5.0), description="search bracket for mu [low, high]")
     mu_tol: float = F(1e-4, gt=0, lt=0.1, description="relative width of the final mu bracket")
-    fv_tol: float = F(1e-3, ge=0, unit="1",
-                      description="F_v counts as vanished at or below this (units G*h0*R; ~ discretisation error at N=100)")
+    fv_tol: float | None = F(None, ge=0, unit="1",
+                             description="F_v counts as vanished at or below this (units G*h0*R); null: "
+                             "1e-3 (99/(n_nodes-1))^2, the O(h^2) discretisation error of F_v scaled from N=100")
     ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the fully mobilised shooting ODE")
     switch_guess: tuple[float, float, float] = F(
         (2.2, 1.0, 0.25), description="Newton start (pole stretch, mu, switch radius) of the shooting")
+
+    def fv_tolerance(self) -> float:
+        """The F_v tolerance of the search (``fv_tol``, or its O(h^2) default)."""
+        return self.fv_tol if self.fv_tol is not None else 1e-3 * (99.0 / (self.n_nodes - 1)) ** 2
 
     @model_validator(mode="after")
     def _bracket(self):
