@@ -288,3 +288,29 @@ def test_rest_time_counts_only_slip_then_stick():
     rest = fronts_dataset(ds).rest_time.values[0]
     # node 0, 1: never slipped; node 2 rests at t=2; node 3 slips at the end
     assert np.isnan(rest[0]) and np.isnan(rest[1]) and rest[2] == 2.0 and np.isnan(rest[3])
+
+
+@pytest.mark.slow
+def test_fronts_of_a_method2_run_are_continuous_between_named_events(tmp_path):
+    """A real whole-sheet run (20 nodes, about 1.5 min): no unresolved event, small steps."""
+    from pathlib import Path
+
+    from rich.console import Console
+
+    from dynslip import scenario
+
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
+    if not path.exists():
+        pytest.skip("scenarios/method2.yaml is not in this checkout")
+    scenario.load(path, ["numerics.nodes=20"]).run(tmp_path, Console(quiet=True))
+    ds = xr.open_dataset(tmp_path / "trajectory.nc").load()
+    for rest_speed in (None, 1e-4):
+        fr = fronts_dataset(ds, rest_speed)
+        assert fr.attrs["unresolved_events"] == 0
+        assert fr.attrs["max_front_step_nodes"] <= 2
+        node = fr.front_node.values
+        for k in range(fr.sizes["track"]):
+            alive = np.flatnonzero(node[k] >= 0)
+            assert np.array_equal(alive, np.arange(alive[0], alive[-1] + 1))  # no gaps
+            steps = np.abs(np.diff(node[k, alive]))
+            assert steps.max(initial=0) <= 2
