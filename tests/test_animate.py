@@ -45,7 +45,8 @@ def test_gif_has_one_frame_per_saved_frame_in_range(traj, tmp_path):
     assert (info["width"], info["height"]) == (400, 240)
     from PIL import Image
 
-    assert Image.open(out).info["duration"] == 250  # ms per frame at 4 frames per second
+    with Image.open(out) as im:
+        assert im.info["duration"] == 250  # ms per frame at 4 frames per second
 
 
 def test_frames_differ_and_default_path(traj):
@@ -76,7 +77,8 @@ def test_single_frame_png(traj, tmp_path):
     from PIL import Image
 
     out = save_frame_png(traj, tmp_path / "f.png", time=2.0, size=(500, 250))
-    assert Image.open(out).size == (500, 250)
+    with Image.open(out) as im:
+        assert im.size == (500, 250)
 
 
 def _rewrite(traj, tmp_path, **attrs):
