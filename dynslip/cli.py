@@ -73,21 +73,13 @@ def cmd_schema(args) -> int:
 
 
 def cmd_animate(args) -> int:
-    from dynslip.animate import animate
+    from dynslip.animate import animate, parse_size
 
-    size = None
-    if args.size:
-        try:
-            w, h = (int(v) for v in args.size.lower().split("x"))
-        except ValueError:
-            raise InputError(f"--size {args.size!r}: expected WIDTHxHEIGHT in pixels, e.g. 1200x500") from None
-        size = (w, h)
-    t_range = None
+    kw = {"fps": args.fps, "fmt": args.format, "max_frames": args.max_frames, "rest_speed": args.rest_speed}
     if args.t_start is not None or args.t_end is not None:
-        t_range = (args.t_start, args.t_end)
-    kw = {"fps": args.fps, "t_range": t_range, "fmt": args.format}
-    if size is not None:
-        kw["size"] = size
+        kw["t_range"] = (args.t_start, args.t_end)
+    if args.size:
+        kw["size"] = parse_size(args.size)
     path = animate(Path(args.trajectory), Path(args.out) if args.out else None, **kw)
     print(f"animation: {path}")
     return 0
@@ -96,7 +88,7 @@ def cmd_animate(args) -> int:
 def cmd_fronts(args) -> int:
     from dynslip.fronts import run_fronts
 
-    paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None)
+    paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed)
     for p in paths:
         print(p)
     return 0
@@ -160,16 +152,20 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("animate", help="animate a saved trajectory (GIF or MP4)")
     a.add_argument("trajectory")
     a.add_argument("--out")
-    a.add_argument("--fps", type=float, default=12.0)
+    a.add_argument("--fps", type=float, default=10.0)
     a.add_argument("--t-start", type=float, default=None, help="first time shown [s]")
     a.add_argument("--t-end", type=float, default=None, help="last time shown [s]")
     a.add_argument("--size", default=None, help="WIDTHxHEIGHT in pixels")
     a.add_argument("--format", choices=["gif", "mp4"], default="gif")
+    a.add_argument("--max-frames", type=int, default=200, help="thin the saved frames to at most this many")
+    a.add_argument("--rest-speed", type=float, default=None,
+                   help="show nodes slower than this (R/s) as at rest, whatever the force criterion says")
     a.set_defaults(fn=cmd_animate)
 
     f = sub.add_parser("fronts", help="track stick fronts in a saved trajectory")
     f.add_argument("trajectory")
     f.add_argument("--out")
+    f.add_argument("--rest-speed", type=float, default=None, help="count nodes slower than this (R/s) as at rest")
     f.set_defaults(fn=cmd_fronts)
 
     w = sub.add_parser("sweep", help="run a study over scenario fields")
