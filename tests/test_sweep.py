@@ -463,7 +463,9 @@ def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     if not base.exists():
         pytest.skip("scenarios/method2.yaml not shipped yet")
     sets = ["numerics.nodes=20"]
-    res = run_window(base, sets, lo=0.4, hi=1.6, coarse=4, tol=0.2, out=tmp_path / "w")
+    # coarse step 0.2: a prototype's window (trapped at 0.8 only) and the shipped one near
+    # mu = 1 are narrower than 0.4
+    res = run_window(base, sets, lo=0.4, hi=1.6, coarse=7, tol=0.1, out=tmp_path / "w")
     data = scenario_mod.load_data(base, sets)
 
     def trapped(mu):
@@ -476,11 +478,11 @@ def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     windows = res["windows"]
 
     def outside(mu):  # outside every window by more than an edge's uncertainty (tol / 2)
-        return 0.4 < mu < 1.6 and all(not (a - 0.1 <= mu <= b + 0.1) for a, b in windows)
+        return 0.4 < mu < 1.6 and all(not (a - 0.05 <= mu <= b + 0.05) for a, b in windows)
 
     for lo, hi in windows:
-        checks.append((0.5 * (lo + hi), True))
-        checks += [(mu, False) for mu in (lo - 0.15, hi + 0.15) if outside(mu)]
+        checks.append((lo + 0.37 * (hi - lo), True))  # inside, and not a point the search ran
+        checks += [(mu, False) for mu in (lo - 0.13, hi + 0.13) if outside(mu)]
     if not res["windows"]:
         checks = [(0.55, False), (1.25, False)]
     for mu, expected in checks:
