@@ -109,6 +109,10 @@ def plot_sweep(ds: xr.Dataset, path) -> Path:
     if has_window:
         ax = axes.flat[len(panels)]
         _window_panel(ax, ds, dims, x, ticks)
+    if not maps and len(x) > 1:  # one x range for every panel, however many points each has
+        pad = 0.35 * np.min(np.diff(np.sort(x)))  # room for the window bars (0.5 step wide)
+        for ax in list(axes.flat)[:n]:
+            ax.set_xlim(x.min() - pad, x.max() + pad)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     fig.tight_layout()
@@ -120,8 +124,8 @@ def plot_sweep(ds: xr.Dataset, path) -> Path:
 def _window_panel(ax, ds: xr.Dataset, dims: list[str], x: np.ndarray, ticks) -> None:
     """Each member's trapping windows as vertical bars over the first swept field."""
     groups = [None] if len(dims) == 1 else list(range(ds.sizes[dims[1]]))
-    step = np.min(np.diff(x)) if len(x) > 1 else 1.0
-    width = 0.6 * step / max(len(groups), 1)
+    step = np.min(np.abs(np.diff(x))) if len(x) > 1 else 1.0
+    width = 0.5 * step / max(len(groups), 1)
     for g, j in enumerate(groups):
         sub = ds if j is None else ds.isel({dims[1]: j})
         label = None if j is None else f"{dims[1]}={ds[dims[1]].values[j]}"
@@ -141,13 +145,30 @@ def _window_panel(ax, ds: xr.Dataset, dims: list[str], x: np.ndarray, ticks) -> 
                         label=label,
                     )
                     label = None
+        none = np.isfinite(sub["n_windows"].values) & (sub["n_windows"].values == 0)
+        lo_r, hi_r = _window_range(ds)
+        marker_y = np.full(none.sum(), lo_r + 0.03 * (hi_r - lo_r))
+        ax.plot(x[none] + offset, marker_y, "x", color=f"C{g}", ms=7)
     ax.set_xlabel(dims[0])
     if ticks:
         ax.set_xticks(x, ticks, rotation=20, fontsize=7)
-    ax.set_ylabel("mu (trapped)")
+    ax.set_ylim(*_window_range(ds))
+    ax.set_ylabel("mu (trapped; x: no window)")
     ax.set_title("trapping windows", fontsize=8)
     if len(groups) > 1:
         ax.legend(fontsize=7)
+
+
+def _window_range(ds: xr.Dataset) -> tuple[float, float]:
+    """The mu range the windows were searched over (from the sweep file in the attributes)."""
+    import json
+
+    try:
+        w = json.loads(ds.attrs["sweep"])["window"]
+        return float(w["lo"]), float(w["hi"])
+    except (KeyError, TypeError, ValueError):
+        lo, hi = float(np.nanmin(ds["window_lo"])), float(np.nanmax(ds["window_hi"]))
+        return (lo, hi) if hi > lo else (0.0, 1.0)
 
 
 def plot_window(result: dict, path) -> Path:
