@@ -75,7 +75,7 @@ def build_core(sc):
     protocol = build_protocol(sc)
     weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0
     settings = Settings(solver=nu.solver, rtol=nu.rtol, atol=nu.atol, pcoeff=nu.pid_pcoeff, icoeff=nu.pid_icoeff,
-                        max_steps=nu.max_steps, save_interval=nu.save_interval_s,
+                        max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
                         contact_threshold=nu.contact_threshold)
     kwargs = dict(
         friction=Coulomb(mu=jnp.asarray(p.friction.mu), eps=jnp.asarray(nu.friction_smoothing)),

@@ -168,6 +168,11 @@ class FormingNumerics(Strict):
                            "slow when a stage lasts >> tau (docs/forming.md)")
     ball_drag: float = F(1.0, gt=0, description="ball drag as a multiple of the sheet drag over the ball's area 4 pi R^2")
     solver: Literal["kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F("kvaerno5", description="stiff solver")
+    linear_solver: Literal["structured", "dense"] = F(
+        "structured",
+        description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "
+        "Thomas + Schur complement, cost linear in nodes) or dense (diffrax's default LU)",
+    )
     rtol: float = F(1e-5, gt=0, lt=1, description="relative tolerance")
     atol: float = F(1e-7, gt=0, lt=1, description="absolute tolerance")
     pid_pcoeff: float = F(0.3, ge=0, le=1, description="PID controller proportional coefficient")

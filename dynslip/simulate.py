@@ -42,6 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.friction import AbstractFriction, Coulomb
+from dynslip.linalg import BorderedBlockTridiagonal, Structure
 from dynslip.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
 from dynslip.sheet import SheetModel
 
@@ -162,11 +163,32 @@ class Settings:
     max_steps: int = 20000  # per segment
     save_interval: float = 1.0  # s
     contact_threshold: float = 1e-2  # G h0 / R
+    linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
 
 
-def _solver(name: str):
-    return {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
-            "implicit_euler": diffrax.ImplicitEuler}[name]()
+def sheet_structure(layout: Layout) -> Structure:
+    """Sparsity of the state for :class:`dynslip.linalg.BorderedBlockTridiagonal`.
+
+    Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
+    depends only on its neighbours (element energies, the hoop stretch at element
+    midpoints, the node's own contact frame), so the node blocks are tridiagonal. The
+    ball height and the accumulators form the dense border.
+    """
+    n = layout.n
+    core = []
+    for i in range(n):
+        core += [-1 if i == 0 else i - 1, n - 1 + i]
+    border = tuple(range(2 * n - 1, layout.size))
+    return Structure(n=n, b=2, m=len(border), core_index=tuple(core), border_index=border)
+
+
+def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
+    cls = {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
+           "implicit_euler": diffrax.ImplicitEuler}[name]
+    if linear_solver == "dense":
+        return cls()
+    lin = BorderedBlockTridiagonal(sheet_structure(layout))
+    return cls(root_finder=diffrax.with_stepsize_controller_tols(diffrax.VeryChord)(linear_solver=lin))
 
 
 _SOLVE_CACHE: dict = {}
@@ -176,16 +198,16 @@ _COMPILED: dict = {}  # ahead-of-time compiled segment solves, keyed by everythi
 def segment_solver(settings: Settings):
     """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for a solver name and
     step limit; shared by every run (compiled once per mesh size and material class)."""
-    key = (settings.solver, settings.max_steps)
+    key = (settings.solver, settings.max_steps, settings.linear_solver)
     if key in _SOLVE_CACHE:
         return _SOLVE_CACHE[key]
-    solver = _solver(settings.solver)
     max_steps = settings.max_steps
     pcoeff, icoeff = settings.pcoeff, settings.icoeff
 
     @eqx.filter_jit
     def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
         term = diffrax.ODETerm(vector_field(model, layout))
+        solver = _solver(settings.solver, settings.linear_solver, layout)
         ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff)
         sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
                                   max_steps=max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
@@ -317,7 +339,7 @@ def simulate(
         rest_since = None
         for t1 in seg_ts[1:]:
             dt0 = _f(min(dt_guess, 0.5 * (t1 - t)))
-            key = (settings.solver, settings.max_steps, layout.n,
+            key = (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
                    repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
             if key not in _COMPILED:
                 c0 = _time.perf_counter()
