@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-PARTS = ["static", "forming", "sweep"]
+PARTS = ["static", "forming", "speed", "sweep"]
 
 
 def _load(part: str):
