@@ -31,7 +31,7 @@ class FrictionSpec(Strict):
     """Friction between sheet and ball."""
 
     law: Literal["coulomb"] = F("coulomb", description="ideal Coulomb, overdamped soft threshold")
-    mu: float = F(1.0, ge=0, le=10, description="friction coefficient")
+    mu: float = F(1.15, ge=0, le=10, description="friction coefficient")
 
 
 class StageSpec(Strict):
