@@ -127,10 +127,13 @@ def test_end_state_cross_checks_with_the_static_formulas(base):
     print(f"|F_m| <= mu F_N (1+5%) at {ok.mean():.1%} of {ok.size} contact nodes; "
           f"|F_m|/(mu F_N) = {np.round(np.abs(fm[inner]) / (0.8 * fn[inner]), 3).tolist()}")
     assert ok.mean() >= 0.95
-    p = np.asarray(f["pressure"])[: k]
-    tsum = np.asarray(f["T_theta"] + f["T_phi"])[: k]
+    # The pole node is excluded like the lift-off node: its lumped area (half the first
+    # annulus, pi dr^2 / 2) is twice its own disc (pi dr^2 / 4), so its nodal pressure is a
+    # lumping artefact; the error elsewhere falls off away from the pole (printed).
+    p = np.asarray(f["pressure"])[1:k]
+    tsum = np.asarray(f["T_theta"] + f["T_phi"])[1:k]
     rel = np.abs(p / tsum - 1)
-    print(f"pressure / (T_t + T_p) - 1: max {rel.max():.3e} over {k} nodes")
+    print(f"pressure / (T_t + T_p) - 1 on nodes 1..{k - 1}: {np.round(rel, 4).tolist()}")
     assert rel.max() < 0.05
     rho, z = jnp.asarray(f["rho"]), jnp.asarray(f["z"])
     axial = np.asarray(MODEL.free_span_axial_force(rho, z))[k + 1 :]
