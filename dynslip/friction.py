@@ -46,7 +46,11 @@ def soft_threshold(f, c, eps=0.0):
     ideal = jnp.maximum(a - c, 0.0)
     if isinstance(eps, (int, float)) and eps == 0.0:
         return jnp.sign(f) * ideal
-    e = eps * c / (c + eps + 1e-300)
+    # Double-where: at c + eps = 0 the quotient is replaced before it is formed, so
+    # reverse-mode derivatives stay finite (a 1e-300 guard underflows when squared).
+    den = c + eps
+    den_safe = jnp.where(den > 0, den, 1.0)
+    e = jnp.where(den > 0, eps * c / den_safe, 0.0)
     e_safe = jnp.where(e > 0, e, 1.0)
     blend = (a - c + e) ** 2 / (4.0 * e_safe)
     in_band = (a > c - e) & (a < c + e) & (e > 0)
