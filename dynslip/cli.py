@@ -41,6 +41,8 @@ def cmd_run(args) -> int:
     out = _default_out(args.scenario, args.out)
     console = _console()
     t0 = time.perf_counter()
+    if hasattr(scn, "preflight"):
+        scn.preflight(console)  # bad input found before anything is written (e.g. a start_from file)
     with StagedRun(out) as staging:
         console.print(f"[bold]dynslip run[/bold] {args.scenario} (kind: {scn.kind}) -> {out}/")
         scn.run(staging, console)

@@ -16,10 +16,18 @@ width $e = \epsilon c/(c + \epsilon)$ that never exceeds $c$ (so a node with no
 normal force moves freely, $S = f$). Smoothing in velocity is not offered: it makes
 loaded-but-stuck nodes creep (physics.md).
 
-:class:`AbstractFriction` is the interface the driver uses; the next issue adds a
-slip-distance-weakening law (static/kinetic), which needs a per-node internal state:
-:meth:`AbstractFriction.n_internal` and :meth:`AbstractFriction.internal_rate` are
-the hooks (zero-sized for the laws here).
+:class:`AbstractFriction` is the interface the driver uses. :class:`SlipWeakening`
+(static/kinetic, physics.md Section 4 "Friction") carries one internal state per node,
+the slip distance $\delta$ accumulated since the node last stuck:
+
+$$\mu(\delta) = \mu_k + (\mu_s - \mu_k)\max(0, 1 - \delta/d_c),\qquad
+  \dot\delta = |u_t|\ \text{(in contact)},$$
+
+reset to 0 where the node is stuck (force criterion: $S = 0$ exactly) or out of contact.
+The reset is a jump: the driver applies it at every restart (the end of each save
+segment, :func:`dynslip.simulate.simulate`), so its time resolution is the save interval.
+Slip-distance weakening is rate independent (no time scale enters $\mu$) and well
+posed for $d_c > 0$; velocity weakening is neither and is not offered.
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
-__all__ = ["AbstractFriction", "Coulomb", "soft_threshold"]
+__all__ = ["AbstractFriction", "Coulomb", "SlipWeakening", "soft_threshold", "make_friction"]
 
 
 def soft_threshold(f, c, eps=0.0):
@@ -61,30 +69,41 @@ def soft_threshold(f, c, eps=0.0):
 class AbstractFriction(eqx.Module):
     """A friction law: tangential slip force from the driving and normal forces.
 
-    ``slip_force(ft, fn, internal)`` returns $S$ (same shape as ``ft``), the part of
+    ``slip_force(ft, fn, internal, eps)`` returns $S$ (same shape as ``ft``), the part of
     the tangential force that is not cancelled by friction; the slip velocity is
-    $S/(\\eta A)$. ``stuck(ft, fn, internal)`` is the force criterion (True where the
-    law gives exactly zero slip).
+    $S/(\\eta A)$. ``eps`` is the force-space smoothing per node (the law's own ``eps``
+    when None). Laws with memory carry ``n_internal()`` values per node.
     """
 
-    @abc.abstractmethod
-    def slip_force(self, ft, fn, internal=None):
-        """Unbalanced tangential force $S$; exactly zero while stuck."""
+    eps: eqx.AbstractVar[float | jnp.ndarray]
 
     @abc.abstractmethod
     def threshold(self, fn, internal=None):
         """Friction threshold $\\mu N$ per node."""
 
-    def stuck(self, ft, fn, internal=None):
+    def slip_force(self, ft, fn, internal=None, eps=None):
+        """Unbalanced tangential force $S$; exactly zero while stuck."""
+        e = self.eps if eps is None else eps
+        return soft_threshold(ft, self.threshold(fn, internal), e)
+
+    def stuck(self, ft, fn, internal=None, eps=None):
         """Force criterion for sticking: $S = 0$ exactly."""
-        return self.slip_force(ft, fn, internal) == 0.0
+        return self.slip_force(ft, fn, internal, eps) == 0.0
+
+    def coefficient(self, internal, n: int):
+        """The current friction coefficient per node (n,)."""
+        raise NotImplementedError
 
     def n_internal(self) -> int:
         """Number of internal state variables per node (0: memoryless law)."""
         return 0
 
-    def internal_rate(self, slip_speed, internal):
-        """Rate of the per-node internal state (none here)."""
+    def internal_rate(self, slip_speed, normal, internal):
+        """Rate of the per-node internal state (shape of ``internal``)."""
+        return jnp.zeros_like(internal)
+
+    def reset(self, internal, slip, normal):
+        """The internal state after a restart (unchanged for memoryless laws)."""
         return internal
 
 
@@ -102,6 +121,50 @@ class Coulomb(AbstractFriction):
     def threshold(self, fn, internal=None):
         return self.mu * jnp.maximum(fn, 0.0)
 
-    def slip_force(self, ft, fn, internal=None, eps=None):
-        e = self.eps if eps is None else eps
-        return soft_threshold(ft, self.threshold(fn), e)
+    def coefficient(self, internal, n: int):
+        return jnp.full(n, self.mu, dtype=float)
+
+
+class SlipWeakening(AbstractFriction):
+    r"""Static/kinetic friction by slip-distance weakening (module docstring).
+
+    ``mu_s >= mu_k >= 0``; ``d_c > 0`` the weakening length (units of R); one internal
+    state per node, the slip distance since the node last stuck (units of R). With
+    ``mu_s == mu_k`` it is :class:`Coulomb` with ``mu = mu_s`` exactly.
+    """
+
+    mu_s: float | jnp.ndarray = 0.99
+    mu_k: float | jnp.ndarray = 0.82
+    d_c: float | jnp.ndarray = 0.02
+    eps: float | jnp.ndarray = 0.0
+
+    def coefficient(self, internal, n: int | None = None):
+        w = jnp.clip(1.0 - internal / self.d_c, 0.0, 1.0)
+        return self.mu_k + (self.mu_s - self.mu_k) * w
+
+    def threshold(self, fn, internal=None):
+        mu = self.mu_s if internal is None else self.coefficient(internal)
+        return mu * jnp.maximum(fn, 0.0)
+
+    def n_internal(self) -> int:
+        return 1
+
+    def internal_rate(self, slip_speed, normal, internal):
+        return jnp.where(normal > 0, jnp.abs(slip_speed), 0.0)
+
+    def reset(self, internal, slip, normal):
+        return jnp.where((slip == 0.0) | (normal <= 0.0), 0.0, internal)
+
+
+def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0) -> AbstractFriction:
+    """A friction law by name (``coulomb`` or ``slip_weakening``), parameters as jnp scalars."""
+    f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+    if law == "coulomb":
+        return Coulomb(mu=f(mu), eps=f(eps))
+    if law == "slip_weakening":
+        if not mu_s >= mu_k >= 0:
+            raise ValueError(f"slip_weakening: need mu_s >= mu_k >= 0, got mu_s = {mu_s}, mu_k = {mu_k}")
+        if not d_c > 0:
+            raise ValueError(f"slip_weakening: need d_c > 0, got {d_c}")
+        return SlipWeakening(mu_s=f(mu_s), mu_k=f(mu_k), d_c=f(d_c), eps=f(eps))
+    raise ValueError(f"unknown friction law {law!r}")

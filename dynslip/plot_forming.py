@@ -82,6 +82,15 @@ def plot_theta(ds: xr.Dataset, ax, indices):
     ax.legend(fontsize=7)
 
 
+def kinetic_mask(ds: xr.Dataset):
+    """(time, rbar) True where a node slips with its slip distance past d_c (slip_weakening
+    runs: friction at mu_k); None for laws without weakening."""
+    if ds.attrs.get("friction_law") != "slip_weakening" or "slip_distance" not in ds:
+        return None
+    state = ds["state"].values
+    return (state >= 2) & (ds["slip_distance"].values >= float(ds.attrs["d_c"]))
+
+
 def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     state = ds["state"].values.astype(float)
     t = ds["time"].values
@@ -96,6 +105,11 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
         s = int(stage[j + 1])
         ax.text(t[j + 1], 0.98, names[s] if s < len(names) else str(s), rotation=90, va="top", ha="right",
                 fontsize=7, transform=ax.get_xaxis_transform())
+    kinetic = kinetic_mask(ds)
+    if kinetic is not None and kinetic.any():
+        # slipping with the slip distance past d_c: sliding at mu_k (unhatched slip: at mu_s onset, weakening)
+        ax.contourf(t, rbar, kinetic.T.astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"])
+        ax.plot([], [], " ", label="//// sliding at mu_k (slip > d_c)")
     contact = ds["rbar_max"].values
     ax.plot(t, contact, "k-", lw=0.8, label="rbar_max (outermost contact)")
     if rbar_limit is None:

@@ -40,21 +40,25 @@ class StopRule:
     ``kind``: ``"duration"`` (after ``duration``), ``"clamp_force_below"`` (when the
     magnitude of the clamp's axial force falls below ``force``, units of $G h_0 R$),
     or ``"rest"`` (when the largest slip speed and the ball speed stay below ``rate``
-    (R/s) for ``hold`` seconds). Condition rules end at ``duration`` at the latest:
+    (R/s) for ``hold`` seconds), or ``"theta_max_below"`` (when the contact edge's polar
+    angle falls below ``angle``, radians, or contact is lost). Condition rules end at ``duration`` at the latest:
     reaching it without the condition holding is reported, not hidden.
     """
 
-    kind: Literal["duration", "clamp_force_below", "rest"] = "duration"
+    kind: Literal["duration", "clamp_force_below", "rest", "theta_max_below"] = "duration"
     duration: float = 1.0
     force: float = 0.0
     rate: float = 0.0
     hold: float = 0.0
+    angle: float = 0.0
 
     def __post_init__(self):
         if not self.duration > 0:
             raise ValueError(f"stop rule: duration must be > 0, got {self.duration}")
         if self.kind == "clamp_force_below" and not self.force > 0:
             raise ValueError("stop rule clamp_force_below: the threshold must be > 0 (|force| < 0 never holds)")
+        if self.kind == "theta_max_below" and not 0 < self.angle < 3.14159265:
+            raise ValueError(f"stop rule theta_max_below: the angle must be in (0, pi), got {self.angle}")
         if self.kind == "rest" and not (self.rate > 0 and 0 < self.hold < self.duration):
             raise ValueError("stop rule rest: need rate > 0 and 0 < hold < duration")
 

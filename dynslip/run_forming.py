@@ -35,6 +35,9 @@ PER_NODE = {
     "friction": ("1", "meridional friction force density on the sheet, + toward the equator", "G*h0/R"),
     "slip_velocity": ("1/s", "meridional slip speed relative to the ball, + toward the equator (R/s)", "R"),
     "mu_mobilised": ("1", "|friction| / pressure where in contact", None),
+    "mu_current": ("1", "friction coefficient of the law at the node (mu; or mu(slip distance) between mu_s and "
+                   "mu_k) where in contact", None),
+    "slip_distance": ("1", "slip distance since the node last stuck (slip_weakening; 0 for coulomb)", "R"),
 }
 PER_TIME = {
     "stage": ("1", "index into stage_names", None),
@@ -59,7 +62,7 @@ STATE_MEANINGS = "free stuck slipping_toward_pole slipping_toward_equator"
 
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
-    from dynslip.friction import Coulomb
+    from dynslip.friction import make_friction
     from dynslip.materials import make_material
     from dynslip.scenario_forming import build_protocol
     from dynslip.sheet import Penalty, SheetModel, make_mesh
@@ -78,7 +81,8 @@ def build_core(sc):
                         max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
                         contact_threshold=nu.contact_threshold)
     kwargs = dict(
-        friction=Coulomb(mu=jnp.asarray(p.friction.mu), eps=jnp.asarray(nu.friction_smoothing)),
+        friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
+                               d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
         eps=nu.friction_smoothing, drag=nu.drag_time_s, ball_drag=nu.drag_time_s * 4 * math.pi * nu.ball_drag,
         pre_stretch=p.pre_stretch, z_sheet=(r + p.sheet_gap_mm) / r, weight=weight, settings=settings,
     )
@@ -122,7 +126,11 @@ def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=No
         "stage_names": json.dumps(list(stage_names)),
         "contact_threshold": sc.numerics.contact_threshold,
         "energy_initial": float(e0),
-        "mu": p.friction.mu,
+        "mu": p.friction.nominal_mu,
+        "friction_law": p.friction.law,
+        "mu_s": p.friction.mu_s if p.friction.law == "slip_weakening" else p.friction.mu,
+        "mu_k": p.friction.mu_k if p.friction.law == "slip_weakening" else p.friction.mu,
+        "d_c": p.friction.d_c_mm / p.ball_radius_mm if p.friction.law == "slip_weakening" else 0.0,
         "friction_smoothing": sc.numerics.friction_smoothing,
     })
     if extra_attrs:
@@ -180,7 +188,10 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "lambda_phi_max": float(np.nanmax(lp)),
             "path_max_lambda_theta": float(np.nanmax(ds["lambda_theta"].values)),
         },
-        "mu": p.friction.mu,
+        "friction_law": p.friction.law,
+        "mu": p.friction.nominal_mu,
+        **({"mu_s": p.friction.mu_s, "mu_k": p.friction.mu_k, "d_c_mm": p.friction.d_c_mm}
+           if p.friction.law == "slip_weakening" else {}),
         "mu_needed": mu_needed,
         "contact_nodes": int(contact.sum()),
         "slack_rim_height": {
@@ -234,6 +245,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     model, protocol, kw = build_core(sc)
+    start, start_info = sc.preflight(console) or (None, None)
     names = protocol.names
     rbar = np.asarray(model.mesh.rbar)
     total = sum(s.max_duration for s in protocol.stages)
@@ -245,7 +257,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
         if not frames:
             return
         e0 = state["e0"] if state["e0"] is not None else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
-        ds = to_dataset(sc, frames, rbar, e0, complete, names)
+        ds = to_dataset(sc, frames, rbar, e0, complete, names, start_info)
         io.write_netcdf(ds, out / "trajectory.nc")
         return ds
 
@@ -260,7 +272,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
 
     try:
         with prog:
-            result = simulate(model, protocol, on_frame=on_frame, **kw)
+            result = simulate(model, protocol, on_frame=on_frame, start=start, **kw)
     except KeyboardInterrupt:
         flush(frames_seen)
         raise
@@ -269,10 +281,16 @@ def run_forming(sc, out: Path, console=None) -> dict:
         if ds is not None:
             io.write_json(out / "summary.json", summarize(sc, ds, result))
         raise ComputationError(f"{result.failed}; partial trajectory kept in {out / 'trajectory.nc'}")
-    ds = to_dataset(sc, result.frames, rbar, result.e0, True, names)
+    ds = to_dataset(sc, result.frames, rbar, result.e0, True, names, start_info)
     io.check_units(ds)
     io.write_netcdf(ds, out / "trajectory.nc")
     summary = summarize(sc, ds, result)
+    if start_info is not None:
+        from dynslip.release import plot_release, release_metrics
+
+        summary["start"] = start_info
+        summary["release"] = release_metrics(ds, model)
+        plot_release(ds, summary["release"], out)
     io.write_json(out / "summary.json", summary)
     make_figures(ds, out)
     return summary

@@ -158,7 +158,10 @@ def load_data(path, overrides: list[str] | tuple[str, ...] = ()) -> dict:
 
 def load(path, overrides: list[str] | tuple[str, ...] = ()):
     """Load, override and validate a scenario file; raises :class:`InputError`."""
-    return validate_data(load_data(path, overrides), str(path))
+    obj = validate_data(load_data(path, overrides), str(path))
+    if hasattr(obj, "_source_dir"):
+        obj._source_dir = Path(path).resolve().parent  # where relative start_from paths may live
+    return obj
 
 
 def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import Literal
 
-from pydantic import model_validator
+from pydantic import PrivateAttr, model_validator
 
 from dynslip.scenario import F, ScenarioBase, Strict
 
@@ -28,10 +28,28 @@ class MaterialSpec(Strict):
 
 
 class FrictionSpec(Strict):
-    """Friction between sheet and ball."""
+    """Friction between sheet and ball: ideal Coulomb, or static/kinetic by slip-distance
+    weakening (physics.md Section 4, "Friction"; docs/forming.md)."""
 
-    law: Literal["coulomb"] = F("coulomb", description="ideal Coulomb, overdamped soft threshold")
-    mu: float = F(1.15, ge=0, le=10, description="friction coefficient")
+    law: Literal["coulomb", "slip_weakening"] = F(
+        "coulomb", description="coulomb: ideal Coulomb (mu), overdamped soft threshold; slip_weakening: "
+        "static/kinetic, mu falls from mu_s to mu_k over a slip distance d_c_mm, reset when the node sticks")
+    mu: float = F(1.15, ge=0, le=10, description="friction coefficient of law: coulomb")
+    mu_s: float = F(0.99, ge=0, le=10, description="static coefficient of law: slip_weakening (paper: 0.99)")
+    mu_k: float = F(0.82, ge=0, le=10, description="kinetic coefficient of law: slip_weakening (paper: 0.82); <= mu_s")
+    d_c_mm: float = F(0.4, unit="mm", gt=0, description="weakening slip distance of law: slip_weakening; the mesh "
+                      "must be much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.mu_k > self.mu_s:
+            raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction must not exceed static)")
+        return self
+
+    @property
+    def nominal_mu(self) -> float:
+        """The coefficient a reader compares mu_needed with: mu, or mu_s."""
+        return self.mu if self.law == "coulomb" else self.mu_s
 
 
 class StageSpec(Strict):
@@ -45,8 +63,14 @@ class StageSpec(Strict):
                                    description="signed vertical clamp velocity (up > 0) for stages ended by a condition or duration")
     duration_s: float | None = F(None, unit="s", gt=0,
                                  description="stage duration; for condition stages the longest it may run")
-    until: Literal["duration", "clamp_force_below", "rest"] = F(
-        "duration", description="stop rule: the duration, the clamp's axial force below a threshold, or rest")
+    until: Literal["duration", "clamp_force_below", "rest", "theta_max_below"] = F(
+        "duration", description="stop rule: the duration, the clamp's axial force below a threshold, rest, or "
+        "the contact edge's polar angle below theta_stop_rad")
+    theta_stop_rad: float | None = F(None, unit="rad", gt=0, lt=math.pi,
+                                     description="until: theta_max_below: the polar angle (pi/2: opening radius R)")
+    ball_velocity_mm_s: float = F(0.0, unit="mm/s",
+                                  description="signed velocity (up > 0) of a held ball (ball: hold); the pole of the "
+                                  "ball points up, the pocket's opening down")
     force_threshold_N: float | None = F(None, unit="N", gt=0, description="threshold of until: clamp_force_below")
     rest_rate_mm_s: float | None = F(None, unit="mm/s", gt=0,
                                      description="until: rest: largest slip speed and ball speed below this")
@@ -81,9 +105,13 @@ class StageSpec(Strict):
                 raise ValueError("until: clamp_force_below needs force_threshold_N")
             if self.clamp != "move":
                 raise ValueError("until: clamp_force_below needs a clamp that holds the edge (clamp: move)")
-            if self.clamp_velocity_mm_s == 0.0 and self.ball == "hold":
+            if self.clamp_velocity_mm_s == 0.0 and self.ball == "hold" and self.ball_velocity_mm_s == 0.0:
                 raise ValueError("until: clamp_force_below with a clamp and ball at rest can never hold "
                                  "(nothing unloads the sheet)")
+        if self.until == "theta_max_below" and self.theta_stop_rad is None:
+            raise ValueError("until: theta_max_below needs theta_stop_rad")
+        if self.ball_velocity_mm_s != 0.0 and self.ball != "hold":
+            raise ValueError("ball_velocity_mm_s moves a held ball: it needs ball: hold")
         if self.until == "rest":
             if self.rest_rate_mm_s is None or self.rest_hold_s is None:
                 raise ValueError("until: rest needs rest_rate_mm_s and rest_hold_s")
@@ -114,10 +142,11 @@ class FormingPhysics(Strict):
     youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, description="Young's modulus E (G = E/3)")
     material: MaterialSpec = MaterialSpec()
     friction: FrictionSpec = FrictionSpec()
-    rim_radius_mm: float = F(50.8, unit="mm", gt=0, description="clamp (tube rim) radius")
-    pre_stretch: float = F(1.05, ge=1.0, le=1.5,
-                           description="radial stretch of the clamped sheet (the disc inside the band has "
-                           "material radius rim_radius / pre_stretch)")
+    rim_radius_mm: float = F(50.8, unit="mm", gt=0, description="radius of the held edge (tube rim, or hands)")
+    pre_stretch: float = F(1.05, ge=1.0, le=3.0,
+                           description="radial stretch of the held sheet: method 2, the small stretch of the disc "
+                           "clamped on the rim; method 1, the hand pre-stretch (the held disc has material radius "
+                           "rim_radius / pre_stretch)")
     sheet_gap_mm: float = F(0.4, unit="mm", gt=0, description="initial height of the flat sheet above the ball top")
     gravity: bool = F(False, description="ball weight on (off by default: a downward-opening membrane pocket "
                       "cannot carry it; physics.md Section 4)")
@@ -194,8 +223,13 @@ class FormingScenario(ScenarioBase):
     """Whole-sheet forming (method 2 by default): the pocket as the end state of a loading path."""
 
     kind: Literal["forming"] = "forming"
+    start_from: str | None = F(
+        None, description="start from a formed pocket: a saved trajectory.nc (its last frame) or a forming "
+        "scenario (run first into outputs/<stem>/, or reused when its saved result matches); relative paths are "
+        "taken from the working directory, else from the scenario file's folder")
     physics: FormingPhysics = FormingPhysics()
     numerics: FormingNumerics = FormingNumerics()
+    _source_dir: Path | None = PrivateAttr(default=None)
 
     @model_validator(mode="after")
     def _cross(self):
@@ -207,10 +241,21 @@ class FormingScenario(ScenarioBase):
             prot = build_protocol(self)
         except ValueError as err:
             raise ValueError(f"physics.stages: {err}") from None
-        if prot.clamp_min_distance_to_ball() <= 1.0:
+        if self.start_from is None and prot.clamp_min_distance_to_ball() <= 1.0:
             raise ValueError("physics.stages: the clamp path enters the ball")
         assert isinstance(prot, Protocol)
         return self
+
+    _start: tuple | None = PrivateAttr(default=None)
+
+    def preflight(self, console=None):
+        """Resolve and check ``start_from`` (running its scenario first when needed) before any
+        output is written; bad input raises :class:`dynslip.errors.InputError`."""
+        if self.start_from and self._start is None:
+            from dynslip.release import load_start
+
+            self._start = load_start(self, console)
+        return self._start
 
     def run(self, out: Path, console) -> dict:
         from dynslip.run_forming import run_forming
@@ -241,6 +286,7 @@ def build_protocol(sc: FormingScenario):
             force=(s.force_threshold_N or 0.0) / fs,
             rate=(s.rest_rate_mm_s or 0.0) / r,
             hold=s.rest_hold_s or 0.0,
+            angle=s.theta_stop_rad or 0.0,
         )
         ckw = {"clamp_vz": vz}
         if s.clamp == "let_go":
@@ -248,7 +294,7 @@ def build_protocol(sc: FormingScenario):
         elif s.clamp == "free":
             ckw = {"clamp_mode": CLAMP_FORCE, "clamp_force_start": (0.0, 0.0)}
         if s.ball == "hold":
-            stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD, **ckw))
+            stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD, ball_vz=s.ball_velocity_mm_s / r, **ckw))
         elif s.ball == "release":
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_end=0.0, **ckw))
         else:

@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.friction import AbstractFriction, Coulomb
+from dynslip.friction import AbstractFriction
 from dynslip.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
 __all__ = ["Mesh", "Penalty", "SheetModel", "make_mesh", "penalty_energy", "penalty_pressure"]
@@ -170,13 +170,14 @@ class SheetModel(eqx.Module):
         """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
         return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
 
-    def kinematics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0):
+    def kinematics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None):
         """Node velocities relative to the ball and the force split, for the driver.
 
         Returns a dict with ``u`` (2, N) velocity relative to the ball (node N-1, the
         clamp, excluded by the driver), ``ft``, ``fn_total`` (driving force components),
         ``N`` (normal force), ``S`` (slip force), ``grads`` (dE/drho, dE/dz, dE/dzb).
-        ``drag`` is eta (per reference area); time units follow from it.
+        ``drag`` is eta (per reference area); time units follow from it. ``internal`` is
+        the friction law's per-node state (slip distance), None for memoryless laws.
         """
         g_rho, g_z, g_zb = self.gradients(rho, z, zb)
         f = -jnp.stack([g_rho, g_z])  # (2, N) driving force
@@ -188,10 +189,7 @@ class SheetModel(eqx.Module):
         fn = jnp.where(pole, f[1] * jnp.sign(n[1]), fn)
         normal = self.normal_force(rho, z, zb)
         eps = eps_density * self.mesh.area
-        if isinstance(friction, Coulomb):
-            s = friction.slip_force(ft, normal, eps=eps)
-        else:
-            s = friction.slip_force(ft, normal)
+        s = friction.slip_force(ft, normal, internal, eps=eps)
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)
@@ -199,9 +197,10 @@ class SheetModel(eqx.Module):
                 "eta_a": eta_a, "theta_dir": t}
 
     def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
-                    contact_threshold=1e-2):
+                    contact_threshold=1e-2, internal=None):
         """Per-node fields of the trajectory contract (see docs/trajectory-contract.md)."""
-        k = self.kinematics(rho, z, zb, friction, eps_density, drag)
+        k = self.kinematics(rho, z, zb, friction, eps_density, drag, internal)
+        delta = jnp.zeros_like(rho) if internal is None else internal
         lt, lp = node_stretches(self.mesh, rho, z)
         tt, tp = relaxed_tensions(self.material, lt, lp)
         def_area = self.mesh.area * lt * lp
@@ -219,6 +218,8 @@ class SheetModel(eqx.Module):
             "pressure": jnp.where(contact, pressure, 0.0), "friction": jnp.where(contact, friction_force, 0.0),
             "slip_velocity": jnp.where(contact, slip, 0.0), "mu_mobilised": mu_mob, "theta": theta,
             "state": state, "contact": contact,
+            "mu_current": jnp.where(contact, friction.coefficient(delta, rho.shape[0]), jnp.nan),
+            "slip_distance": delta,
         }
 
     def free_span_axial_force(self, rho, z):

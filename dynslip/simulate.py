@@ -55,15 +55,33 @@ N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
 class Layout(eqx.Module):
     """Slices of the flat state vector for a sheet of ``n`` nodes.
 
-    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4)]``: node ``n-1`` is the clamped
-    edge (moved by the protocol, or free under a force when the clamp lets go).
+    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4), internal(n_int * n)]``: node
+    ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
+    clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
+    of :class:`dynslip.friction.SlipWeakening`), absent for memoryless laws.
     """
 
     n: int = eqx.field(static=True)
+    n_int: int = eqx.field(static=True, default=0)
 
     @property
     def size(self) -> int:
-        return (self.n - 1) + self.n + 1 + N_ACC
+        return (self.n - 1) + self.n + 1 + N_ACC + self.n_int * self.n
+
+    @property
+    def internal_start(self) -> int:
+        return 2 * self.n + N_ACC
+
+    def internal(self, y):
+        """The friction law's per-node state, (n,), or None for a memoryless law."""
+        if self.n_int == 0:
+            return None
+        return y[self.internal_start : self.internal_start + self.n]
+
+    def with_internal(self, y, internal):
+        if self.n_int == 0:
+            return y
+        return y.at[self.internal_start : self.internal_start + self.n].set(internal)
 
     def unpack(self, y):
         n = self.n
@@ -73,8 +91,11 @@ class Layout(eqx.Module):
         acc = y[2 * n : 2 * n + N_ACC]
         return rho, z, zb, acc
 
-    def pack(self, rho, z, zb, acc):
-        return jnp.concatenate([rho[1:], z, jnp.reshape(zb, (1,)), acc])
+    def pack(self, rho, z, zb, acc, internal=None):
+        parts = [rho[1:], z, jnp.reshape(zb, (1,)), acc]
+        if self.n_int:
+            parts.append(jnp.zeros(self.n) if internal is None else internal)
+        return jnp.concatenate(parts)
 
 
 class StageArgs(eqx.Module):
@@ -114,7 +135,8 @@ def _f(x):
 def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     """Rates and the quantities derived on the way (shared by the vector field and frames)."""
     rho, z, zb, _ = layout.unpack(y)
-    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag)
+    internal = layout.internal(y)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
     g_rho, g_z, _ = k["grads"]
     eta_a = k["eta_a"]
     u = k["u"]
@@ -139,7 +161,10 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     w_clamp = cz * v[1, -1] + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
     dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
-    dy = layout.pack(v[0], v[1], vb, dacc)
+    dint = None
+    if internal is not None:
+        dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
+    dy = layout.pack(v[0], v[1], vb, dacc, dint)
     return dy, {"clamp_force": cz, "clamp_force_rho": crho, "ball_reaction": f_hold, "ball_v": vb,
                 "zc": z[-1], "rhoc": rho[-1], "rho": rho, "z": z, "zb": zb, "kin": k}
 
@@ -172,14 +197,17 @@ def sheet_structure(layout: Layout) -> Structure:
     Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
     depends only on its neighbours (element energies, the hoop stretch at element
     midpoints, the node's own contact frame), so the node blocks are tridiagonal. The
-    ball height and the accumulators form the dense border.
+    ball height and the accumulators form the dense border. A friction law's per-node
+    state (slip distance) joins its node's block (``b = 3``): its rate depends on the
+    node's slip, i.e. on the node and its neighbours.
     """
     n = layout.n
     core = []
     for i in range(n):
         core += [-1 if i == 0 else i - 1, n - 1 + i]
-    border = tuple(range(2 * n - 1, layout.size))
-    return Structure(n=n, b=2, m=len(border), core_index=tuple(core), border_index=border)
+        core += [layout.internal_start + i] if layout.n_int else []
+    border = tuple(range(2 * n - 1, 2 * n + N_ACC))
+    return Structure(n=n, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border)
 
 
 def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
@@ -224,7 +252,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
     dy, aux = evaluate(model, layout, t, y, args)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
-    d = model.diagnostics(rho, z, zb, args.friction, args.eps, args.drag, contact_threshold)
+    d = model.diagnostics(rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y))
     acc = layout.unpack(y)[3]
     contact = d["contact"]
     idx = jnp.arange(layout.n)
@@ -250,6 +278,25 @@ def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet
     rho = pre_stretch * model.mesh.rbar
     z = jnp.full(layout.n, _f(z_sheet))
     return layout.pack(rho, z, _f(zb), jnp.zeros(N_ACC))
+
+
+def state_from(layout: Layout, start: dict):
+    """State vector from a saved end state: ``rho``, ``z`` (n,), ``zb``, and optionally
+    ``slip_distance`` (n,); the accumulators start at zero."""
+    internal = None
+    if layout.n_int:
+        internal = jnp.asarray(start.get("slip_distance", np.zeros(layout.n)), dtype=jnp.float64)
+        internal = jnp.where(jnp.isfinite(internal), internal, 0.0)
+    return layout.pack(_f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(N_ACC), internal)
+
+
+@eqx.filter_jit
+def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs):
+    """The friction law's restart: per-node state reset where stuck or out of contact."""
+    rho, z, zb, _ = layout.unpack(y)
+    internal = layout.internal(y)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
+    return layout.with_internal(y, args.friction.reset(internal, k["S"], k["N"]))
 
 
 class SolverFailure(RuntimeError):
@@ -295,15 +342,20 @@ def simulate(
     weight: float = 0.0,
     settings: Settings = Settings(),
     on_frame: Callable[[dict], None] | None = None,
+    start: dict | None = None,
 ) -> Result:
-    """Run ``protocol`` from a flat pre-stretched sheet; return the saved frames.
+    """Run ``protocol`` from a flat pre-stretched sheet (or from ``start``, a saved end
+    state, see :func:`state_from`); return the saved frames.
 
     Raises nothing on solver failure: the result's ``failed`` holds the message and
     ``frames`` what was computed before it (the runner turns it into exit 3).
     """
-    layout = Layout(model.mesh.n)
+    layout = Layout(model.mesh.n, friction.n_internal())
     solve = segment_solver(settings)
-    y = initial_state(model, layout, pre_stretch, z_sheet, protocol.ball_z0)
+    if start is None:
+        y = initial_state(model, layout, pre_stretch, z_sheet, protocol.ball_z0)
+    else:
+        y = state_from(layout, start)
     rtol, atol = _f(settings.rtol), _f(settings.atol)
     t = 0.0
     frames: list = []
@@ -363,12 +415,17 @@ def simulate(
                 break
             dt_guess = (float(t1) - t) / max(nacc, 1)
             y, t = y1, float(t1)
+            if layout.n_int:
+                y = reset_internal(model, layout, y, args)
             rec = record(t, y, args, si)
             if not np.all(np.isfinite(rec["energy_elastic"])):
                 failed = (f"stage '{stage.name}' at t = {t:.6g} s: elastic energy not finite "
                           "(a stretch outside the material's range)")
                 break
             if stage.stop.kind == "clamp_force_below" and abs(float(rec["clamp_force"])) < stage.stop.force:
+                met = True
+                break
+            if stage.stop.kind == "theta_max_below" and not float(rec["theta_max"]) >= stage.stop.angle:
                 met = True
                 break
             if stage.stop.kind == "rest":

@@ -1,0 +1,194 @@
+r"""Forming runs that start from a formed pocket (``start_from``), and the release test.
+
+``start_from`` names a saved ``trajectory.nc`` (its last frame is the start) or a
+forming scenario, which is run first into ``outputs/<stem>/`` unless a complete result
+of the same resolved scenario is already there (then it is reused). The start must
+share the run's geometry, material and mesh; a missing file, another format version, an
+incomplete run or another geometry is bad input (exit 2).
+
+The release (``scenarios/release.yaml``; physics.md Section 4, "Loads in time"): the
+clamp holds the edge where the formed pocket left it; the held ball is moved along the
+axis at a slow, constant speed. Moving it toward its pole (up, away from the pocket's
+opening) draws the sheet off the lower hemisphere; the force the hold needs, until the
+opening radius reaches R ($\theta_{max} = \pi/2$), peaks at the release force (the
+paper measured 2.3 N). Moving it toward the opening is not resisted by a membrane: the
+pocket travels with the ball and the free span goes slack.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from dynslip.errors import InputError
+
+__all__ = ["load_start", "release_metrics", "plot_release", "GEOMETRY_FIELDS"]
+
+GEOMETRY_FIELDS = (
+    "physics.ball_radius_mm", "physics.thickness_um", "physics.youngs_modulus_MPa", "physics.material.model",
+    "physics.material.jm", "physics.material.c1", "physics.rim_radius_mm", "physics.pre_stretch", "numerics.nodes",
+)
+
+
+def _get(d: dict, dotted: str):
+    for k in dotted.split("."):
+        d = d[k]
+    return d
+
+
+def _resolve(path: str, base: Path | None) -> Path:
+    p = Path(path)
+    if p.is_absolute() or base is None or (Path.cwd() / p).exists():
+        return p
+    return base / p
+
+
+def _start_dataset(sc, console) -> tuple[xr.Dataset, Path]:
+    from dynslip.trajectory import open_trajectory
+
+    src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))
+    if src.suffix == ".nc":
+        return open_trajectory(src), src
+    if src.suffix not in (".yaml", ".yml"):
+        raise InputError(f"start_from: {str(src)!r}: expected a trajectory.nc or a scenario .yaml")
+    from dynslip import scenario as scn
+    from dynslip.io import StagedRun
+
+    start_sc = scn.load(src)
+    if getattr(start_sc, "kind", None) != "forming":
+        raise InputError(f"start_from: {str(src)!r} is a '{start_sc.kind}' scenario; allowed: a forming scenario")
+    if getattr(start_sc, "start_from", None):
+        raise InputError(f"start_from: {str(src)!r} itself starts from another run; allowed: a scenario that forms")
+    out = Path("outputs") / src.stem
+    traj = out / "trajectory.nc"
+    if traj.is_file():
+        try:
+            ds = open_trajectory(traj)
+            if ds.attrs.get("scenario") == start_sc.to_json() and int(ds.attrs.get("complete", 0)) == 1:
+                if console is not None:
+                    console.print(f"start_from: reusing {traj} (same resolved scenario)")
+                return ds, traj
+        except InputError:
+            pass
+    if console is not None:
+        console.print(f"start_from: running {src} first -> {out}/")
+    with StagedRun(out) as staging:
+        start_sc.run(staging, console)
+    return open_trajectory(traj), traj
+
+
+def load_start(sc, console=None) -> tuple[dict, dict]:
+    """(start state for :func:`dynslip.simulate.simulate`, provenance) of ``sc.start_from``."""
+    ds, src = _start_dataset(sc, console)
+    if int(ds.attrs.get("complete", 0)) != 1:
+        raise InputError(f"start_from: {str(src)!r} is an incomplete run (complete = 0); allowed: a finished run")
+    try:
+        start_res = json.loads(ds.attrs["scenario"])
+    except (KeyError, json.JSONDecodeError):
+        raise InputError(f"start_from: {str(src)!r} carries no resolved scenario") from None
+    mine = json.loads(sc.to_json())
+    for field in GEOMETRY_FIELDS:
+        a, b = _get(mine, field), _get(start_res, field)
+        if a != b:
+            raise InputError(f"start_from: field '{field}' = {json.dumps(a)} differs from the start state's "
+                             f"{json.dumps(b)} ({src}); allowed: the start's value")
+    end = ds.isel(time=-1)
+    start = {"rho": end["rho"].values, "z": end["z"].values, "zb": float(end["ball_z"])}
+    if "slip_distance" in ds:
+        start["slip_distance"] = end["slip_distance"].values
+    info = {"start_from": str(src), "start_time_s": float(end["time"]), "start_theta_max": float(end["theta_max"]),
+            "start_rbar_max": float(end["rbar_max"]), "start_trapped_ball_z": float(end["ball_z"])}
+    return start, info
+
+
+def release_metrics(ds: xr.Dataset, model=None) -> dict:
+    """Force-displacement of the release: peak hold force (N) until theta_max < pi/2, and the
+    free-span check (axial force constant along the free span and equal to the hold force)."""
+    fs = float(ds.attrs["force_scale_N"])
+    r_mm = float(ds.attrs["R_m"]) * 1e3
+    zb = ds["ball_z"].values
+    disp_mm = (zb - zb[0]) * r_mm
+    force_n = ds["ball_reaction"].values * fs
+    th = ds["theta_max"].values
+    below = np.flatnonzero(~(th >= math.pi / 2))
+    first = int(below[0]) if below.size else len(th)
+    upto = slice(0, max(first, 1))
+    i_peak = int(np.argmax(np.abs(force_n[upto])))
+    out = {
+        "peak_force_N": float(force_n[i_peak]),
+        "peak_displacement_mm": float(disp_mm[i_peak]),
+        "opening_reached_R": bool(below.size),
+        "displacement_at_opening_R_mm": float(disp_mm[first]) if below.size else None,
+        "measured_release_force_N": 2.3,
+        "force_scale_N": fs,
+    }
+    if model is not None:
+        out["free_span"] = free_span_check(ds, model)
+    return out
+
+
+def free_span_check(ds: xr.Dataset, model) -> dict:
+    """Per frame, the axial force 2 pi rho T_theta sin(psi) on the free elements (both ends out
+    of contact): its spread relative to its mean, and its mean against the hold force less the
+    ball's small drag (a regularisation; the rest is what the sheet exerts on the ball). Frames where the hold force is
+    below 1% of its largest value (slack span) are skipped."""
+    import jax.numpy as jnp
+
+    spreads, mismatch = [], []
+    scale = float(np.max(np.abs(ds["ball_reaction"].values)))
+    nu = json.loads(ds.attrs["scenario"])["numerics"]
+    ball_drag = nu["drag_time_s"] * 4 * math.pi * nu["ball_drag"]
+    t = ds["time"].values
+    v_ball = np.gradient(ds["ball_z"].values, t) if t.size > 1 else np.zeros(1)
+    for i in range(ds.sizes["time"]):
+        f = ds.isel(time=i)
+        free_nodes = f["state"].values == 0
+        el = free_nodes[:-1] & free_nodes[1:]
+        if el.sum() < 2:
+            continue
+        p = np.asarray(model.free_span_axial_force(jnp.asarray(f["rho"].values), jnp.asarray(f["z"].values)))[el]
+        hold = float(f["ball_reaction"]) - ball_drag * float(v_ball[i])  # the static part: the hold minus drag
+        if abs(hold) < 1e-2 * scale:  # a slack span: relative measures are meaningless
+            continue
+        mean = float(np.mean(p))
+        spreads.append(float(np.ptp(p) / abs(mean)))
+        mismatch.append(abs(abs(mean) - abs(hold)) / abs(hold))
+    return {"frames": len(spreads), "max_relative_spread": max(spreads) if spreads else None,
+            "max_relative_mismatch_to_hold": max(mismatch) if mismatch else None}
+
+
+def plot_release(ds: xr.Dataset, metrics: dict, out: Path) -> Path:
+    """release_force.png: the hold's force (N) against the ball's displacement (mm), the peak
+    up to theta_max = pi/2 marked, the measured 2.3 N drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from dynslip import io
+
+    fs = float(ds.attrs["force_scale_N"])
+    r_mm = float(ds.attrs["R_m"]) * 1e3
+    zb = ds["ball_z"].values
+    disp = (zb - zb[0]) * r_mm
+    fig, (a, b) = plt.subplots(2, 1, figsize=(6.4, 6.4), sharex=True, constrained_layout=True)
+    a.plot(disp, ds["ball_reaction"].values * fs, "-", color="C0", label="force of the hold on the ball")
+    a.axhline(2.3, color="k", ls=":", label="measured release force 2.3 N")
+    a.plot([metrics["peak_displacement_mm"]], [metrics["peak_force_N"]], "o", color="C3",
+           label=f"peak {metrics['peak_force_N']:.2f} N (until opening radius R)")
+    if metrics.get("displacement_at_opening_R_mm") is not None:
+        for ax in (a, b):
+            ax.axvline(metrics["displacement_at_opening_R_mm"], color="0.5", ls="--", lw=0.8)
+    a.set_ylabel("force (N)")
+    a.legend(fontsize=8)
+    b.plot(disp, ds["theta_max"].values, color="C1")
+    b.axhline(math.pi / 2, color="0.5", ls=":", lw=0.8)
+    b.set_ylabel(r"$\theta_{max}$ (rad)")
+    b.set_xlabel("ball displacement along the axis (mm, + toward its pole)")
+    path = io.save_figure(fig, Path(out) / "release_force.png")
+    plt.close(fig)
+    return path
