@@ -82,9 +82,9 @@ def test_release_free_span_force_constant_and_equal_to_the_force_on_the_ball(pul
     assert fs["frames"] >= 0.8 * ds.sizes["time"]
     assert fs["max_relative_spread"] < 0.02
     assert fs["max_relative_mismatch_to_hold"] < 0.02
-    # pulling toward the pole loads the sheet: the hold's force grows
+    # pulling toward the pole loads the sheet: the hold's force grows throughout
     f = ds["ball_reaction"].values
-    assert f[-1] > 1.5 * f[0] > 0
+    assert f[0] > 0 and np.all(np.diff(f) > 0)
 
 
 def test_release_toward_the_opening_unloads_the_sheet(pocket, tmp_path):
@@ -93,8 +93,7 @@ def test_release_toward_the_opening_unloads_the_sheet(pocket, tmp_path):
     _, summary, ds = _run(_release(pocket, v=-0.2, dur=10.0), tmp_path)
     f = ds["ball_reaction"].values
     print(f"toward the opening: hold force {f[0]:.4f} -> {f[-1]:.4f} G h0 R")
-    assert f[-1] < 0.5 * f[0]
-    assert np.all(np.diff(f) < 1e-9)
+    assert np.all(np.diff(f) < 0) and f[-1] < f[0]
 
 
 @pytest.mark.slow

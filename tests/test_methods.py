@@ -1,0 +1,42 @@
+"""Method 1 against method 2 at the shipped default settings (slow: N = 50, full paths).
+
+The paper reports that both methods end in essentially the same pocket; the numbers are
+reported (printed), and the assertions are what the model must show: both trap the
+ball, at rest, with the energy balance closed, and their contact regions overlap.
+"""
+
+import json
+import math
+
+import pytest
+
+from dynslip.compare import difference, end_state
+from dynslip.scenario import load
+
+from conftest import SCENARIOS
+
+
+@pytest.mark.slow
+def test_method1_and_method2_at_default_settings(tmp_path):
+    import xarray as xr
+
+    ends, sums = {}, {}
+    for m in ("method1", "method2"):
+        sc = load(SCENARIOS / f"{m}.yaml")
+        s = sc.run(tmp_path / m, None)
+        sums[m] = s
+        with xr.open_dataset(tmp_path / m / "trajectory.nc") as ds:
+            ends[m] = end_state(ds.load())
+    d = difference(ends["method1"], ends["method2"])
+    report = {m: {k: sums[m][k] for k in ("trapped", "theta_max", "rbar_max", "mu_needed")} for m in sums}
+    report["max_abs_dtheta"] = d["max_abs_dtheta"]
+    report["common_rbar_max"] = d["common_rbar_max"]
+    print("method 1 vs method 2:", json.dumps(report, indent=1))
+    for m, s in sums.items():
+        assert s["status"] == "ok", m
+        assert s["trapped"] is True, m
+        assert s["theta_max"] > math.pi / 2
+        assert s["energy_balance"]["relative_residual"] < 1e-2
+        # the pocket needs at most the static coefficient it was formed with
+        assert s["mu_needed"] <= s["mu_s"] * 1.05
+    assert d["common_rbar_max"] > 0.5
