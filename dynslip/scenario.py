@@ -106,10 +106,32 @@ def parse_override(text: str) -> tuple[str, Any]:
     return key, value
 
 
-def format_validation_error(err: ValidationError, source: str) -> str:
+def _field_path(loc, data) -> str:
+    """The dotted field path of a pydantic error location, without the tags pydantic inserts
+    for discriminated unions (``kind``, ``material.model``): a part is a tag when it is not a
+    key of the data at that point and more parts follow."""
+    parts, node = [], data
+    for i, p in enumerate(loc):
+        last = i == len(loc) - 1
+        if isinstance(node, dict) and p in node:
+            parts.append(str(p))
+            node = node[p]
+        elif isinstance(node, list) and isinstance(p, int) and 0 <= p < len(node):
+            parts.append(str(p))
+            node = node[p]
+        elif last or not isinstance(node, dict):
+            parts.append(str(p))
+            node = None
+    return ".".join(parts)
+
+
+def format_validation_error(err: ValidationError, source: str, data=None) -> str:
     """One line: the first offending field, its value and what is allowed."""
     e = err.errors()[0]
-    loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in _classes()))
+    if data is not None:
+        loc = _field_path(e["loc"], data)
+    else:
+        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in _classes()))
     value = e.get("input")
     shown = json.dumps(value) if isinstance(value, (int, float, str, bool, type(None))) else type(value).__name__
     msg = e["msg"]
@@ -132,7 +154,7 @@ def validate_data(data: Any, source: str = "<scenario>"):
     try:
         return _adapter().validate_python(data)
     except ValidationError as err:
-        raise InputError(format_validation_error(err, source)) from None
+        raise InputError(format_validation_error(err, source, data)) from None
 
 
 def load_data(path, overrides: list[str] | tuple[str, ...] = ()) -> dict:

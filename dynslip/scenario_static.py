@@ -15,7 +15,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from dynslip.scenario import F, ScenarioBase, Strict
 
@@ -132,12 +132,13 @@ class StaticNumerics(Strict):
         """The F_v tolerance of the search (``fv_tol``, or its O(h^2) default)."""
         return self.fv_tol if self.fv_tol is not None else 1e-3 * (99.0 / (self.n_nodes - 1)) ** 2
 
-    @model_validator(mode="after")
-    def _bracket(self):
-        lo, hi = self.mu_bracket
+    @field_validator("mu_bracket")
+    @classmethod
+    def _bracket(cls, v):
+        lo, hi = v
         if not (0 <= lo < hi):
-            raise ValueError(f"mu_bracket must satisfy 0 <= low < high, got {list(self.mu_bracket)}")
-        return self
+            raise ValueError(f"allowed: 0 <= low < high (mu is never negative), got {list(v)}")
+        return v
 
 
 class StaticScenario(ScenarioBase):

@@ -80,3 +80,59 @@ def test_subprocess_no_traceback(tmp_path):
     )
     assert proc.returncode == 2
     _one_line(proc.stderr)
+
+
+@pytest.mark.parametrize("scenario, override, field", [
+    ("paper_gent.yaml", "physics.colour=blue", "physics.colour"),                 # unknown key
+    ("paper_gent.yaml", "numerics.n_nodes=many", "numerics.n_nodes"),             # wrong type
+    ("paper_gent.yaml", "physics.material.jm=0", "physics.material.jm"),          # J_m <= 0
+    ("paper_gent.yaml", "physics.material.jm=-3", "physics.material.jm"),
+    ("paper_gent.yaml", "physics.rbar_max=0", "physics.rbar_max"),                # rbar_max <= 0
+    ("paper_gent.yaml", "physics.rbar_max=-0.9", "physics.rbar_max"),
+    ("paper_gent.yaml", "physics.theta_max=0", "physics.theta_max"),              # outside (0, pi)
+    ("paper_gent.yaml", "physics.theta_max=3.2", "physics.theta_max"),
+    ("paper_gent.yaml", "numerics.mu_bracket=[-1.0, 5.0]", "numerics.mu_bracket"),  # negative mu
+    ("cylinder.yaml", "physics.mu=-0.5", "physics.mu"),
+    ("method2.yaml", "physics.friction.mu_s=-1", "physics.friction.mu_s"),
+])
+def test_bad_field_exits_2_one_line_naming_it_and_writes_nothing(tmp_path, capsys, scenario, override, field):
+    out = tmp_path / "out"
+    rc, err = _run(["run", str(ROOT / "scenarios" / scenario), "--out", str(out), "--set", override], capsys)
+    assert rc == 2
+    line = _one_line(err)
+    assert field in line, line
+    assert not out.exists() and not Path(str(out) + ".staging").exists()
+
+
+@pytest.mark.parametrize("command, case", [
+    (c, k) for c in ("animate", "fronts") for k in ("not_netcdf", "not_trajectory", "format_version")
+] + [("animate", "time_range")])
+def test_trajectory_readers_bad_input_exit_2(tmp_path, capsys, command, case):
+    """dynslip animate / fronts: a file that is not a dynslip trajectory, another format
+    version, a time range outside the run: exit 2, one line, nothing written."""
+    import numpy as np
+    import xarray as xr
+
+    from dynslip.trajectory import synthetic_trajectory
+
+    state = np.zeros((6, 8), np.int8)
+    state[:, :3] = 1
+    ds = synthetic_trajectory(state)
+    path = tmp_path / "trajectory.nc"
+    extra = []
+    if case == "not_netcdf":
+        path.write_text("hello\n")
+    elif case == "not_trajectory":
+        xr.Dataset({"a": ("x", np.arange(3.0))}).to_netcdf(path)
+    elif case == "format_version":
+        ds.attrs["format_version"] = "99"
+        ds.to_netcdf(path)
+    else:
+        ds.to_netcdf(path)
+        extra = ["--t-start", "100"]  # the run lasts 5 s
+    out = tmp_path / "out"
+    rc, err = _run([command, str(path), "--out", str(out), *extra], capsys)
+    assert rc == 2, err
+    line = _one_line(err)
+    assert ("t_start" in line) if case == "time_range" else ("trajectory" in line)
+    assert not out.exists()
