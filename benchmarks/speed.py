@@ -34,7 +34,7 @@ def _setup(nodes: int):
 
     sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml", [f"numerics.nodes={nodes}"])
     model, protocol, kw = build_core(sc)
-    layout = Layout(nodes)
+    layout = Layout(nodes, kw["friction"].n_internal())
     stage = protocol.stages[0]
     args = _stage_args(stage, 0.0, float(protocol.ball_z0), 0.0, 0.0, kw["friction"], kw["eps"], kw["drag"],
                        kw["ball_drag"], kw["weight"])
