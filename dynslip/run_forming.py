@@ -293,7 +293,31 @@ def run_forming(sc, out: Path, console=None) -> dict:
         plot_release(ds, summary["release"], out)
     io.write_json(out / "summary.json", summary)
     make_figures(ds, out)
+    _print_summary(console, summary)
     return summary
+
+
+def _print_summary(console, s: dict) -> None:
+    """The end state and the solver's times on the terminal (compile and run separately)."""
+    from rich.table import Table
+
+    t = Table(title="end state")
+    t.add_column("quantity")
+    t.add_column("value", justify="right")
+    fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
+    rows = [("trapped", s["trapped"]), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
+            ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_needed", s["mu_needed"]),
+            ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
+            ("energy residual / work", s["energy_balance"]["relative_residual"])]
+    if "release" in s:
+        rows += [("release: peak force (N)", s["release"]["peak_force_N"]),
+                 ("release: opening reached R", s["release"]["opening_reached_R"])]
+    sv = s["solver"]
+    rows += [("steps (rejected)", f"{sv['steps']} ({sv['rejected']})"), ("compile (s)", sv["compile_s"]),
+             ("run (s)", sv["run_s"]), ("ms per step", sv["time_per_step_ms"])]
+    for k, v in rows:
+        t.add_row(k, fmt(v))
+    console.print(t)
 
 
 __all__ += ["InputError"]
