@@ -80,11 +80,11 @@ def run() -> dict:
     with tempfile.TemporaryDirectory(prefix="dynslip-bench-sweep-") as tmp:
         tmp = Path(tmp)
         base = _base(tmp)
-        mus = [round(0.4 + 1.2 * i / max(n - 1, 1), 6) for i in range(n)]
+        mus = [round(1.3 + 0.9 * i / max(n - 1, 1), 6) for i in range(n)]  # mu_s >= mu_k = 1.25 (method2.yaml)
         spec = {
             "base": base.name,
-            "overrides": {"numerics.nodes": nodes},
-            "grid": {"physics.friction.mu": mus},
+            "overrides": {"numerics.nodes": nodes, "physics.friction.law": "slip_weakening"},
+            "grid": {"physics.friction.mu_s": mus},
         }
         path = tmp / "bench_sweep.yaml"
         path.write_text(yaml.safe_dump(spec))
