@@ -237,7 +237,8 @@ def friction_field(resolved: dict, field_name: str | None = None) -> tuple[str, 
     """
     fr = resolved.get("physics", {}).get("friction", {})
     if field_name is None:
-        if isinstance(fr, dict) and fr.get("law") == "slip_weakening" and "mu_s" in fr:
+        # mu_s when the law has a static coefficient (any law but the ideal one that also has mu)
+        if isinstance(fr, dict) and "mu_s" in fr and (fr.get("law") != "coulomb" or "mu" not in fr):
             field_name = "physics.friction.mu_s"
         elif isinstance(fr, dict) and "mu" in fr:
             field_name = "physics.friction.mu"
