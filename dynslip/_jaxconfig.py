@@ -1,13 +1,21 @@
 """JAX set-up shared by every entry point: float64 and a persistent compilation cache.
 
 The cache lives in ``$DYNSLIP_CACHE_DIR`` (default ``~/.cache/dynslip/jax``), so a
-second run with the same shapes skips XLA compilation (tracing still costs).
+second run with the same shapes skips XLA compilation (tracing and lowering still cost:
+they are what the cache cannot save).
 """
 
 import os
 from pathlib import Path
 
-import jax
+# Equinox's runtime checks (eqx.error_if inside diffrax/lineax) are host callbacks by
+# default, and JAX never writes executables with host callbacks to the persistent cache:
+# the segment solve was recompiled by every process. With "nan" a failed check poisons
+# the result instead, which the driver reports as a non-finite state (exit 3). Set before
+# equinox is imported; an explicit EQX_ON_ERROR in the environment wins.
+os.environ.setdefault("EQX_ON_ERROR", "nan")
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_platforms", os.environ.get("JAX_PLATFORMS", "cpu") or "cpu")
