@@ -290,6 +290,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
 
         summary["start"] = start_info
         summary["release"] = release_metrics(ds, model)
+        summary["release_force"] = summary["release"]["peak_force_N"]  # the sweep's variable (N)
         plot_release(ds, summary["release"], out)
     io.write_json(out / "summary.json", summary)
     make_figures(ds, out)
