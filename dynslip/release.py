@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
+from dynslip.window import _get
 
 __all__ = ["load_start", "release_metrics", "plot_release", "GEOMETRY_FIELDS"]
 
@@ -32,12 +33,6 @@ GEOMETRY_FIELDS = (
     "physics.ball_radius_mm", "physics.thickness_um", "physics.youngs_modulus_MPa", "physics.material.model",
     "physics.material.jm", "physics.material.c1", "physics.rim_radius_mm", "physics.pre_stretch", "numerics.nodes",
 )
-
-
-def _get(d: dict, dotted: str):
-    for k in dotted.split("."):
-        d = d[k]
-    return d
 
 
 def _resolve(path: str, base: Path | None) -> Path:
@@ -135,8 +130,10 @@ def release_metrics(ds: xr.Dataset, model=None) -> dict:
 
 def _ball_drag_force(ds: xr.Dataset):
     """The ball's drag force eta_b z_b' per frame (G h0 R): a regularisation the hold also pays."""
+    from dynslip.scenario_forming import ball_drag_coefficient
+
     nu = json.loads(ds.attrs["scenario"])["numerics"]
-    eta_b = nu["drag_time_s"] * 4 * math.pi * nu["ball_drag"]
+    eta_b = ball_drag_coefficient(nu["drag_time_s"], nu["ball_drag"])
     t = ds["time"].values
     v = np.gradient(ds["ball_z"].values, t) if t.size > 1 else np.zeros(1)
     return eta_b * v

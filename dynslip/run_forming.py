@@ -64,7 +64,7 @@ def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
     from dynslip.friction import make_friction
     from dynslip.materials import make_material
-    from dynslip.scenario_forming import build_protocol
+    from dynslip.scenario_forming import ball_drag_coefficient, build_protocol
     from dynslip.sheet import Penalty, SheetModel, make_mesh
     from dynslip.simulate import Settings
 
@@ -83,7 +83,7 @@ def build_core(sc):
     kwargs = dict(
         friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
                                d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
-        eps=nu.friction_smoothing, drag=nu.drag_time_s, ball_drag=nu.drag_time_s * 4 * math.pi * nu.ball_drag,
+        eps=nu.friction_smoothing, drag=nu.drag_time_s, ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
         pre_stretch=p.pre_stretch, z_sheet=(r + p.sheet_gap_mm) / r, weight=weight, settings=settings,
     )
     return model, protocol, kwargs

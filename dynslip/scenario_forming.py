@@ -263,6 +263,11 @@ class FormingScenario(ScenarioBase):
         return run_forming(self, Path(out), console)
 
 
+def ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:
+    """eta_b of the ball (G h0 R s / R): ``ball_drag`` times the sheet's drag over 4 pi R^2."""
+    return drag_time_s * 4 * math.pi * ball_drag
+
+
 def build_protocol(sc: FormingScenario):
     """The core :class:`dynslip.protocols.Protocol` (nondimensional) of a scenario."""
     from dynslip.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage, StopRule
