@@ -45,6 +45,7 @@ from dynslip.friction import AbstractFriction, Coulomb
 from dynslip.linalg import BorderedBlockTridiagonal, Structure
 from dynslip.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
 from dynslip.sheet import SheetModel
+from dynslip.upstream import VeryChord
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
            "vector_field", "frame_record", "N_ACC"]
@@ -213,10 +214,13 @@ def sheet_structure(layout: Layout) -> Structure:
 def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
     cls = {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
            "implicit_euler": diffrax.ImplicitEuler}[name]
+    # VeryChord with the termination fix of diffrax PR #754 (dynslip.upstream), on both paths:
+    # the dense path otherwise builds diffrax's own VeryChord.
+    chord = diffrax.with_stepsize_controller_tols(VeryChord)
     if linear_solver == "dense":
-        return cls()
+        return cls(root_finder=chord())
     lin = BorderedBlockTridiagonal(sheet_structure(layout))
-    return cls(root_finder=diffrax.with_stepsize_controller_tols(diffrax.VeryChord)(linear_solver=lin))
+    return cls(root_finder=chord(linear_solver=lin))
 
 
 _SOLVE_CACHE: dict = {}
