@@ -2,7 +2,12 @@
 
 Exit status: 0 success; 2 bad input (one line naming the field, the value and what is
 allowed; nothing written); 3 a computation that ran and failed (what was computed is
-kept in ``<out>.staging/`` marked ``INCOMPLETE``); 130 interrupted (likewise kept).
+kept in ``<out>.incomplete-<UTC time>/`` marked ``INCOMPLETE``); 130 interrupted by
+SIGINT, 143 terminated by SIGTERM (likewise kept, the marker naming the signal).
+
+``--out`` of ``run``, ``sweep`` and ``window`` may be a new folder, an empty one or an
+earlier dynslip result (replaced only once the new run succeeded); a folder that is not
+a dynslip result needs ``--force``; an existing file is never replaced.
 """
 
 from __future__ import annotations
@@ -33,17 +38,53 @@ def _default_out(scenario_path: str, out: str | None) -> Path:
     return Path(out) if out else Path("outputs") / Path(scenario_path).stem
 
 
+def _check_dir_out(out: str | None) -> None:
+    """``--out`` names a folder: an existing file (or a file above it) is bad input."""
+    if out is None:
+        return
+    p = Path(out)
+    for q in (p, *p.parents):
+        if q.exists() and not q.is_dir():
+            where = "an existing file" if q == p else f"{str(q)!r} is a file, not a folder"
+            raise InputError(f"--out {out!r}: {where}; allowed: a folder (new or existing)")
+
+
+def _check_file_out(out: str | None) -> None:
+    """``--out`` names a file: an existing folder (or a file above it) is bad input."""
+    if out is None:
+        return
+    p = Path(out)
+    if p.is_dir():
+        raise InputError(f"--out {out!r}: an existing folder; allowed: a file name (e.g. animation.gif)")
+    for q in p.parents:
+        if q.exists() and not q.is_dir():
+            raise InputError(f"--out {out!r}: {str(q)!r} is a file, not a folder; allowed: a file in a folder")
+
+
+def _inside(path, folder: Path) -> bool:
+    try:
+        Path(path).resolve().relative_to(folder.resolve())
+        return True
+    except (ValueError, OSError, RuntimeError):
+        return False
+
+
 def cmd_run(args) -> int:
     from dynslip import scenario as sc
     from dynslip.io import StagedRun
 
     scn = sc.load(args.scenario, args.set or [])
     out = _default_out(args.scenario, args.out)
+    staged = StagedRun(out, force=args.force)
+    staged.check()  # before anything is computed or created
+    if out.is_dir() and _inside(args.scenario, out):
+        raise InputError(f"--out {str(out)!r}: holds the scenario file {args.scenario!r}, which replacing "
+                         "the folder would delete; allowed: a folder that does not hold the scenario")
     console = _console()
     t0 = time.perf_counter()
     if hasattr(scn, "preflight"):
         scn.preflight(console)  # bad input found before anything is written (e.g. a start_from file)
-    with StagedRun(out) as staging:
+    with staged as staging:
         console.print(f"[bold]dynslip run[/bold] {args.scenario} (kind: {scn.kind}) -> {out}/")
         scn.run(staging, console)
     console.print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}/")
@@ -82,6 +123,7 @@ def cmd_animate(args) -> int:
         kw["t_range"] = (args.t_start, args.t_end)
     if args.size:
         kw["size"] = parse_size(args.size)
+    _check_file_out(args.out)
     path = animate(Path(args.trajectory), Path(args.out) if args.out else None, **kw)
     print(f"animation: {path}")
     return 0
@@ -90,6 +132,7 @@ def cmd_animate(args) -> int:
 def cmd_fronts(args) -> int:
     from dynslip.fronts import run_fronts
 
+    _check_dir_out(args.out)
     paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed)
     for p in paths:
         print(p)
@@ -105,6 +148,7 @@ def cmd_sweep(args) -> int:
         mode=args.mode,
         scheduler=args.scheduler,
         console=_console(),
+        force=args.force,
     )
     return 0
 
@@ -121,6 +165,7 @@ def cmd_window(args) -> int:
         tol=args.tol,
         out=Path(args.out) if args.out else None,
         console=_console(),
+        force=args.force,
     )
     return 0
 
@@ -128,8 +173,13 @@ def cmd_window(args) -> int:
 def cmd_compare(args) -> int:
     from dynslip.compare import run_compare
 
+    _check_dir_out(args.out)
     run_compare([Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console())
     return 0
+
+
+FORCE_HELP = "replace a folder at --out that is not a dynslip result (never a file)"
+FORCE_IN_PLACE_HELP = "write into a folder at --out that is not a dynslip result (never a file)"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -141,6 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", help="output folder (default outputs/<scenario stem>/)")
     r.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help="override a field")
     r.add_argument("--animate", action="store_true", help="also write the animation of the trajectory")
+    r.add_argument("--force", action="store_true", help=FORCE_HELP)
     r.set_defaults(fn=cmd_run)
 
     v = sub.add_parser("validate", help="check a scenario file without running it")
@@ -175,6 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out")
     w.add_argument("--mode", choices=["sequential", "batched", "dask"], default=None)
     w.add_argument("--scheduler", default=None, help="dask.distributed scheduler address")
+    w.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
     w.set_defaults(fn=cmd_sweep)
 
     n = sub.add_parser("window", help="find the trapping windows of mu for a scenario")
@@ -185,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
     n.add_argument("--coarse", type=int, default=None)
     n.add_argument("--tol", type=float, default=None)
     n.add_argument("--out")
+    n.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
     n.set_defaults(fn=cmd_window)
 
     c = sub.add_parser("compare", help="compare the end states of forming runs")
@@ -194,20 +247,44 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _kept(err) -> str:
+    """Where the partial results of a failed or interrupted run are (from the exception)."""
+    from dynslip.io import INCOMPLETE
+
+    kept = getattr(err, "dynslip_kept", None)
+    if kept is None:
+        return ""
+    marked = ", marked INCOMPLETE" if (Path(kept) / INCOMPLETE).is_file() else ""
+    return f"{kept}/{marked}"
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from dynslip.io import signal_name, sigterm_raises
+
     try:
-        return args.fn(args)
+        with sigterm_raises():  # SIGTERM raises like SIGINT: partial results kept and marked
+            return args.fn(args)
     except InputError as err:
         print(f"dynslip: error: {err}", file=sys.stderr)
         return 2
     except (ComputationError, MaterialRangeError) as err:
         print(f"dynslip: computation failed: {err}", file=sys.stderr)
-        print("dynslip: what was computed is kept in the .staging folder, marked INCOMPLETE", file=sys.stderr)
+        kept = _kept(err)
+        if kept:
+            print(f"dynslip: what was computed is kept in {kept}", file=sys.stderr)
         return 3
-    except KeyboardInterrupt:
-        print("dynslip: interrupted; partial results kept in the .staging folder", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:
+        name = signal_name(err)
+        kept = _kept(err)
+        print(f"dynslip: interrupted by {name}" + (f"; partial results kept in {kept}" if kept else ""),
+              file=sys.stderr)
+        return getattr(err, "exit_code", 130)
+    except Exception as err:  # a bug: the traceback follows, and where the partial results are
+        kept = _kept(err)
+        if kept:
+            print(f"dynslip: unexpected error; what was computed is kept in {kept}", file=sys.stderr)
+        raise
 
 
 if __name__ == "__main__":  # pragma: no cover

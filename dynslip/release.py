@@ -69,9 +69,11 @@ def _start_dataset(sc, console) -> tuple[xr.Dataset, Path]:
                 return ds, traj
         except InputError:
             pass
+    staged = StagedRun(out, what=f"start_from: {str(src)!r} runs into", force_hint=False)
+    staged.check()  # the same rule as --out: only a dynslip result is replaced, after success
     if console is not None:
         console.print(f"start_from: running {src} first -> {out}/")
-    with StagedRun(out) as staging:
+    with staged as staging:
         start_sc.run(staging, console)
     return open_trajectory(traj), traj
 

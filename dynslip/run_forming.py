@@ -273,8 +273,11 @@ def run_forming(sc, out: Path, console=None) -> dict:
     try:
         with prog:
             result = simulate(model, protocol, on_frame=on_frame, start=start, **kw)
-    except KeyboardInterrupt:
-        flush(frames_seen)
+    except BaseException:  # interrupted (SIGINT, SIGTERM) or any error: keep what was computed
+        try:
+            flush(frames_seen)
+        except Exception:  # noqa: BLE001 - the original error is the one to report
+            pass
         raise
     if result.failed:
         ds = flush(result.frames)

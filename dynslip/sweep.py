@@ -679,6 +679,7 @@ def run_sweep(
     member_fn: Callable | None = None,
     validate_fn: Callable | None = None,
     plot: bool = True,
+    force: bool = False,
 ) -> dict:
     """``dynslip sweep SWEEP.yaml``: run every member not yet done, then assemble and plot.
 
@@ -686,12 +687,22 @@ def run_sweep(
     ``<out>/sweep.png`` and ``<out>/summary.json``; returns the summary. Raises
     :class:`InputError` for a bad sweep file, member or scheduler (before anything runs),
     :class:`ComputationError` when every member failed. ``member_fn(data, out_dir,
-    console) -> summary`` replaces the real simulator (tests, benchmarks).
+    console) -> summary`` replaces the real simulator (tests, benchmarks). ``out`` must be
+    new, empty or a dynslip result (a sweep resumes in it); ``force`` allows writing into
+    another folder (never a file); checked before anything is created.
     """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dynslip.io import provenance, write_json, write_netcdf
+    from dynslip.io import (
+        RESULT_MARKER,
+        check_out,
+        kept_on_error,
+        provenance,
+        write_json,
+        write_netcdf,
+        write_result_marker,
+    )
 
     console = console or Console()
     sweep = Path(sweep)
@@ -713,8 +724,8 @@ def run_sweep(
         if spec.out
         else Path("outputs") / sweep.stem
     )
+    check_out(out, force=force, in_place=True)  # before anything is created
     mdir = out / "members"
-    mdir.mkdir(parents=True, exist_ok=True)
 
     records: dict[str, dict] = {}
     for m in members:
@@ -731,9 +742,10 @@ def run_sweep(
         if not spec.keep_runs:
             return None
         d = out / "runs" / m.key
-        if d.exists():
+        if d.exists():  # this member's own folder from an earlier, unfinished attempt
             shutil.rmtree(d)
         d.mkdir(parents=True)
+        write_result_marker(d, "sweep member")
         return str(d)
 
     with contextlib.ExitStack() as stack:
@@ -743,6 +755,11 @@ def run_sweep(
             stack.callback(client.close)
             if cluster is not None:
                 stack.callback(cluster.close)
+        # the folder is made only now that the input (and the scheduler) has been checked
+        mdir.mkdir(parents=True, exist_ok=True)
+        if not (out / RESULT_MARKER).is_file():
+            write_result_marker(out, "sweep")
+        stack.enter_context(kept_on_error(out))  # an interrupted sweep resumes from out/members/
         console.print(
             f"sweep {sweep}: {len(members)} members ({n_unique - len(pending)} already done, "
             f"{len(pending)} to run), mode {mode}"

@@ -324,18 +324,20 @@ def run_window(
     console=None,
     member_fn: Callable | None = None,
     validate_fn: Callable | None = None,
+    force: bool = False,
 ) -> dict:
     """``dynslip window SCENARIO``: the trapping windows of a scenario's loading path.
 
     Writes ``<out>/window.json`` (windows, every evaluation, failed points) and
     ``<out>/window.png``; returns the dictionary written. ``out`` defaults to
-    ``outputs/<stem>_window/``. Raises :class:`InputError` for bad input and
-    :class:`ComputationError` when every run failed.
+    ``outputs/<stem>_window/``: new, empty or a dynslip result; ``force`` allows writing
+    into another folder (never a file). Raises :class:`InputError` for bad input (before
+    anything is created) and :class:`ComputationError` when every run failed.
     """
     from rich.console import Console
 
     from dynslip import scenario as scen
-    from dynslip.io import write_json
+    from dynslip.io import check_out, write_json, write_result_marker
     from dynslip.sweep import default_member_fn, resolve
 
     console = console or Console()
@@ -362,7 +364,9 @@ def run_window(
         )
 
     out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_window"
+    check_out(out, force=force, in_place=True)
     out.mkdir(parents=True, exist_ok=True)
+    write_result_marker(out, "window")
     lines = []
 
     def progress(mu, v):

@@ -234,7 +234,7 @@ def test_cli_bad_input_exit_2(tmp_path, scenarios_dir):
 
 def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir):
     """A step limit too small for the path: exit 3, a clear message, trajectory.nc kept
-    (complete = 0) in the staging folder."""
+    (complete = 0) in the kept folder <out>.incomplete-<UTC time>."""
     import xarray as xr
 
     out = tmp_path / "o"
@@ -244,7 +244,7 @@ def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir)
     assert res.returncode == 3, res.stderr[-2000:]
     text = res.stderr + res.stdout
     assert "step limit" in text and "Traceback" not in text
-    staging = out.with_name("o.staging")
+    (staging,) = tmp_path.glob("o.incomplete-*")  # the failed run's folder, kept (issue 13)
     with xr.open_dataset(staging / "trajectory.nc") as ds:
         assert int(ds.attrs["complete"]) == 0
         assert ds.sizes["time"] >= 1
