@@ -17,7 +17,7 @@ import time
 
 
 def _scenario(nodes: int, full: bool):
-    from dynslip.scenario import load_data, validate_data
+    from dynslip.schema.base import load_data, validate_data
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
@@ -31,8 +31,8 @@ def _scenario(nodes: int, full: bool):
 
 
 def run_one(nodes: int, full: bool = False) -> dict:
-    from dynslip.run_forming import build_core
-    from dynslip.simulate import simulate
+    from dynslip.app.forming import build_core
+    from dynslip.physics.simulate import simulate
 
     sc = _scenario(nodes, full)
     model, protocol, kw = build_core(sc)

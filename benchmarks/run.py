@@ -43,7 +43,7 @@ def main(argv: list[str]) -> int:
     from rich.table import Table
 
     import dynslip  # noqa: F401  (x64, compilation cache)
-    from dynslip.io import write_json
+    from dynslip.data.files import write_json
 
     console = Console()
     parts = argv or PARTS

@@ -4,7 +4,7 @@ Same vector field (method 2's push-down stage, the sheet stretching and slipping
 the held ball), same tolerances (rtol 1e-5, atol 1e-7), same simulated interval, at
 N = 100, 200, 400, 800 nodes:
 
-- ``structured``: diffrax Kvaerno5, VeryChord with :class:`dynslip.linalg.BorderedBlockTridiagonal`
+- ``structured``: diffrax Kvaerno5, VeryChord with :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`
   (Jacobian from 6 coloured jvps + border, block Thomas + Schur complement);
 - ``dense``: diffrax Kvaerno5 with its default dense Jacobian and LU; above
   ``DENSE_FULL_MAX`` nodes only the first ``DENSE_STEPS`` steps are timed (time per step);
@@ -28,9 +28,9 @@ DENSE_STEPS = 500
 
 
 def _setup(nodes: int):
-    from dynslip.run_forming import build_core
-    from dynslip.scenario import load
-    from dynslip.simulate import Layout, _stage_args, initial_state
+    from dynslip.app.forming import build_core
+    from dynslip.schema.base import load
+    from dynslip.physics.simulate import Layout, _stage_args, initial_state
 
     # the ideal law: the vector field the speed issue was posed on (the shipped static/kinetic
     # law adds one state per node to the same block structure)
@@ -49,7 +49,7 @@ def _setup(nodes: int):
 def _diffrax(nodes: int, linear_solver: str, t1: float, max_steps: int) -> dict:
     import jax.numpy as jnp
 
-    from dynslip.simulate import segment_solver
+    from dynslip.physics.simulate import segment_solver
 
     model, layout, args, y0, settings = _setup(nodes)
     settings = dataclasses.replace(settings, linear_solver=linear_solver, max_steps=max_steps)
@@ -74,8 +74,8 @@ def _scipy(nodes: int, t1: float) -> dict:
     import scipy.sparse as sp
     from scipy.integrate import solve_ivp
 
-    from dynslip.linalg import to_dense
-    from dynslip.simulate import sheet_structure, vector_field
+    from dynslip.physics.linalg import to_dense
+    from dynslip.physics.simulate import sheet_structure, vector_field
 
     model, layout, args, y0, settings = _setup(nodes)
     vf = jax.jit(vector_field(model, layout))

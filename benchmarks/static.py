@@ -37,8 +37,8 @@ def _timed(fn):
 
 def run(cli: bool = True) -> dict:
     import dynslip  # noqa: F401
-    from dynslip import sphere as S
-    from dynslip.materials import make_material
+    from dynslip.physics import sphere as S
+    from dynslip.physics.materials import make_material
 
     r = S.grid(N, RMAX)
     h = float(r[1])

@@ -16,7 +16,7 @@ processes and pay it again (with the persistent compilation cache warm). The fir
 member's time is reported apart (``first_member_s``) so that compilation is visible.
 
 "batched" is grouped sequential: the forming simulator exposes no batched entry point
-(see :mod:`dynslip.sweep`), so its figure measures the grouping overhead only.
+(see :mod:`dynslip.app.sweep`), so its figure measures the grouping overhead only.
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def _differences(ref, ds) -> dict:
 def run() -> dict:
     from rich.console import Console
 
-    from dynslip.sweep import run_sweep
+    from dynslip.app.sweep import run_sweep
 
     nodes = int(os.environ.get("DYNSLIP_BENCH_SWEEP_NODES", "20"))
     n = int(os.environ.get("DYNSLIP_BENCH_SWEEP_MEMBERS", "4"))

@@ -1,6 +1,6 @@
 """dynslip: stick-slip forming of an elastic sheet over a rigid ball.
 
-The paper's static contact-region model (:mod:`dynslip.sphere`, :mod:`dynslip.cylinder`)
+The paper's static contact-region model (:mod:`dynslip.physics.sphere`, :mod:`dynslip.physics.cylinder`)
 and a whole-sheet forming simulator. Importing the package turns on float64 JAX and
 its persistent compilation cache (:mod:`dynslip._jaxconfig`).
 """

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from dynslip.errors import ComputationError, InputError
-from dynslip.materials import MaterialRangeError
+from dynslip.physics.materials import MaterialRangeError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -70,8 +70,8 @@ def _inside(path, folder: Path) -> bool:
 
 
 def cmd_run(args) -> int:
-    from dynslip import scenario as sc
-    from dynslip.io import StagedRun
+    from dynslip.schema import base as sc
+    from dynslip.data.files import StagedRun
 
     scn = sc.load(args.scenario, args.set or [])
     out = _default_out(args.scenario, args.out)
@@ -91,7 +91,7 @@ def cmd_run(args) -> int:
     if getattr(args, "animate", False):
         traj = out / "trajectory.nc"
         if traj.exists():
-            from dynslip.animate import animate
+            from dynslip.plot.animate import animate
 
             path = animate(traj)
             console.print(f"animation: {path}")
@@ -101,7 +101,7 @@ def cmd_run(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from dynslip import scenario as sc
+    from dynslip.schema import base as sc
 
     scn = sc.load(args.scenario, args.set or [])
     print(f"{args.scenario}: valid (kind: {scn.kind})")
@@ -109,14 +109,14 @@ def cmd_validate(args) -> int:
 
 
 def cmd_schema(args) -> int:
-    from dynslip import scenario as sc
+    from dynslip.schema import base as sc
 
     print(sc.schema_reference())
     return 0
 
 
 def cmd_animate(args) -> int:
-    from dynslip.animate import animate, parse_size
+    from dynslip.plot.animate import animate, parse_size
 
     kw = {"fps": args.fps, "fmt": args.format, "max_frames": args.max_frames, "rest_speed": args.rest_speed}
     if args.t_start is not None or args.t_end is not None:
@@ -130,7 +130,7 @@ def cmd_animate(args) -> int:
 
 
 def cmd_fronts(args) -> int:
-    from dynslip.fronts import run_fronts
+    from dynslip.analysis.fronts import run_fronts
 
     _check_dir_out(args.out)
     paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed)
@@ -140,7 +140,7 @@ def cmd_fronts(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from dynslip.sweep import run_sweep
+    from dynslip.app.sweep import run_sweep
 
     run_sweep(
         Path(args.sweep),
@@ -154,7 +154,7 @@ def cmd_sweep(args) -> int:
 
 
 def cmd_window(args) -> int:
-    from dynslip.window import run_window
+    from dynslip.app.window import run_window
 
     run_window(
         Path(args.scenario),
@@ -171,7 +171,7 @@ def cmd_window(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from dynslip.compare import run_compare
+    from dynslip.analysis.compare import run_compare
 
     _check_dir_out(args.out)
     run_compare([Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console())
@@ -249,7 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _kept(err) -> str:
     """Where the partial results of a failed or interrupted run are (from the exception)."""
-    from dynslip.io import INCOMPLETE
+    from dynslip.data.files import INCOMPLETE
 
     kept = getattr(err, "dynslip_kept", None)
     if kept is None:
@@ -260,7 +260,7 @@ def _kept(err) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from dynslip.io import signal_name, sigterm_raises
+    from dynslip.data.files import signal_name, sigterm_raises
 
     try:
         with sigterm_raises():  # SIGTERM raises like SIGINT: partial results kept and marked

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dynslip.animate import animate, describe, frame_indices, parse_size, save_frame_png
+from dynslip.plot.animate import animate, describe, frame_indices, parse_size, save_frame_png
 from dynslip.errors import InputError
-from dynslip.io import write_netcdf
-from dynslip.trajectory import open_trajectory, synthetic_trajectory
+from dynslip.data.files import write_netcdf
+from dynslip.data.trajectory import open_trajectory, synthetic_trajectory
 
 NT, NR = 8, 24
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from dynslip.cli import main
-from dynslip.scenario import parse_override, schema_reference
+from dynslip.schema.base import parse_override, schema_reference
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -113,7 +113,7 @@ def test_trajectory_readers_bad_input_exit_2(tmp_path, capsys, command, case):
     import numpy as np
     import xarray as xr
 
-    from dynslip.trajectory import synthetic_trajectory
+    from dynslip.data.trajectory import synthetic_trajectory
 
     state = np.zeros((6, 8), np.int8)
     state[:, :3] = 1

@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 
-from dynslip.compare import run_compare
-from dynslip.io import write_netcdf
-from dynslip.trajectory import synthetic_trajectory
+from dynslip.analysis.compare import run_compare
+from dynslip.data.files import write_netcdf
+from dynslip.data.trajectory import synthetic_trajectory
 
 
 def _run_dir(tmp_path, name, slope, n_contact, nr=21):

@@ -21,11 +21,11 @@ import pytest
 import xarray as xr
 import yaml
 
-import dynslip.sweep as sweep_mod
+import dynslip.app.sweep as sweep_mod
 from dynslip.cli import main
 from dynslip.errors import ComputationError
-from dynslip.io import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
-from dynslip.scenario_static import CylinderScenario
+from dynslip.data.files import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
+from dynslip.schema.static import CylinderScenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -306,7 +306,7 @@ def test_scenario_inside_out_refused(tmp_path, capsys, monkeypatch):
 def test_start_from_run_folder_follows_the_same_rule(tmp_path, capsys, monkeypatch):
     """The run a ``start_from`` scenario makes (into outputs/<stem>/) never replaces a
     user's folder: exit 2 before anything runs."""
-    import dynslip.scenario_forming as sf
+    import dynslip.schema.forming as sf
 
     monkeypatch.setattr(sf.FormingScenario, "run", lambda self, out, console: pytest.fail("ran"))
     monkeypatch.chdir(tmp_path)
@@ -385,7 +385,7 @@ def test_sweep_out_file_fronts_out_file_animate_out_dir(tmp_path, capsys, monkey
     d = tmp_path / "folder"
     d.mkdir()
     traj = tmp_path / "trajectory.nc"
-    from dynslip.trajectory import synthetic_trajectory
+    from dynslip.data.trajectory import synthetic_trajectory
 
     state = np.zeros((6, 8), np.int8)
     state[:, :3] = 1
@@ -442,7 +442,7 @@ def test_unreachable_scheduler_creates_nothing(tmp_path, capsys, monkeypatch):
 
 
 def test_window_folder_marked(tmp_path, monkeypatch):
-    from dynslip.window import run_window
+    from dynslip.app.window import run_window
 
     def member(data, out_dir, console=None):
         mu = data["physics"]["friction"]["mu"]
@@ -504,7 +504,7 @@ def test_sigterm_subprocess_exit_143(tmp_path):
         import sys, time
         from pathlib import Path
         from dynslip.cli import main
-        from dynslip.scenario_static import CylinderScenario
+        from dynslip.schema.static import CylinderScenario
 
         def run(self, out, console):
             (Path(out) / "partial.txt").write_text("partial")

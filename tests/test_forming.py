@@ -14,14 +14,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip import sphere
+from dynslip.physics import sphere
 from dynslip.errors import ComputationError, InputError
-from dynslip.friction import Coulomb
-from dynslip.materials import make_material
-from dynslip.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
-from dynslip.scenario import validate_data
-from dynslip.sheet import Penalty, SheetModel, make_mesh
-from dynslip.simulate import Settings, simulate
+from dynslip.physics.friction import Coulomb
+from dynslip.physics.materials import make_material
+from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
+from dynslip.schema.base import validate_data
+from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.simulate import Settings, simulate
 
 NODES = 40
 RIM = 2.54
@@ -148,7 +148,7 @@ def test_flat_sheet_without_load_and_uniform_stretch_without_ball_stay_put():
     """No ball (far below), clamp at rest: a flat unstretched sheet and a uniformly
     pre-stretched one keep their closed-form state; the clamp's radial force is
     2 pi r_edge lambda T_eq(lambda)."""
-    from dynslip.materials import relaxed_tensions
+    from dynslip.physics.materials import relaxed_tensions
 
     prot = Protocol((Stage("rest", StopRule("duration", duration=4.0)),), clamp_rho0=RIM, clamp_z0=Z0, ball_z0=-50.0)
     for pre in (1.0, 1.3):
@@ -217,7 +217,7 @@ def test_bad_input_is_one_line(physics, needle):
 
 
 def test_shipped_method2_validates(scenarios_dir):
-    from dynslip.scenario import load
+    from dynslip.schema.base import load
 
     sc = load(scenarios_dir / "method2.yaml")
     assert sc.kind == "forming" and sc.physics.stages[0].name == "push_down"
@@ -289,7 +289,7 @@ def test_mesh_convergence_of_the_end_state():
 def test_default_method2_traps_the_ball(tmp_path, scenarios_dir):
     """The shipped scenario at its default resolution: the ball trapped (contact past the
     equator, at rest, reaction zero); the numbers are reported, not tuned."""
-    from dynslip.scenario import load
+    from dynslip.schema.base import load
 
     sc = load(scenarios_dir / "method2.yaml")
     s = sc.run(tmp_path, None)

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.friction import soft_threshold
+from dynslip.physics.friction import soft_threshold
 
 
 def test_soft_threshold_reverse_mode_finite_at_zero_threshold():

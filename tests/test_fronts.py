@@ -11,7 +11,7 @@ import pytest
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.fronts import (
+from dynslip.analysis.fronts import (
     BIRTH_EVENTS,
     DEATH_EVENTS,
     fronts_dataset,
@@ -22,8 +22,8 @@ from dynslip.fronts import (
     summary_lines,
     track_fronts,
 )
-from dynslip.io import check_units, write_netcdf
-from dynslip.trajectory import synthetic_trajectory
+from dynslip.data.files import check_units, write_netcdf
+from dynslip.data.trajectory import synthetic_trajectory
 
 CODES = {".": 0, "S": 1, "p": 2, "e": 3}
 
@@ -297,7 +297,7 @@ def test_fronts_of_a_method2_run_are_continuous_between_named_events(tmp_path):
 
     from rich.console import Console
 
-    from dynslip import scenario
+    from dynslip.schema import base as scenario
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
     if not path.exists():

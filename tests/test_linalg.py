@@ -7,7 +7,7 @@ import lineax as lx
 import numpy as np
 import pytest
 
-from dynslip.linalg import BorderedBlockTridiagonal, Structure, extract_blocks, to_dense
+from dynslip.physics.linalg import BorderedBlockTridiagonal, Structure, extract_blocks, to_dense
 
 S = Structure(n=13, b=2, m=3)
 

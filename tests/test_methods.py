@@ -10,8 +10,8 @@ import math
 
 import pytest
 
-from dynslip.compare import difference, end_state
-from dynslip.scenario import load
+from dynslip.analysis.compare import difference, end_state
+from dynslip.schema.base import load
 
 from conftest import SCENARIOS
 

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dynslip.run_forming import build_core, run_forming
-from dynslip.scenario import validate_data
+from dynslip.app.forming import build_core, run_forming
+from dynslip.schema.base import validate_data
 
 
 def _forming(nodes=40, mu=0.8):
@@ -167,7 +167,7 @@ def test_bad_weakening_parameters_exit_2(tmp_path, friction, needle):
 def test_release_geometry_fields_are_checked_by_name(pocket):
     """The start's resolved scenario is compared field by field (material too)."""
     from dynslip.errors import InputError
-    from dynslip.release import load_start
+    from dynslip.app.release import load_start
 
     data = _release(pocket)
     data["physics"]["material"] = {"model": "neo_hookean"}

@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dynslip.friction import Coulomb, soft_threshold
-from dynslip.materials import make_material, relaxed_tensions
-from dynslip.sheet import Penalty, SheetModel, element_stretches, make_mesh, penalty_energy, penalty_pressure
+from dynslip.physics.friction import Coulomb, soft_threshold
+from dynslip.physics.materials import make_material, relaxed_tensions
+from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh, penalty_energy, penalty_pressure
 
 MAT = make_material("gent", jm=50.0)
 

@@ -6,9 +6,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from dynslip.release import GEOMETRY_FIELDS
-from dynslip.scenario import load, validate_data
-from dynslip.sweep import expand, load_spec
+from dynslip.app.release import GEOMETRY_FIELDS
+from dynslip.schema.base import load, validate_data
+from dynslip.app.sweep import expand, load_spec
 
 from conftest import SCENARIOS
 

@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip import sphere as S
+from dynslip.physics import sphere as S
 from dynslip.errors import ComputationError
-from dynslip.materials import Gent, Hookean, NeoHookean
+from dynslip.physics.materials import Gent, Hookean, NeoHookean
 
 RMAX, TMAX, N = 0.9, 1.8, 100
 SEL = 0.25  # the selection rule: switch radius rbar_s = 0.25 R (docs/static-model.md)

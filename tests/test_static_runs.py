@@ -10,9 +10,9 @@ import pytest
 import xarray as xr
 from rich.console import Console
 
-from dynslip import io
+from dynslip.data import files as io
 from dynslip.errors import ComputationError, InputError
-from dynslip.scenario import load
+from dynslip.schema.base import load
 
 SMALL = ["numerics.n_nodes=40"]
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"

@@ -4,10 +4,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.linalg import extract_blocks, to_dense
-from dynslip.run_forming import build_core
-from dynslip.scenario import load
-from dynslip.simulate import Layout, _stage_args, initial_state, segment_solver, sheet_structure, vector_field
+from dynslip.physics.linalg import extract_blocks, to_dense
+from dynslip.app.forming import build_core
+from dynslip.schema.base import load
+from dynslip.physics.simulate import Layout, _stage_args, initial_state, segment_solver, sheet_structure, vector_field
 
 from conftest import SCENARIOS
 

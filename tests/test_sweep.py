@@ -21,11 +21,11 @@ import xarray as xr
 import yaml
 from pydantic import Field, ValidationError
 
-import dynslip.scenario as scenario_mod
-import dynslip.sweep as sweep_mod
+import dynslip.schema.base as scenario_mod
+import dynslip.app.sweep as sweep_mod
 from dynslip.errors import ComputationError, InputError
-from dynslip.scenario import Strict, format_validation_error
-from dynslip.sweep import load_spec, run_sweep
+from dynslip.schema.base import Strict, format_validation_error
+from dynslip.app.sweep import load_spec, run_sweep
 
 HERE = Path(__file__).resolve().parent
 
@@ -232,7 +232,7 @@ def test_killed_sweep_resumes_with_every_member_once(tmp_path):
     out, log = tmp_path / "out", tmp_path / "started.log"
     script = (
         "from test_sweep import slow_member, fake_validate\n"
-        "from dynslip.sweep import run_sweep\n"
+        "from dynslip.app.sweep import run_sweep\n"
         f"run_sweep({str(path)!r}, out={str(out)!r}, member_fn=slow_member, validate_fn=fake_validate, plot=False)\n"
     )
     env = {
@@ -385,7 +385,7 @@ def _cli(cli, argv):
 
 
 def test_run_window_on_a_scenario(tmp_path):
-    from dynslip.window import run_window
+    from dynslip.app.window import run_window
 
     (tmp_path / "s.yaml").write_text(
         yaml.safe_dump({"kind": "fake", "physics": {"protocol": {"depth": 4.0}}})
@@ -419,7 +419,7 @@ def test_run_window_on_a_scenario(tmp_path):
 
 def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
     """The real scenario schema (kind: forming): every case stops before anything runs."""
-    pytest.importorskip("dynslip.scenario_forming")
+    pytest.importorskip("dynslip.schema.forming")
     from dynslip import cli
 
     monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
@@ -456,8 +456,8 @@ def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     """Method 2 at 20 nodes: inside each window the ball is trapped, outside it is not."""
-    from dynslip.sweep import default_member_fn
-    from dynslip.window import run_window
+    from dynslip.app.sweep import default_member_fn
+    from dynslip.app.window import run_window
 
     base = scenarios_dir / "method2.yaml"
     if not base.exists():

@@ -14,8 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.friction import Coulomb, SlipWeakening, make_friction
-from dynslip.simulate import Settings, simulate
+from dynslip.physics.friction import Coulomb, SlipWeakening, make_friction
+from dynslip.physics.simulate import Settings, simulate
 
 from test_forming import MAT, MODEL, PRE, Z0, push_protocol, residual
 
@@ -179,7 +179,7 @@ def test_weakening_mesh_convergence_at_fixed_dc_and_trend_in_dc():
     """At fixed d_c (15 sqrt(d_c R) = 2.1 R, mesh spacing 0.06..0.03 R on the reference disc)
     the end state converges under refinement; the trend as d_c shrinks is reported, not
     claimed to converge (its limit is ill posed)."""
-    from dynslip.sheet import Penalty, SheetModel, make_mesh
+    from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 
     def model(n):
         return SheetModel(make_mesh(n, 2.54 / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))

@@ -1,4 +1,4 @@
-"""The trapping-window search: coarse scan + bisection of every edge (dynslip.window)."""
+"""The trapping-window search: coarse scan + bisection of every edge (dynslip.app.window)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dynslip.errors import ComputationError, InputError
-from dynslip.window import find_windows, friction_field, member_at
+from dynslip.app.window import find_windows, friction_field, member_at
 
 TWO = [(0.31, 0.47), (1.23, 1.61)]
 

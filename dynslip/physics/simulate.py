@@ -15,7 +15,7 @@ append, e.g. a per-node slip distance):
 
 Ball: held ($\dot z_b$ prescribed, the hold supplies $F_h = \eta_b\dot z_b - C_z - F_g$)
 or force-controlled ($F_h$ ramped, $\eta_b\dot z_b = F_h + C_z + F_g$): global balance
-with the sheet's drag taken relative to the ball (:mod:`dynslip.sheet`).
+with the sheet's drag taken relative to the ball (:mod:`dynslip.physics.sheet`).
 
 Energy balance: $W_c + W_b = \Delta(E_{el} + E_{pen}) + D_{drag} + D_{fric}$, with the
 initial (pre-stretch) energy counted in $E(0)$.
@@ -41,11 +41,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.friction import AbstractFriction, Coulomb
-from dynslip.linalg import BorderedBlockTridiagonal, Structure
-from dynslip.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
-from dynslip.sheet import SheetModel
-from dynslip.upstream import VeryChord
+from dynslip.physics.friction import AbstractFriction, Coulomb
+from dynslip.physics.linalg import BorderedBlockTridiagonal, Structure
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
+from dynslip.physics.sheet import SheetModel
+from dynslip.physics.upstream import VeryChord
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
            "vector_field", "frame_record", "N_ACC"]
@@ -59,7 +59,7 @@ class Layout(eqx.Module):
     ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4), internal(n_int * n)]``: node
     ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
     clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
-    of :class:`dynslip.friction.SlipWeakening`), absent for memoryless laws.
+    of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
     """
 
     n: int = eqx.field(static=True)
@@ -193,7 +193,7 @@ class Settings:
 
 
 def sheet_structure(layout: Layout) -> Structure:
-    """Sparsity of the state for :class:`dynslip.linalg.BorderedBlockTridiagonal`.
+    """Sparsity of the state for :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`.
 
     Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
     depends only on its neighbours (element energies, the hoop stretch at element
@@ -214,7 +214,7 @@ def sheet_structure(layout: Layout) -> Structure:
 def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
     cls = {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
            "implicit_euler": diffrax.ImplicitEuler}[name]
-    # VeryChord with the termination fix of diffrax PR #754 (dynslip.upstream), on both paths:
+    # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on both paths:
     # the dense path otherwise builds diffrax's own VeryChord.
     chord = diffrax.with_stepsize_controller_tols(VeryChord)
     if linear_solver == "dense":

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from dynslip import io
+from dynslip.data import files as io
 from dynslip.errors import ComputationError
 
 __all__ = ["PAPER_MU", "compute_static", "static_dataset", "run_static", "run_figure4", "run_family",
@@ -53,7 +53,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
     failed search the dict has ``status = "failed"`` and ``error`` (nothing is raised here)."""
     import jax.numpy as jnp
 
-    from dynslip import sphere as S
+    from dynslip.physics import sphere as S
 
     n = num.n_nodes
     rbar = S.grid(n, rbar_max)
@@ -108,7 +108,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
 def _add_fields(out, material, theta, h, mu, num):
     import jax.numpy as jnp
 
-    from dynslip import sphere as S
+    from dynslip.physics import sphere as S
 
     f = S.fields(material, jnp.asarray(theta), h)
     fm, fn = np.asarray(f.fm), np.asarray(f.fn)
@@ -242,8 +242,8 @@ def _fail(res_list, out: Path):
 
 def run_static(sc, out: Path, console) -> dict:
     """``kind: static``: one material, Fig. 4 row."""
-    from dynslip.plot_static import figure4_row
-    from dynslip.scenario_static import material_of
+    from dynslip.plot.static import figure4_row
+    from dynslip.schema.static import material_of
 
     p = sc.physics
     mat = material_of(p.material)
@@ -264,8 +264,8 @@ def run_static(sc, out: Path, console) -> dict:
 
 def run_figure4(sc, out: Path, console) -> dict:
     """``kind: figure4``: Hookean, neo-Hookean, Gent in one 3x3 figure."""
-    from dynslip.materials import make_material
-    from dynslip.plot_static import figure4
+    from dynslip.physics.materials import make_material
+    from dynslip.plot.static import figure4
 
     p = sc.physics
     results, sums, dss = [], [], []
@@ -296,9 +296,9 @@ def run_figure4(sc, out: Path, console) -> dict:
 
 def run_family(sc, out: Path, console) -> dict:
     """``kind: family``: mu along the fully mobilised family of the three models."""
-    from dynslip import sphere as S
-    from dynslip.materials import make_material
-    from dynslip.plot_static import family_plot
+    from dynslip.physics import sphere as S
+    from dynslip.physics.materials import make_material
+    from dynslip.plot.static import family_plot
 
     p, num = sc.physics, sc.numerics
     values = np.linspace(p.switch_from, p.switch_to, num.n_members)
@@ -368,8 +368,8 @@ def run_cylinder(sc, out: Path, console) -> dict:
     import jax.numpy as jnp
     from rich.table import Table
 
-    from dynslip import cylinder as C
-    from dynslip.plot_static import cylinder_plot
+    from dynslip.physics import cylinder as C
+    from dynslip.plot.static import cylinder_plot
 
     p, num = sc.physics, sc.numerics
     angles = np.linspace(p.theta_max_from, p.theta_max_to, num.n_angles)

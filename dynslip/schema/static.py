@@ -17,7 +17,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import Field, field_validator, model_validator
 
-from dynslip.scenario import F, ScenarioBase, Strict
+from dynslip.schema.base import F, ScenarioBase, Strict
 
 __all__ = [
     "StaticScenario",
@@ -70,8 +70,8 @@ Material = Annotated[Union[Hookean, NeoHookean, MooneyRivlin, Gent], Field(discr
 
 
 def material_of(spec):
-    """The core material (:mod:`dynslip.materials`) of a material section."""
-    from dynslip.materials import make_material
+    """The core material (:mod:`dynslip.physics.materials`) of a material section."""
+    from dynslip.physics.materials import make_material
 
     return make_material(spec.model, jm=getattr(spec, "jm", 50.0), c1=getattr(spec, "c1", 0.5),
                          c2=getattr(spec, "c2", 0.0))
@@ -149,7 +149,7 @@ class StaticScenario(ScenarioBase):
     numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
 
     def run(self, out: Path, console) -> dict:
-        from dynslip.run_static import run_static
+        from dynslip.app.static import run_static
 
         return run_static(self, Path(out), console)
 
@@ -170,7 +170,7 @@ class Figure4Scenario(ScenarioBase):
     numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
 
     def run(self, out: Path, console) -> dict:
-        from dynslip.run_static import run_figure4
+        from dynslip.app.static import run_figure4
 
         return run_figure4(self, Path(out), console)
 
@@ -211,7 +211,7 @@ class FamilyScenario(ScenarioBase):
     numerics: FamilyNumerics = F(FamilyNumerics(), description="numerics")
 
     def run(self, out: Path, console) -> dict:
-        from dynslip.run_static import run_family
+        from dynslip.app.static import run_family
 
         return run_family(self, Path(out), console)
 
@@ -247,6 +247,6 @@ class CylinderScenario(ScenarioBase):
     numerics: CylinderNumerics = F(CylinderNumerics(), description="numerics")
 
     def run(self, out: Path, console) -> dict:
-        from dynslip.run_static import run_cylinder
+        from dynslip.app.static import run_cylinder
 
         return run_cylinder(self, Path(out), console)

@@ -106,7 +106,7 @@ class Linspace(_Strict):
 
 
 class WindowSpec(_Strict):
-    """The trapping-window search run for each member (see :mod:`dynslip.window`)."""
+    """The trapping-window search run for each member (see :mod:`dynslip.app.window`)."""
 
     field: str | None = Field(None, description="friction field; default mu (ideal law) or mu_s")
     lo: float = Field(0.0, ge=0)
@@ -247,7 +247,7 @@ def _set(data: dict, dotted: str, value, source: str) -> None:
 def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dict:
     """Validate scenario data and return the resolved scenario (every default filled in)."""
     if validate_fn is None:
-        from dynslip.scenario import validate_data as validate_fn
+        from dynslip.schema.base import validate_data as validate_fn
     return json.loads(validate_fn(data, source).to_json())
 
 
@@ -255,7 +255,7 @@ def default_member_fn(data: dict, out_dir: Path, console=None) -> dict:
     """The real member: validate the scenario data and run it into ``out_dir``."""
     from rich.console import Console
 
-    from dynslip.scenario import validate_data
+    from dynslip.schema.base import validate_data
 
     return validate_data(data, "<member>").run(Path(out_dir), console or Console(quiet=True))
 
@@ -285,7 +285,7 @@ def _fingerprint(resolved: dict, window: dict | None) -> str:
 
 def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = None) -> list[Member]:
     """Every member of the sweep, resolved and validated (nothing runs)."""
-    from dynslip.scenario import load_data
+    from dynslip.schema.base import load_data
 
     root = Path(sweep_path).parent
     if spec.grid is not None:
@@ -324,7 +324,7 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
             except KeyError:
                 raise InputError(f"{src}: field '{k}' does not exist in the scenario") from None
         if window is not None:
-            from dynslip.window import friction_field
+            from dynslip.app.window import friction_field
 
             field_name, _ = friction_field(resolved, window["field"])
             if field_name in assign:
@@ -340,7 +340,7 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
 
 
 def _jsonable_summary(summary: dict) -> dict:
-    from dynslip.io import _jsonable
+    from dynslip.data.files import _jsonable
 
     return json.loads(json.dumps(_jsonable(summary), default=str))
 
@@ -375,7 +375,7 @@ def execute_member(
         except Exception as err:  # noqa: BLE001 - a member's failure is data, not a crash of the sweep
             rec.update(status="error", error=f"{type(err).__name__}: {err}")
         if window is not None:
-            from dynslip.window import friction_field, scenario_window
+            from dynslip.app.window import friction_field, scenario_window
 
             field_name, tied = friction_field(resolved, window["field"])
             mu0 = float(_get(resolved, field_name))
@@ -524,7 +524,7 @@ def assemble(
     spec: SweepSpec, members: list[Member], records: dict[str, dict], attrs: dict
 ) -> xr.Dataset:
     """One dataset from the member records: a dimension per swept field (grid) or ``member``."""
-    from dynslip.io import variable
+    from dynslip.data.files import variable
 
     if spec.grid is not None:
         grid = spec.grid_values()
@@ -599,7 +599,7 @@ def assemble(
 
 
 def _window_vars(spec, members, records, dims, shape) -> dict:
-    from dynslip.io import variable
+    from dynslip.data.files import variable
 
     n_max = max([1] + [len(records[m.fingerprint]["window"]["windows"]) for m in members])
     wdims = (*dims, WINDOW_DIM)
@@ -634,7 +634,7 @@ def _window_vars(spec, members, records, dims, shape) -> dict:
 def _unit_of_field(dotted: str, members: list[Member]) -> str:
     """The unit a scenario field declares in its schema metadata, or ``"1"``."""
     try:
-        from dynslip.scenario import _classes
+        from dynslip.schema.base import _classes
 
         kind = members[0].resolved.get("kind")
         cls = _classes().get(kind)
@@ -694,7 +694,7 @@ def run_sweep(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dynslip.io import (
+    from dynslip.data.files import (
         RESULT_MARKER,
         check_out,
         kept_on_error,
@@ -830,7 +830,7 @@ def run_sweep(
     }
     write_json(out / "summary.json", summary)
     if plot:
-        from dynslip.plot_sweep import plot_sweep
+        from dynslip.plot.sweep import plot_sweep
 
         plot_sweep(ds, out / "sweep.png")
     console.print(

@@ -13,7 +13,7 @@ $$\lambda_{\theta,e} = \frac{|x_{e+1}-x_e|}{\bar r_{e+1}-\bar r_e},\qquad
 (the hoop stretch at the element midpoint: no pole singularity).
 
 **Energy** (units $G h_0 R^2$): relaxed elastic energy (tension-field theory,
-:func:`dynslip.materials.relaxed_energy`) plus a contact penalty
+:func:`dynslip.physics.materials.relaxed_energy`) plus a contact penalty
 
 $$E = \sum_e 2\pi \bar r_{e+1/2}\Delta\bar r_e\, W_{rel}(\lambda_{\theta,e},\lambda_{\phi,e})
   + \sum_i A_i\,\phi(1 - |x_i - x_b|),$$
@@ -29,7 +29,7 @@ energy balance is a sound test). Per node, with $n$ the ball's outward normal at
 node and $t$ the tangent toward increasing polar angle $\theta$ (toward the equator),
 the driving force $F$ splits into $F_n$, $F_t$; the normal force is the penalty force
 $N_i = A_i\phi'(d_i)$ and the friction law gives the slip force $S(F_t, \mu N_i)$
-(:mod:`dynslip.friction`). Overdamped dynamics with one drag $\eta$ per reference
+(:mod:`dynslip.physics.friction`). Overdamped dynamics with one drag $\eta$ per reference
 area, *relative to the ball*:
 
 $$\eta A_i (\dot x_i - \dot z_b e_z) = F_n n + S t .$$
@@ -45,8 +45,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.friction import AbstractFriction
-from dynslip.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
+from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
 __all__ = ["Mesh", "Penalty", "SheetModel", "make_mesh", "penalty_energy", "penalty_pressure"]
 

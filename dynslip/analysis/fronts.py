@@ -2,7 +2,7 @@ r"""Stick fronts: the boundaries between stuck and slipping sheet, tracked throu
 
 A *stick front* sits between two adjacent nodes ``i, i+1`` that are both in contact with
 the ball, one stuck (``state == 1``) and the other slipping (``state`` 2 or 3; the
-contract's flags, :mod:`dynslip.trajectory`; or, with ``rest_speed``, stuck or slower
+contract's flags, :mod:`dynslip.data.trajectory`; or, with ``rest_speed``, stuck or slower
 than it, :func:`motion_state`). Its position is the midpoint of the two
 nodes, in the material radius and in the polar angle:
 
@@ -49,8 +49,8 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.io import provenance, save_figure, variable, write_json, write_netcdf
-from dynslip.trajectory import (
+from dynslip.data.files import provenance, save_figure, variable, write_json, write_netcdf
+from dynslip.data.trajectory import (
     FREE,
     SLIP_EQUATOR,
     SLIP_POLE,

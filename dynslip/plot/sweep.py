@@ -60,7 +60,7 @@ def _reduce(ds: xr.Dataset) -> tuple[xr.Dataset, str]:
 
 def plot_sweep(ds: xr.Dataset, path) -> Path:
     """The sweep's figure (see the module docstring); written atomically to ``path``."""
-    from dynslip.io import save_figure
+    from dynslip.data.files import save_figure
 
     plt = _mpl()
     ds, note = _reduce(ds)
@@ -173,7 +173,7 @@ def _window_range(ds: xr.Dataset) -> tuple[float, float]:
 
 def plot_window(result: dict, path) -> Path:
     """trapped(mu) at every evaluated mu (failed runs as red crosses), windows shaded."""
-    from dynslip.io import save_figure
+    from dynslip.data.files import save_figure
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(6, 2.6))

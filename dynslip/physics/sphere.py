@@ -12,7 +12,7 @@ $\bar r_i = i h$, $h = \bar r_{max}/(N-1)$:
   odd ghost node at the pole ($\theta_{-1} = -\theta_1$) and the second-order one-sided
   difference $(3\theta_{N-1} - 4\theta_{N-2} + \theta_{N-3})/2h$ at the outer end;
 - $\lambda_\phi = \sin\theta/\bar r$ (eq. (eq_lambda_phi)), $\lambda_\phi = \lambda_\theta$ at the pole;
-- $T_\theta, T_\phi$ from :func:`dynslip.materials.tensions` (eqs. (1)-(2), typo fixed);
+- $T_\theta, T_\phi$ from :func:`dynslip.physics.materials.tensions` (eqs. (1)-(2), typo fixed);
 - $F_m = dT_\theta/d\theta + (T_\theta - T_\phi)\cot\theta$ with
   $dT_\theta/d\theta = (dT_\theta/d\bar r)/\lambda_\theta$ (same differences; $T_\theta$ even at
   the pole, so $F_m = 0$ there);
@@ -47,7 +47,7 @@ import numpy as np
 import optimistix as optx
 
 from dynslip.errors import ComputationError
-from dynslip.materials import AbstractMaterial, MaterialRangeError, tensions
+from dynslip.physics.materials import AbstractMaterial, MaterialRangeError, tensions
 
 __all__ = [
     "GridFields",

@@ -2,7 +2,7 @@
 
 A scenario has a ``kind`` (which computation), a ``physics`` section and a
 ``numerics`` section. The schema of each kind lives beside its runner
-(:mod:`dynslip.scenario_static`, :mod:`dynslip.scenario_forming`); this module holds
+(:mod:`dynslip.schema.static`, :mod:`dynslip.schema.forming`); this module holds
 the shared machinery: strict models (unknown keys rejected, ranges checked), units in
 each field's metadata, loading, overrides, one-line error messages and the reference
 printed by ``dynslip schema``.
@@ -25,11 +25,11 @@ from dynslip.errors import InputError
 
 # kind -> (module, class). Each module defines its scenario class with ``kind: Literal[kind]``.
 KINDS: dict[str, tuple[str, str]] = {
-    "static": ("dynslip.scenario_static", "StaticScenario"),
-    "figure4": ("dynslip.scenario_static", "Figure4Scenario"),
-    "family": ("dynslip.scenario_static", "FamilyScenario"),
-    "cylinder": ("dynslip.scenario_static", "CylinderScenario"),
-    "forming": ("dynslip.scenario_forming", "FormingScenario"),
+    "static": ("dynslip.schema.static", "StaticScenario"),
+    "figure4": ("dynslip.schema.static", "Figure4Scenario"),
+    "family": ("dynslip.schema.static", "FamilyScenario"),
+    "cylinder": ("dynslip.schema.static", "CylinderScenario"),
+    "forming": ("dynslip.schema.forming", "FormingScenario"),
 }
 
 

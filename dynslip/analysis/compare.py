@@ -66,8 +66,8 @@ def run_compare(runs: list[Path], out: Path | None = None, console=None) -> dict
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from dynslip.io import save_figure, write_json
-    from dynslip.trajectory import open_trajectory
+    from dynslip.data.files import save_figure, write_json
+    from dynslip.data.trajectory import open_trajectory
 
     if len(runs) < 2:
         raise InputError(f"runs: {len(runs)} given; compare needs at least two run folders")

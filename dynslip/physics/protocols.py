@@ -1,7 +1,7 @@
 r"""Loading protocols: sequences of keyframed stages with stop rules (pure core objects).
 
 Nondimensional core: lengths in units of the ball radius $R$, forces in units of
-$G h_0 R$; time stays in seconds. The schema (:mod:`dynslip.scenario_forming`)
+$G h_0 R$; time stays in seconds. The schema (:mod:`dynslip.schema.forming`)
 converts the file's mm, mm/s, s and N into these.
 
 Within a stage every prescribed quantity is *linear in time*, so the vector field is

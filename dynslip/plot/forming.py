@@ -18,7 +18,7 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
 
-from dynslip import io  # noqa: E402
+from dynslip.data import files as io  # noqa: E402
 
 __all__ = ["make_figures", "snapshot_indices", "plot_meridian", "plot_theta", "plot_state_map"]
 

@@ -3,7 +3,7 @@
 Each frame is drawn from one saved frame of ``trajectory.nc`` (nothing is interpolated or
 recomputed): on the left the meridian section (rho, z), mirrored about the axis, with the
 ball, the sheet coloured by its contact state (free, stuck, slipping toward the pole,
-slipping toward the equator), the stick fronts (:mod:`dynslip.fronts`) as black diamonds
+slipping toward the equator), the stick fronts (:mod:`dynslip.analysis.fronts`) as black diamonds
 and the clamp; the title gives the stage, the time and the load (clamp force and the
 force of the hold on the ball in newtons, from the scale ``force_scale_N``). On the right
 the space-time map of the state with the front tracks and a cursor at the frame's time.
@@ -20,14 +20,14 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.fronts import (
+from dynslip.analysis.fronts import (
     STATE_COLORS,
     _rest_speed,
     draw_spacetime,
     fronts_dataset,
     motion_state,
 )
-from dynslip.trajectory import (
+from dynslip.data.trajectory import (
     STATE_MEANINGS,
     open_trajectory,
     stage_names,
@@ -222,7 +222,7 @@ def animate(
     or ``"mp4"``; ``out_path`` defaults to ``animation.<fmt>`` beside the trajectory;
     ``max_frames`` thins the saved frames evenly when the range holds more; ``rest_speed``
     (R/s, optional) colours slipping nodes slower than this as stuck
-    (:func:`dynslip.fronts.motion_state`; default: the state flags as saved). Bad options, a
+    (:func:`dynslip.analysis.fronts.motion_state`; default: the state flags as saved). Bad options, a
     file that is not a trajectory of this format version, or a range outside the run raise
     :class:`~dynslip.errors.InputError`.
     """

@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.window import _get
+from dynslip.app.window import _get
 
 __all__ = ["load_start", "release_metrics", "plot_release", "GEOMETRY_FIELDS"]
 
@@ -43,15 +43,15 @@ def _resolve(path: str, base: Path | None) -> Path:
 
 
 def _start_dataset(sc, console) -> tuple[xr.Dataset, Path]:
-    from dynslip.trajectory import open_trajectory
+    from dynslip.data.trajectory import open_trajectory
 
     src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))
     if src.suffix == ".nc":
         return open_trajectory(src), src
     if src.suffix not in (".yaml", ".yml"):
         raise InputError(f"start_from: {str(src)!r}: expected a trajectory.nc or a scenario .yaml")
-    from dynslip import scenario as scn
-    from dynslip.io import StagedRun
+    from dynslip.schema import base as scn
+    from dynslip.data.files import StagedRun
 
     start_sc = scn.load(src)
     if getattr(start_sc, "kind", None) != "forming":
@@ -79,7 +79,7 @@ def _start_dataset(sc, console) -> tuple[xr.Dataset, Path]:
 
 
 def load_start(sc, console=None) -> tuple[dict, dict]:
-    """(start state for :func:`dynslip.simulate.simulate`, provenance) of ``sc.start_from``."""
+    """(start state for :func:`dynslip.physics.simulate.simulate`, provenance) of ``sc.start_from``."""
     ds, src = _start_dataset(sc, console)
     if int(ds.attrs.get("complete", 0)) != 1:
         raise InputError(f"start_from: {str(src)!r} is an incomplete run (complete = 0); allowed: a finished run")
@@ -132,7 +132,7 @@ def release_metrics(ds: xr.Dataset, model=None) -> dict:
 
 def _ball_drag_force(ds: xr.Dataset):
     """The ball's drag force eta_b z_b' per frame (G h0 R): a regularisation the hold also pays."""
-    from dynslip.scenario_forming import ball_drag_coefficient
+    from dynslip.schema.forming import ball_drag_coefficient
 
     nu = json.loads(ds.attrs["scenario"])["numerics"]
     eta_b = ball_drag_coefficient(nu["drag_time_s"], nu["ball_drag"])
@@ -182,7 +182,7 @@ def plot_release(ds: xr.Dataset, metrics: dict, out: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from dynslip import io
+    from dynslip.data import files as io
 
     fs = float(ds.attrs["force_scale_N"])
     r_mm = float(ds.attrs["R_m"]) * 1e3

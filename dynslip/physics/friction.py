@@ -25,7 +25,7 @@ $$\mu(\delta) = \mu_k + (\mu_s - \mu_k)\max(0, 1 - \delta/d_c),\qquad
 
 reset to 0 where the node is stuck (force criterion: $S = 0$ exactly) or out of contact.
 The reset is a jump: the driver applies it at every restart (the end of each save
-segment, :func:`dynslip.simulate.simulate`), so its time resolution is the save interval.
+segment, :func:`dynslip.physics.simulate.simulate`), so its time resolution is the save interval.
 Slip-distance weakening is rate independent (no time scale enters $\mu$) and well
 posed for $d_c > 0$; velocity weakening is neither and is not offered.
 """

@@ -18,7 +18,7 @@ import xarray as xr
 
 import dynslip
 from dynslip.errors import InputError
-from dynslip.io import provenance, variable
+from dynslip.data.files import provenance, variable
 
 FREE, STUCK, SLIP_POLE, SLIP_EQUATOR = 0, 1, 2, 3
 """The ``state`` flags of the contract."""

@@ -336,9 +336,9 @@ def run_window(
     """
     from rich.console import Console
 
-    from dynslip import scenario as scen
-    from dynslip.io import check_out, write_json, write_result_marker
-    from dynslip.sweep import default_member_fn, resolve
+    from dynslip.schema import base as scen
+    from dynslip.data.files import check_out, write_json, write_result_marker
+    from dynslip.app.sweep import default_member_fn, resolve
 
     console = console or Console()
     member_fn = member_fn or default_member_fn
@@ -403,7 +403,7 @@ def run_window(
         raise ComputationError(
             f"{path}: every run of the window search failed (see {out / 'window.json'})"
         )
-    from dynslip.plot_sweep import plot_window
+    from dynslip.plot.sweep import plot_window
 
     plot_window(result, out / "window.png")
     shown = ", ".join(f"[{w.lo.value:.4g}, {w.hi.value:.4g}]" for w in res.windows) or "none"

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from dynslip import io
+from dynslip.data import files as io
 from dynslip.errors import ComputationError, InputError
 
 __all__ = ["run_forming", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
@@ -62,11 +62,11 @@ STATE_MEANINGS = "free stuck slipping_toward_pole slipping_toward_equator"
 
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
-    from dynslip.friction import make_friction
-    from dynslip.materials import make_material
-    from dynslip.scenario_forming import ball_drag_coefficient, build_protocol
-    from dynslip.sheet import Penalty, SheetModel, make_mesh
-    from dynslip.simulate import Settings
+    from dynslip.physics.friction import make_friction
+    from dynslip.physics.materials import make_material
+    from dynslip.schema.forming import ball_drag_coefficient, build_protocol
+    from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+    from dynslip.physics.simulate import Settings
 
     p, nu = sc.physics, sc.numerics
     r = p.ball_radius_mm
@@ -237,9 +237,9 @@ def run_forming(sc, out: Path, console=None) -> dict:
     """Run a forming scenario into ``out``; return the summary (raises ComputationError on failure)."""
     from rich.console import Console
 
-    from dynslip.materials import MaterialRangeError  # noqa: F401  (documented error type)
-    from dynslip.plot_forming import make_figures
-    from dynslip.simulate import simulate
+    from dynslip.physics.materials import MaterialRangeError  # noqa: F401  (documented error type)
+    from dynslip.plot.forming import make_figures
+    from dynslip.physics.simulate import simulate
 
     console = console or Console(stderr=True)
     out = Path(out)
@@ -289,7 +289,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
     io.write_netcdf(ds, out / "trajectory.nc")
     summary = summarize(sc, ds, result)
     if start_info is not None:
-        from dynslip.release import plot_release, release_metrics
+        from dynslip.app.release import plot_release, release_metrics
 
         summary["start"] = start_info
         summary["release"] = release_metrics(ds, model)

@@ -13,7 +13,7 @@ from typing import Literal
 
 from pydantic import PrivateAttr, model_validator
 
-from dynslip.scenario import F, ScenarioBase, Strict
+from dynslip.schema.base import F, ScenarioBase, Strict
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec", "FrictionSpec"]
 
@@ -235,7 +235,7 @@ class FormingScenario(ScenarioBase):
     def _cross(self):
         # The clamp path must stay outside the ball (checked on the keyframes; condition stages at their
         # longest reach).
-        from dynslip.protocols import Protocol  # pure core, cheap
+        from dynslip.physics.protocols import Protocol  # pure core, cheap
 
         try:
             prot = build_protocol(self)
@@ -252,13 +252,13 @@ class FormingScenario(ScenarioBase):
         """Resolve and check ``start_from`` (running its scenario first when needed) before any
         output is written; bad input raises :class:`dynslip.errors.InputError`."""
         if self.start_from and self._start is None:
-            from dynslip.release import load_start
+            from dynslip.app.release import load_start
 
             self._start = load_start(self, console)
         return self._start
 
     def run(self, out: Path, console) -> dict:
-        from dynslip.run_forming import run_forming
+        from dynslip.app.forming import run_forming
 
         return run_forming(self, Path(out), console)
 
@@ -269,8 +269,8 @@ def ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:
 
 
 def build_protocol(sc: FormingScenario):
-    """The core :class:`dynslip.protocols.Protocol` (nondimensional) of a scenario."""
-    from dynslip.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage, StopRule
+    """The core :class:`dynslip.physics.protocols.Protocol` (nondimensional) of a scenario."""
+    from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage, StopRule
 
     p = sc.physics
     r = p.ball_radius_mm

@@ -1,0 +1,1 @@
+"""Datasets to numbers or datasets: fronts, comparisons."""

@@ -1,0 +1,1 @@
+"""One module per command: the layer that writes run folders and prints."""

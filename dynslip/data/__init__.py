@@ -1,0 +1,1 @@
+"""Files and xarray contracts: atomic writes, staged run folders, the trajectory contract."""

@@ -1,0 +1,1 @@
+"""YAML to validated scenario models to physics objects."""
