@@ -294,7 +294,7 @@ def test_default_method2_traps_the_ball(tmp_path, scenarios_dir):
     sc = load(scenarios_dir / "method2.yaml")
     s = sc.run(tmp_path, None)
     print(json.dumps({k: s[k] for k in ("trapped", "theta_max", "rbar_max", "opening_radius", "rest_state_check",
-                                        "largest_stretch", "mu_needed", "energy_balance", "solver")}, indent=1))
+                                        "largest_stretch", "mu_mobilised_max", "energy_balance", "solver")}, indent=1))
     assert s["status"] == "ok"
     assert s["trapped"] is True
     assert s["theta_max"] > math.pi / 2

@@ -93,7 +93,7 @@ def fake_member(data, out_dir, console=None):
         "theta_max": 1.5 + 0.1 * mu + extra,
         "rbar_max": 0.8 + 0.01 * depth,
         "opening_radius": float(np.sin(1.5 + 0.1 * mu + extra)),
-        "mu_needed": 0.5 * mu,
+        "mu_mobilised_max": 0.5 * mu,
         # a wall-clock figure, as the simulator reports: differs run to run
         "solver": {"steps": s.numerics.nodes * 10, "rejected": 3, "wall_s": time.perf_counter()},
     }

@@ -45,9 +45,10 @@ def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta):
     return y1, f1, s1
 
 
-def _ramp(fr, legs, seg=0.05, stiff=10.0, normal=1.0, eta=0.1):
+def _ramp(fr, legs, seg=0.05, stiff=10.0, normal=1.0, eta=0.1, heal_rate=0.0):
     """Drive along ``legs`` = [(duration, velocity), ...]; the law's reset at every segment end
-    (as the driver does). Returns arrays t, x, delta, force, slip."""
+    (as the driver does), healing where the slip rate is at most ``heal_rate``. Returns arrays
+    t, x, delta, force, slip."""
     y = jnp.zeros(2)
     t, xd = 0.0, 0.0
     out = [(0.0, 0.0, 0.0, 0.0, 0.0)]
@@ -55,7 +56,7 @@ def _ramp(fr, legs, seg=0.05, stiff=10.0, normal=1.0, eta=0.1):
         for _ in range(int(round(dur / seg))):
             y, f, s = _node_segment(fr, y, jnp.asarray(t), jnp.asarray(t + seg), jnp.asarray(xd), jnp.asarray(v),
                                     stiff, normal, eta)
-            y = y.at[1].set(fr.reset(y[1], s, normal))
+            y = y.at[1].set(fr.reset(y[1], s / eta, normal, heal_rate))
             t, xd = t + seg, xd + v * seg
             out.append((t, float(y[0]), float(y[1]), float(f), float(s)))
     return [np.array(c) for c in zip(*out, strict=True)]
@@ -91,6 +92,35 @@ def test_one_node_ramp_sticks_at_mu_s_slides_at_mu_k_and_resticks():
     assert abs(peak2 - MU_S) / MU_S < 1e-2, peak2
     print(f"one-node ramp: peaks {peak1:.5f}, {peak2:.5f} (mu_s N = {MU_S}); sliding force "
           f"{force[late].mean():.5f} (mu_k N + eta V = {MU_K + eta * v:.5f})")
+
+
+@pytest.mark.parametrize("heal_rate", [1e-4, 1e-3])
+def test_settling_node_heals_and_needs_mu_s_again(heal_rate):
+    """Drive the node past d_c (sliding at mu_k), then stop the drive: the node settles onto
+    its kinetic limit with a slip rate that decays but never reaches S = 0 exactly (the
+    smoothed law's blend gives an algebraic tail). With the bare force criterion
+    (heal_rate = 0) its slip distance is never reset and reloading slides at once at mu_k;
+    with healing (slip rate at most heal_rate) it resets, stays put, and reloading needs
+    mu_s N again."""
+    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    v = 0.01
+    legs = [(20.0, v), (1.0, 0.0), (4.0, v)]
+    out = {}
+    for h in (0.0, heal_rate):
+        t, x, delta, force, slip = _ramp(fr, legs, heal_rate=h)
+        settle = (t > 20.5) & (t <= 21.0 + 1e-9)
+        reload = t > 21.0
+        out[h] = dict(delta_end=delta[settle][-1], slip_end=slip[settle][-1], peak=force[reload].max(),
+                      moved=np.ptp(x[settle]), x_reload=x[reload])
+    bare, healed = out[0.0], out[heal_rate]
+    # the bare criterion: still weakened (slip distance > d_c), still creeping (S > 0)
+    assert bare["delta_end"] > D_C and bare["slip_end"] > 0.0
+    assert abs(bare["peak"] - (MU_K + 0.1 * v)) / MU_K < 2e-2, bare["peak"]
+    # healed: slip distance 0 and exactly stuck after it healed
+    assert healed["delta_end"] == 0.0 and healed["slip_end"] == 0.0
+    assert abs(healed["peak"] - MU_S) / MU_S < 1e-2, healed["peak"]
+    print(f"settling node: bare criterion delta = {bare['delta_end']:.4g} R, reload peak {bare['peak']:.4f}; "
+          f"healed at {heal_rate:g} R/s: reload peak {healed['peak']:.4f} (mu_s N = {MU_S})")
 
 
 def test_one_node_without_weakening_is_coulomb():

@@ -3,7 +3,7 @@
 ``dynslip compare RUN_A RUN_B ...`` reads each run's ``trajectory.nc`` (a run folder
 or the file itself), takes the last saved frame as the end state, and reports
 theta(rbar) of each on the contact region, the largest |delta theta| on the region
-common to all, and each run's theta_max, rbar_max and mu_needed (largest mobilised
+common to all, and each run's theta_max, rbar_max and mu_mobilised_max (largest mobilised
 |F_f|/F_N on the end state's contact region). Writes ``compare.json`` and
 ``compare.png`` into ``--out`` (default ``outputs/compare/``).
 """
@@ -35,7 +35,7 @@ def end_state(ds) -> dict:
         "contact": contact,
         "theta_max": float(last["theta_max"].values),
         "rbar_max": float(last["rbar_max"].values),
-        "mu_needed": float(np.nanmax(mob)) if np.isfinite(mob).any() else float("nan"),
+        "mu_mobilised_max": float(np.nanmax(mob)) if np.isfinite(mob).any() else float("nan"),
     }
 
 
@@ -82,7 +82,7 @@ def run_compare(runs: list[Path], out: Path | None = None, console=None) -> dict
     result = {"runs": {}, "differences": {}}
     for n in names:
         s = states[n]
-        result["runs"][n] = {k: s[k] for k in ("theta_max", "rbar_max", "mu_needed")}
+        result["runs"][n] = {k: s[k] for k in ("theta_max", "rbar_max", "mu_mobilised_max")}
     for n in names[1:]:
         d = difference(ref, states[n])
         result["differences"][f"{names[0]} - {n}"] = {
@@ -93,7 +93,7 @@ def run_compare(runs: list[Path], out: Path | None = None, console=None) -> dict
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     for n in names:
         s = states[n]
-        ax0.plot(s["rbar"][s["contact"]], s["theta"][s["contact"]], label=f"{n} (mu_needed {s['mu_needed']:.3g})")
+        ax0.plot(s["rbar"][s["contact"]], s["theta"][s["contact"]], label=f"{n} (mu_mobilised_max {s['mu_mobilised_max']:.3g})")
     ax0.set_xlabel(r"$\bar r$ (material radius / R)")
     ax0.set_ylabel(r"$\theta$ (rad)")
     ax0.set_title("end states on the contact region")
@@ -113,10 +113,10 @@ def run_compare(runs: list[Path], out: Path | None = None, console=None) -> dict
         from rich.table import Table
 
         t = Table(title="end states")
-        for c in ("run", "theta_max", "rbar_max", "mu_needed"):
+        for c in ("run", "theta_max", "rbar_max", "mu_mobilised_max"):
             t.add_column(c)
         for n, v in result["runs"].items():
-            t.add_row(n, f"{v['theta_max']:.4f}", f"{v['rbar_max']:.4f}", f"{v['mu_needed']:.4f}")
+            t.add_row(n, f"{v['theta_max']:.4f}", f"{v['rbar_max']:.4f}", f"{v['mu_mobilised_max']:.4f}")
         console.print(t)
         for k, v in result["differences"].items():
             console.print(f"max |delta theta| ({k}) = {v['max_abs_dtheta']:.4g} rad on rbar <= {v['common_rbar_max']:.3f}")

@@ -79,7 +79,7 @@ def build_core(sc):
     weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0
     settings = Settings(solver=nu.solver, rtol=nu.rtol, atol=nu.atol, pcoeff=nu.pid_pcoeff, icoeff=nu.pid_icoeff,
                         max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
-                        contact_threshold=nu.contact_threshold)
+                        contact_threshold=nu.contact_threshold, heal_rate=nu.heal_rate_mm_s / r)
     kwargs = dict(
         friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
                                d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
@@ -150,7 +150,7 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     lp = np.asarray(end["lambda_phi"])
     i_t = int(np.nanargmax(lt))
     mu_mob = np.asarray(end["mu_mobilised"])
-    mu_needed = float(np.nanmax(mu_mob[contact])) if contact.any() else float("nan")
+    mu_mobilised_max = float(np.nanmax(mu_mob[contact])) if contact.any() else float("nan")
     stage_names = [s.name for s in p.stages]
     slack = next((s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None)
     work = np.abs(ds["work_clamp"].values) + np.abs(ds["work_ball"].values)
@@ -192,7 +192,11 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         "mu": p.friction.nominal_mu,
         **({"mu_s": p.friction.mu_s, "mu_k": p.friction.mu_k, "d_c_mm": p.friction.d_c_mm}
            if p.friction.law == "slip_weakening" else {}),
-        "mu_needed": mu_needed,
+        "mu_mobilised_max": mu_mobilised_max,
+        "mu_mobilised_max_means": ("largest |friction| / normal force over the contact of the end state: the "
+                                   "friction this state mobilises, not the least friction the path needs (a "
+                                   "fully mobilised end state returns the input mu); the path's critical mu is "
+                                   "found by `dynslip window` (window.json)"),
         "contact_nodes": int(contact.sum()),
         "slack_rim_height": {
             "reached": bool(slack["condition_met"]) if slack else None,
@@ -310,7 +314,7 @@ def _print_summary(console, s: dict) -> None:
     t.add_column("value", justify="right")
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
     rows = [("trapped", s["trapped"]), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
-            ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_needed", s["mu_needed"]),
+            ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_mobilised_max", s["mu_mobilised_max"]),
             ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
             ("energy residual / work", s["energy_balance"]["relative_residual"])]
     if "release" in s:

@@ -81,7 +81,7 @@ KNOWN_VARIABLES: dict[str, tuple[str, str]] = {
     "theta_max": ("rad", "polar angle of the contact edge at the end"),
     "rbar_max": ("1", "material radius reaching the contact edge, by R"),
     "opening_radius": ("1", "radius of the pocket's opening R sin(theta_max), by R"),
-    "mu_needed": ("1", "largest mobilised |F_f| / F_N on the end state"),
+    "mu_mobilised_max": ("1", "largest mobilised |F_f| / F_N on the end state"),
     "release_force": ("N", "peak force of the release"),
 }
 

@@ -23,9 +23,15 @@ the slip distance $\delta$ accumulated since the node last stuck:
 $$\mu(\delta) = \mu_k + (\mu_s - \mu_k)\max(0, 1 - \delta/d_c),\qquad
   \dot\delta = |u_t|\ \text{(in contact)},$$
 
-reset to 0 where the node is stuck (force criterion: $S = 0$ exactly) or out of contact.
-The reset is a jump: the driver applies it at every restart (the end of each save
-segment, :func:`dynslip.physics.simulate.simulate`), so its time resolution is the save interval.
+reset to 0 where the node has *healed* or is out of contact. Healing criterion (one for
+every solver, :func:`heals`): the node's slip rate $|u_t| = |S|/(\eta A)$ is at most a
+stated reference rate $v_h$ (``numerics.heal_rate_mm_s``). A node that settles onto its
+friction limit approaches $S = 0$ only asymptotically (its slip rate decays like
+$e^{-Kt/\eta}$), so the force criterion $S = 0$ alone ($v_h = 0$) never heals it and it
+stays weakened at $\mu_k$ for ever; with $v_h > 0$ it heals once it has all but stopped.
+The reset is a jump: the time-stepped driver applies it at every restart (the end of each
+save segment, :func:`dynslip.physics.simulate.simulate`), so its time resolution is the
+save interval.
 Slip-distance weakening is rate independent (no time scale enters $\mu$) and well
 posed for $d_c > 0$; velocity weakening is neither and is not offered.
 """
@@ -37,7 +43,7 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
-__all__ = ["AbstractFriction", "Coulomb", "SlipWeakening", "soft_threshold", "make_friction"]
+__all__ = ["AbstractFriction", "Coulomb", "SlipWeakening", "soft_threshold", "make_friction", "heals"]
 
 
 def soft_threshold(f, c, eps=0.0):
@@ -64,6 +70,15 @@ def soft_threshold(f, c, eps=0.0):
     in_band = (a > c - e) & (a < c + e) & (e > 0)
     mag = jnp.where(in_band, blend, ideal)
     return jnp.sign(f) * mag
+
+
+def heals(slip_speed, normal, heal_rate):
+    r"""The healing criterion: stuck again where $|u_t| \le v_h$, or out of contact ($N \le 0$).
+
+    ``slip_speed`` is $S/(\eta A)$ (R/s), ``heal_rate`` $v_h \ge 0$ (R/s); ``heal_rate = 0``
+    is the bare force criterion $S = 0$.
+    """
+    return (jnp.abs(slip_speed) <= heal_rate) | (normal <= 0.0)
 
 
 class AbstractFriction(eqx.Module):
@@ -102,8 +117,9 @@ class AbstractFriction(eqx.Module):
         """Rate of the per-node internal state (shape of ``internal``)."""
         return jnp.zeros_like(internal)
 
-    def reset(self, internal, slip, normal):
-        """The internal state after a restart (unchanged for memoryless laws)."""
+    def reset(self, internal, slip_speed, normal, heal_rate=0.0):
+        r"""The internal state after a restart (unchanged for memoryless laws); ``slip_speed``
+        $S/(\eta A)$ and ``heal_rate`` as in :func:`heals`."""
         return internal
 
 
@@ -152,8 +168,8 @@ class SlipWeakening(AbstractFriction):
     def internal_rate(self, slip_speed, normal, internal):
         return jnp.where(normal > 0, jnp.abs(slip_speed), 0.0)
 
-    def reset(self, internal, slip, normal):
-        return jnp.where((slip == 0.0) | (normal <= 0.0), 0.0, internal)
+    def reset(self, internal, slip_speed, normal, heal_rate=0.0):
+        return jnp.where(heals(slip_speed, normal, heal_rate), 0.0, internal)
 
 
 def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0) -> AbstractFriction:

@@ -189,7 +189,13 @@ class Settings:
     max_steps: int = 20000  # per segment
     save_interval: float = 1.0  # s
     contact_threshold: float = 1e-2  # G h0 / R
+    heal_rate: float = 0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
     linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
+    # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
+    # increment bound in drag times, driven stages / stages with the ball or clamp under a force
+    newton_max_iter: int = 10
+    max_increment: float = 20.0
+    max_increment_free: float = 5.0
 
 
 def sheet_structure(layout: Layout) -> Structure:
@@ -230,6 +236,10 @@ _COMPILED: dict = {}  # ahead-of-time compiled segment solves, keyed by everythi
 def segment_solver(settings: Settings):
     """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for a solver name and
     step limit; shared by every run (compiled once per mesh size and material class)."""
+    if settings.solver == "load_step":  # implicit Euler load increments (returns Newton iterations too)
+        from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
+
+        return load_step_segment_solver(settings)
     key = (settings.solver, settings.max_steps, settings.linear_solver)
     if key in _SOLVE_CACHE:
         return _SOLVE_CACHE[key]
@@ -295,12 +305,13 @@ def state_from(layout: Layout, start: dict):
 
 
 @eqx.filter_jit
-def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs):
-    """The friction law's restart: per-node state reset where stuck or out of contact."""
+def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate=0.0):
+    """The friction law's restart: per-node state reset where healed (slip rate at most
+    ``heal_rate``, R/s: :func:`dynslip.physics.friction.heals`) or out of contact."""
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
-    return layout.with_internal(y, args.friction.reset(internal, k["S"], k["N"]))
+    return layout.with_internal(y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate))
 
 
 class SolverFailure(RuntimeError):
@@ -364,7 +375,8 @@ def simulate(
     t = 0.0
     frames: list = []
     stage_end: list = []
-    stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0}
+    stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0,
+             "method": settings.solver, "newton_iterations": 0 if settings.solver == "load_step" else None}
     dt_guess = 1e-3 * settings.save_interval
     reaction = 0.0
     clamp_reaction = (0.0, 0.0)
@@ -396,6 +408,7 @@ def simulate(
         for t1 in seg_ts[1:]:
             dt0 = _f(min(dt_guess, 0.5 * (t1 - t)))
             key = (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
+                   settings.newton_max_iter, settings.max_increment, settings.max_increment_free,
                    repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
             if key not in _COMPILED:
                 c0 = _time.perf_counter()
@@ -403,7 +416,10 @@ def simulate(
                 stats["compile_s"] += _time.perf_counter() - c0
             compiled_solve = _COMPILED[key]
             r0 = _time.perf_counter()
-            y1, ok, nst, nacc, nrej = compiled_solve(model, layout, y, _f(t), _f(t1), dt0, args, rtol, atol)
+            out = compiled_solve(model, layout, y, _f(t), _f(t1), dt0, args, rtol, atol)
+            y1, ok, nst, nacc, nrej = out[:5]
+            if len(out) > 5:  # load_step: Newton iterations
+                stats["newton_iterations"] += int(out[5])
             ok = bool(ok)
             stats["run_s"] += _time.perf_counter() - r0
             nst, nacc, nrej = int(nst), int(nacc), int(nrej)
@@ -420,7 +436,7 @@ def simulate(
             dt_guess = (float(t1) - t) / max(nacc, 1)
             y, t = y1, float(t1)
             if layout.n_int:
-                y = reset_internal(model, layout, y, args)
+                y = reset_internal(model, layout, y, args, _f(settings.heal_rate))
             rec = record(t, y, args, si)
             if not np.all(np.isfinite(rec["energy_elastic"])):
                 failed = (f"stage '{stage.name}' at t = {t:.6g} s: elastic energy not finite "

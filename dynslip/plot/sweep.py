@@ -1,7 +1,7 @@
 """Figures of sweeps and trapping windows; they read datasets (or the window's JSON) only.
 
 - :func:`plot_sweep`: one panel per result (trapped, theta_max, rbar_max, opening radius,
-  mu_needed, the trapping windows). One swept field: lines against it. Two numeric
+  mu_mobilised_max, the trapping windows). One swept field: lines against it. Two numeric
   fields with 3 or more values each: maps. Otherwise lines against the first field,
   one per value of the second; further fields are held at their first value (said in
   the title). Failed members are marked with a red cross, never drawn as "not trapped".
@@ -21,7 +21,7 @@ PANELS = [
     "rbar_max",
     "opening_radius",
     "largest_stretch_lambda_theta",
-    "mu_needed",
+    "mu_mobilised_max",
     "release_force",
 ]
 

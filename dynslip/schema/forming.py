@@ -48,7 +48,7 @@ class FrictionSpec(Strict):
 
     @property
     def nominal_mu(self) -> float:
-        """The coefficient a reader compares mu_needed with: mu, or mu_s."""
+        """The coefficient a reader compares mu_mobilised_max with: mu, or mu_s."""
         return self.mu if self.law == "coulomb" else self.mu_s
 
 
@@ -215,6 +215,10 @@ class FormingNumerics(Strict):
     contact_threshold: float = F(1e-2, gt=0, description="contact where the pressure exceeds this (G h0 / R)")
     max_steps: int = F(50000, ge=100, description="step limit per save segment")
     save_interval_s: float = F(2.0, unit="s", gt=0, description="time between saved frames (and condition checks)")
+    heal_rate_mm_s: float = F(0.002, unit="mm/s", ge=0, le=1.0,
+                              description="healing criterion of slip_weakening: a node's slip distance resets where "
+                              "its slip rate is at most this (checked at every save); 0 is the bare force criterion "
+                              "S = 0, which a node settling onto its friction limit never reaches (docs/forming.md)")
     trap_reaction_tol: float = F(1e-3, gt=0,
                                  description="trapped needs |ball reaction| below this (units G h0 R) at the end")
 
