@@ -8,11 +8,14 @@ to be deleted once a release with the fix is pinned in ``constraints.txt``.
 from __future__ import annotations
 
 import diffrax
+import jax
 import jax.numpy as jnp
 import optimistix as optx
 from diffrax._root_finder._verychord import _converged, _diverged, _small
+from diffrax._solver.implicit_euler import _implicit_relation
+from equinox.internal import ω
 
-__all__ = ["VeryChord"]
+__all__ = ["VeryChord", "ImplicitEuler"]
 
 
 class VeryChord(diffrax.VeryChord):
@@ -47,3 +50,44 @@ class VeryChord(diffrax.VeryChord):
         linsolve_fail = state.result != optx.RESULTS.successful
         result = optx.RESULTS.where(linsolve_fail, state.result, terminate_result)
         return linsolve_fail | terminate, result
+
+
+class ImplicitEuler(diffrax.ImplicitEuler):
+    r"""``diffrax.ImplicitEuler`` whose failed root find rejects the step (diffrax issue #752, PR #753).
+
+    diffrax 0.7.2's ``ImplicitEuler.step`` returns the root finder's result but a finite
+    error estimate when the nonlinear solve fails (iteration limit, divergence, a failed
+    linear solve); ``diffeqsolve`` hands the estimate to the step-size controller, which
+    accepts the unconverged step, and the failure surfaces only as an error at the end.
+    PR #753 (merged, unreleased) sets the error estimate to infinity on failure, as
+    ``AbstractRungeKutta`` does, so that a controller rejects the step and retries a
+    smaller one. This class is the 0.7.2 ``step`` with that line.
+
+    One addition that is not upstream: the solver state (``None`` in diffrax) is the root
+    finder's iteration count in the last step, which diffrax drops and an increment
+    controller driven by Newton's iteration count needs
+    (:mod:`dynslip.physics.loadstep`). When a diffrax release with PR #753 is pinned,
+    ``tests/test_loadstep.py::test_pinned_implicit_euler_still_accepts_a_failed_solve``
+    fails: keep only the iteration count here (or in ``loadstep``) then.
+    """
+
+    def init(self, terms, t0, t1, y0, args):
+        del terms, t0, t1, y0, args
+        return jnp.array(0, dtype=jnp.int32)
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        del made_jump, solver_state
+        control = terms.contr(t0, t1)
+        k0 = terms.vf_prod(t0, y0, args, control)
+        rargs = (terms.vf_prod, t1, y0, args, control)
+        nonlinear_sol = optx.root_find(_implicit_relation, self.root_finder, k0, rargs, throw=False,
+                                       max_steps=self.root_find_max_steps)
+        k1 = nonlinear_sol.value
+        y1 = (y0**ω + k1**ω).ω
+        result = diffrax.RESULTS.promote(nonlinear_sol.result)
+        y_error = (0.5 * (k1**ω - k0**ω)).ω
+        # diffrax PR #753: an unconverged implicit solve must not pass the controller
+        y_error = jax.tree_util.tree_map(lambda e: jnp.where(diffrax.is_okay(result), e, jnp.inf), y_error)
+        dense_info = dict(y0=y0, y1=y1)
+        iterations = jnp.asarray(nonlinear_sol.stats["num_steps"], dtype=jnp.int32)
+        return y1, y_error, dense_info, iterations, result
