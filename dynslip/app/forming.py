@@ -85,6 +85,7 @@ def build_core(sc):
                                d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
         eps=nu.friction_smoothing, drag=nu.drag_time_s, ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
         pre_stretch=p.pre_stretch, z_sheet=(r + p.sheet_gap_mm) / r, weight=weight, settings=settings,
+        support_stiffness=nu.support_stiffness,
     )
     return model, protocol, kwargs
 

@@ -41,11 +41,13 @@ class StopRule:
     magnitude of the clamp's axial force falls below ``force``, units of $G h_0 R$),
     or ``"rest"`` (when the largest slip speed and the ball speed stay below ``rate``
     (R/s) for ``hold`` seconds), or ``"theta_max_below"`` (when the contact edge's polar
-    angle falls below ``angle``, radians, or contact is lost). Condition rules end at ``duration`` at the latest:
+    angle falls below ``angle``, radians, or contact is lost), or ``"ball_speed_above"`` (when the
+    ball's speed exceeds ``rate``, R/s: a ramped pull has torn it out). Condition rules end at
+    ``duration`` at the latest:
     reaching it without the condition holding is reported, not hidden.
     """
 
-    kind: Literal["duration", "clamp_force_below", "rest", "theta_max_below"] = "duration"
+    kind: Literal["duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above"] = "duration"
     duration: float = 1.0
     force: float = 0.0
     rate: float = 0.0
@@ -59,6 +61,8 @@ class StopRule:
             raise ValueError("stop rule clamp_force_below: the threshold must be > 0 (|force| < 0 never holds)")
         if self.kind == "theta_max_below" and not 0 < self.angle < 3.14159265:
             raise ValueError(f"stop rule theta_max_below: the angle must be in (0, pi), got {self.angle}")
+        if self.kind == "ball_speed_above" and not self.rate > 0:
+            raise ValueError("stop rule ball_speed_above: the speed threshold must be > 0")
         if self.kind == "rest" and not (self.rate > 0 and 0 < self.hold < self.duration):
             raise ValueError("stop rule rest: need rate > 0 and 0 < hold < duration")
 
@@ -73,7 +77,9 @@ class Stage:
     ``clamp_force_start``, to ``clamp_force_end``; the edge then moves with drag). ``ball_mode``: ``BALL_HOLD``
     (ball centre moves at ``ball_vz``) or ``BALL_FORCE`` (hold reaction ramps from the
     value at the stage start, or ``ball_force_start`` if given, to ``ball_force_end``
-    over the stage's duration).
+    over the stage's duration). ``support``: the ball also rests on a rigid support below it
+    (the bottle neck), a unilateral contact: the support pushes the ball up where its centre
+    is below ``Protocol.ball_z0`` and never pulls it down, so the pocket may lift the ball off.
     """
 
     name: str
@@ -87,6 +93,7 @@ class Stage:
     clamp_mode: int = CLAMP_POSITION
     clamp_force_start: tuple[float, float] | None = None
     clamp_force_end: tuple[float, float] = (0.0, 0.0)
+    support: bool = False
 
     @property
     def max_duration(self) -> float:

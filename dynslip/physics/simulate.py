@@ -44,7 +44,7 @@ import numpy as np
 from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal, Structure
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
-from dynslip.physics.sheet import SheetModel
+from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 from dynslip.physics.upstream import VeryChord
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
@@ -118,6 +118,9 @@ class StageArgs(eqx.Module):
     drag: jnp.ndarray  # eta per reference area: seconds (time unit tau = eta R^2/(G h0))
     ball_drag: jnp.ndarray  # eta_b (G h0 R s / R)
     weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
+    support: jnp.ndarray = 0.0  # 1 where the ball rests on the rigid support (bottle neck), else 0
+    support_z: jnp.ndarray = 0.0  # ball-centre height at which the support's contact begins (R)
+    support_k: jnp.ndarray = 1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
 
     def frac(self, t):
         return jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
@@ -127,6 +130,12 @@ class StageArgs(eqx.Module):
 
     def clamp_force(self, t):
         return self.fc0 + (self.fc1 - self.fc0) * self.frac(t)
+
+    def support_force(self, zb):
+        r"""Upward force of the support on the ball: $k\,\phi'(z_s - z_b)$ with the C^1 penalty
+        of :func:`dynslip.physics.sheet.penalty_pressure` (width 1e-3 R); zero off the support
+        (unilateral: the pocket may lift the ball off) and where ``support`` is 0."""
+        return self.support * penalty_pressure(Penalty(self.support_k, 1e-3), self.support_z - zb)
 
 
 def _f(x):
@@ -149,7 +158,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     crho = jnp.where(pinned, g_rho[-1], f_app[0])
     cz = jnp.where(pinned, g_z[-1], f_app[1])
     held = args.ball_mode == BALL_HOLD
-    fb = args.ball_force(t)
+    fb = args.ball_force(t) + args.support_force(zb)
     vb = jnp.where(held, args.vzb, (fb + cz + args.weight) / args.ball_drag)
     f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, fb)
     u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
@@ -327,7 +336,8 @@ class Result:
     e0: float = 0.0
 
 
-def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_drag, weight):
+def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_drag, weight, support_z=0.0,
+                support_k=1e3):
     dur = stage.max_duration
     f0 = f_start if stage.ball_force_start is None else stage.ball_force_start
     fc0 = fc_start if stage.clamp_force_start is None else stage.clamp_force_start
@@ -337,6 +347,7 @@ def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_dra
         ball_mode=jnp.asarray(stage.ball_mode, jnp.int32), vzb=_f(stage.ball_vz),
         f0=_f(f0), f1=_f(stage.ball_force_end), ramp=_f(dur), friction=friction, eps=_f(eps),
         drag=_f(drag), ball_drag=_f(ball_drag), weight=_f(weight),
+        support=_f(1.0 if stage.support else 0.0), support_z=_f(support_z), support_k=_f(support_k),
     )
 
 
@@ -358,6 +369,7 @@ def simulate(
     settings: Settings = Settings(),
     on_frame: Callable[[dict], None] | None = None,
     start: dict | None = None,
+    support_stiffness: float = 1e3,
 ) -> Result:
     """Run ``protocol`` from a flat pre-stretched sheet (or from ``start``, a saved end
     state, see :func:`state_from`); return the saved frames.
@@ -395,7 +407,8 @@ def simulate(
 
     for si, stage in enumerate(protocol.stages):
         zb_now = float(y[2 * layout.n - 1])
-        args = _stage_args(stage, t, zb_now, reaction, clamp_reaction, friction, eps, drag, ball_drag, weight)
+        args = _stage_args(stage, t, zb_now, reaction, clamp_reaction, friction, eps, drag, ball_drag, weight,
+                           support_z=protocol.ball_z0, support_k=support_stiffness)
         if si == 0:
             rec = record(t, y, args, 0)
             e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
@@ -446,6 +459,9 @@ def simulate(
                 met = True
                 break
             if stage.stop.kind == "theta_max_below" and not float(rec["theta_max"]) >= stage.stop.angle:
+                met = True
+                break
+            if stage.stop.kind == "ball_speed_above" and abs(float(rec["ball_velocity"])) > stage.stop.rate:
                 met = True
                 break
             if stage.stop.kind == "rest":

@@ -7,6 +7,7 @@ Heights are measured from the ball centre, upward. See docs/forming.md.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Literal
@@ -63,9 +64,15 @@ class StageSpec(Strict):
                                    description="signed vertical clamp velocity (up > 0) for stages ended by a condition or duration")
     duration_s: float | None = F(None, unit="s", gt=0,
                                  description="stage duration; for condition stages the longest it may run")
-    until: Literal["duration", "clamp_force_below", "rest", "theta_max_below"] = F(
-        "duration", description="stop rule: the duration, the clamp's axial force below a threshold, rest, or "
-        "the contact edge's polar angle below theta_stop_rad")
+    until: Literal["duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above"] = F(
+        "duration", description="stop rule: the duration, the clamp's axial force below a threshold, rest, "
+        "the contact edge's polar angle below theta_stop_rad, or the ball's speed above ball_speed_mm_s (a pull "
+        "has torn the ball out)")
+    ball_speed_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e3,
+                                      description="until: ball_speed_above: the ball-speed threshold")
+    ball_force_N: float | None = F(None, unit="N", ge=-1e3, le=1e3,
+                                   description="ball: pull: the applied force on the ball at the stage's end (up > 0; "
+                                   "toward the pocket's opening < 0), ramped linearly from 0 over duration_s")
     theta_stop_rad: float | None = F(None, unit="rad", gt=0, lt=math.pi,
                                      description="until: theta_max_below: the polar angle (pi/2: opening radius R)")
     ball_velocity_mm_s: float = F(0.0, unit="mm/s",
@@ -78,9 +85,10 @@ class StageSpec(Strict):
     clamp: Literal["move", "let_go", "free"] = F(
         "move", description="move: the clamp holds the edge and moves as given; let_go: its force on the sheet is "
         "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held")
-    ball: Literal["hold", "release", "free"] = F(
+    ball: Literal["hold", "release", "free", "support", "pull"] = F(
         "hold", description="hold: ball held in place; release: the hold's reaction ramped to zero over the "
-        "stage; free: no hold")
+        "stage; free: no hold; support: the ball rests on the bottle neck (a rigid unilateral support below it: "
+        "the pocket may lift it off); pull: a force ramped from 0 to ball_force_N over the stage")
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -108,6 +116,10 @@ class StageSpec(Strict):
             if self.clamp_velocity_mm_s == 0.0 and self.ball == "hold" and self.ball_velocity_mm_s == 0.0:
                 raise ValueError("until: clamp_force_below with a clamp and ball at rest can never hold "
                                  "(nothing unloads the sheet)")
+        if self.until == "ball_speed_above" and self.ball_speed_mm_s is None:
+            raise ValueError("until: ball_speed_above needs ball_speed_mm_s")
+        if (self.ball == "pull") != (self.ball_force_N is not None):
+            raise ValueError("ball_force_N goes with ball: pull (and ball: pull needs it)")
         if self.until == "theta_max_below" and self.theta_stop_rad is None:
             raise ValueError("until: theta_max_below needs theta_stop_rad")
         if self.ball_velocity_mm_s != 0.0 and self.ball != "hold":
@@ -213,6 +225,10 @@ class FormingNumerics(Strict):
                                   description="force-space smoothing epsilon of the Coulomb law, units G h0 / R "
                                   "(exactly stuck below mu F_N - epsilon); 0 is the ideal law")
     contact_threshold: float = F(1e-2, gt=0, description="contact where the pressure exceeds this (G h0 / R)")
+    support_stiffness: float = F(1e3, gt=0, le=1e8,
+                                 description="ball: support: contact stiffness of the bottle neck on the ball, units "
+                                 "G h0 (force G h0 R per penetration R; 1e3 lets the ball sink ~1e-3 R under a "
+                                 "force of G h0 R)")
     max_steps: int = F(50000, ge=100, description="step limit per save segment")
     save_interval_s: float = F(2.0, unit="s", gt=0, description="time between saved frames (and condition checks)")
     heal_rate_mm_s: float = F(0.002, unit="mm/s", ge=0, le=1.0,
@@ -297,6 +313,8 @@ def build_protocol(sc: FormingScenario):
             hold=s.rest_hold_s or 0.0,
             angle=s.theta_stop_rad or 0.0,
         )
+        if s.until == "ball_speed_above":
+            stop = dataclasses.replace(stop, rate=s.ball_speed_mm_s / r)
         ckw = {"clamp_vz": vz}
         if s.clamp == "let_go":
             ckw = {"clamp_mode": CLAMP_FORCE}
@@ -306,6 +324,12 @@ def build_protocol(sc: FormingScenario):
             stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD, ball_vz=s.ball_velocity_mm_s / r, **ckw))
         elif s.ball == "release":
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_end=0.0, **ckw))
+        elif s.ball == "support":
+            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0,
+                                support=True, **ckw))
+        elif s.ball == "pull":
+            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0,
+                                ball_force_end=s.ball_force_N / fs, **ckw))
         else:
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0, **ckw))
     return Protocol(tuple(stages), clamp_rho0=p.rim_radius_mm / r, clamp_z0=(r + p.sheet_gap_mm) / r, ball_z0=0.0)
