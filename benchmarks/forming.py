@@ -20,7 +20,7 @@ def _scenario(nodes: int, full: bool):
     from dynslip.schema.base import load_data, validate_data
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "method2_let_go.yaml"
     data = load_data(path, [f"numerics.nodes={nodes}"])
     if not full:
         data["physics"]["stages"] = [

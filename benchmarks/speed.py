@@ -35,7 +35,7 @@ def _setup(nodes: int):
     # the ideal law: the vector field the speed issue was posed on (the shipped static/kinetic
     # law adds one state per node to the same block structure)
     law = os.environ.get("DYNSLIP_BENCH_SPEED_LAW", "coulomb")
-    sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml",
+    sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "method2_let_go.yaml",
               [f"numerics.nodes={nodes}", f"physics.friction.law={law}"])
     model, protocol, kw = build_core(sc)
     layout = Layout(nodes, kw["friction"].n_internal())

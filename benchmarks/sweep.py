@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _base(tmp: Path) -> Path:
     """The method 2 scenario (the shipped file when there is one, else the kind's defaults)."""
-    shipped = ROOT / "scenarios" / "method2.yaml"
+    shipped = ROOT / "scenarios" / "method2_let_go.yaml"
     p = tmp / "method2.yaml"
     p.write_text(shipped.read_text() if shipped.exists() else yaml.safe_dump({"kind": "forming"}))
     return p
@@ -80,7 +80,7 @@ def run() -> dict:
     with tempfile.TemporaryDirectory(prefix="dynslip-bench-sweep-") as tmp:
         tmp = Path(tmp)
         base = _base(tmp)
-        mus = [round(1.3 + 0.9 * i / max(n - 1, 1), 6) for i in range(n)]  # mu_s >= mu_k = 1.25 (method2.yaml)
+        mus = [round(1.3 + 0.9 * i / max(n - 1, 1), 6) for i in range(n)]  # mu_s >= mu_k = 1.25 (method2_let_go.yaml)
         spec = {
             "base": base.name,
             "overrides": {"numerics.nodes": nodes, "physics.friction.law": "slip_weakening"},

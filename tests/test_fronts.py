@@ -299,9 +299,9 @@ def test_fronts_of_a_method2_run_are_continuous_between_named_events(tmp_path):
 
     from dynslip.schema import base as scenario
 
-    path = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
+    path = Path(__file__).resolve().parents[1] / "scenarios" / "method2_let_go.yaml"
     if not path.exists():
-        pytest.skip("scenarios/method2.yaml is not in this checkout")
+        pytest.skip("scenarios/method2_let_go.yaml is not in this checkout")
     scenario.load(path, ["numerics.nodes=20"]).run(tmp_path, Console(quiet=True))
     ds = xr.open_dataset(tmp_path / "trajectory.nc").load()
     for rest_speed in (None, 1e-4):

@@ -39,7 +39,7 @@ def _get(d, dotted):
 
 @pytest.mark.parametrize("name", ["release.yaml", "release_toward_opening.yaml"])
 def test_release_scenarios_share_the_geometry_of_their_start(name):
-    """start_from: method2.yaml must be reusable: every geometry field agrees."""
+    """start_from: method2_let_go.yaml must be reusable: every geometry field agrees."""
     rel = load(SCENARIOS / name)
     start = load(SCENARIOS / Path(rel.start_from).name)
     a, b = json.loads(rel.to_json()), json.loads(start.to_json())

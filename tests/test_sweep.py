@@ -459,10 +459,10 @@ def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     from dynslip.app.sweep import default_member_fn
     from dynslip.app.window import run_window
 
-    base = scenarios_dir / "method2.yaml"
+    base = scenarios_dir / "method2_let_go.yaml"
     if not base.exists():
-        pytest.skip("scenarios/method2.yaml not shipped yet")
-    sets = ["numerics.nodes=20", "physics.friction.law=coulomb"]  # the ideal law's mu (method2.yaml: static/kinetic)
+        pytest.skip("scenarios/method2_let_go.yaml not shipped yet")
+    sets = ["numerics.nodes=20", "physics.friction.law=coulomb"]  # the ideal law's mu (method2_let_go.yaml: static/kinetic)
     # coarse step 0.2: a prototype's window (trapped at 0.8 only) and the shipped one near
     # mu = 1 are narrower than 0.4
     res = run_window(base, sets, lo=0.4, hi=1.6, coarse=7, tol=0.1, out=tmp_path / "w")
