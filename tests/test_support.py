@@ -74,3 +74,38 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
     assert r < 1e-2, r
     print(f"support: clamp pull {cz:.4f}, support force {fs:.4f}, sink {-zb:.3e} R (closed form {d:.3e}); "
           f"lift-off to z_b = {float(end['ball_z']):.3e} R; energy residual / work {r:.2e}")
+
+
+def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame():
+    """release.force_ramp on a handmade trajectory: the ball creeps (0.01 mm/s) while the
+    pull ramps, then tears out (1 mm/s); the release force is the applied force at the last
+    frame below the threshold, with the ball's drag share there."""
+    import json
+
+    import xarray as xr
+
+    from dynslip.app.release import force_ramp_metrics
+    from dynslip.schema.forming import ball_drag_coefficient
+
+    r_mm, fs = 20.0, 2.0
+    t = np.arange(0.0, 21.0)
+    v_mm = np.where(t <= 12.0, 0.01, 1.0)  # mm/s after each frame
+    z_mm = np.concatenate([[0.0], np.cumsum(-v_mm[:-1])])
+    applied = -0.05 * t  # G h0 R: the ramp (down)
+    stage = np.ones_like(t, dtype=int)
+    stage[:2] = 0
+    sc = {"physics": {"stages": [{"name": "rest", "ball": "free", "until": "duration"},
+                                 {"name": "pull", "ball": "pull", "until": "ball_speed_above",
+                                  "ball_speed_mm_s": 0.1, "ball_force_N": -2.0, "duration_s": 20.0}]},
+          "numerics": {"drag_time_s": 0.1, "ball_drag": 1.0, "save_interval_s": 1.0}}
+    ds = xr.Dataset({"ball_z": ("time", z_mm / r_mm), "ball_reaction": ("time", applied), "stage": ("time", stage)},
+                    coords={"time": t}, attrs={"scenario": json.dumps(sc), "force_scale_N": fs, "R_m": r_mm * 1e-3})
+    m = force_ramp_metrics(ds)
+    speed = np.abs(np.gradient(z_mm, t))  # what the metric sees (centred differences of the saved frames)
+    last = int(np.flatnonzero((stage == 1) & (speed < 0.1))[-1])
+    assert m["torn_out"] is True
+    assert m["time_s"] == t[last] and last == 12  # frame 13 sees the tear-out step in its centred difference
+    assert m["release_force_N"] == applied[last] * fs
+    eta_b = ball_drag_coefficient(0.1, 1.0)
+    assert abs(m["drag_share"] - eta_b * speed[last] / r_mm / abs(applied[last])) < 1e-12
+    assert abs(m["resolution_N"] - 0.1) < 1e-12

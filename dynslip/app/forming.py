@@ -298,7 +298,10 @@ def run_forming(sc, out: Path, console=None) -> dict:
 
         summary["start"] = start_info
         summary["release"] = release_metrics(ds, model)
-        summary["release_force"] = summary["release"]["peak_force_N"]  # the sweep's variable (N)
+        ramp = summary["release"].get("force_ramp")
+        # the sweep's variable (N): the ramped force at tear-out where measured so, else the peak
+        summary["release_force"] = (ramp["release_force_N"] if ramp is not None
+                                    else summary["release"]["peak_force_N"])
         plot_release(ds, summary["release"], out)
     io.write_json(out / "summary.json", summary)
     make_figures(ds, out)

@@ -125,9 +125,50 @@ def release_metrics(ds: xr.Dataset, model=None) -> dict:
         "measured_release_force_N": 2.3,
         "force_scale_N": fs,
     }
+    ramp = force_ramp_metrics(ds)
+    if ramp is not None:
+        out["force_ramp"] = ramp
     if model is not None:
         out["free_span"] = free_span_check(ds, model)
     return out
+
+
+def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
+    """The release as measured: a force on the ball ramped (``ball: pull``) until the ball's
+    speed exceeds a threshold (``until: ball_speed_above``). The release force is the applied
+    force at the last saved frame of that stage where the ball's speed is below the threshold
+    (N); its resolution is the ramp rate times the save interval. The drag's share is the
+    ball's drag eta_b |z_b'| over the applied force there (the regularisation's part of the
+    measured force). None when the run has no such stage."""
+    sc = json.loads(ds.attrs["scenario"])
+    stages = sc["physics"]["stages"]
+    idx = next((i for i, st in enumerate(stages) if st.get("ball") == "pull" and st.get("until") == "ball_speed_above"),
+               None)
+    if idx is None:
+        return None
+    fs = float(ds.attrs["force_scale_N"])
+    r_mm = float(ds.attrs["R_m"]) * 1e3
+    t = ds["time"].values
+    speed_mm_s = np.abs(np.gradient(ds["ball_z"].values, t)) * r_mm if t.size > 1 else np.zeros(1)
+    in_stage = ds["stage"].values == idx
+    threshold = float(stages[idx]["ball_speed_mm_s"])
+    slow = np.flatnonzero(in_stage & (speed_mm_s < threshold))
+    torn = bool(np.any(in_stage & (speed_mm_s >= threshold)))
+    if slow.size == 0:
+        return {"release_force_N": None, "torn_out": torn, "threshold_mm_s": threshold}
+    i = int(slow[-1])
+    applied = float(ds["ball_reaction"].values[i])
+    drag = float(_ball_drag_force(ds)[i])
+    return {
+        "release_force_N": applied * fs,
+        "time_s": float(t[i]),
+        "ball_speed_mm_s": float(speed_mm_s[i]),
+        "threshold_mm_s": threshold,
+        "torn_out": torn,
+        "drag_share": abs(drag) / abs(applied) if applied else None,
+        "resolution_N": float(abs(stages[idx]["ball_force_N"]) / stages[idx]["duration_s"]
+                              * sc["numerics"]["save_interval_s"]),
+    }
 
 
 def _ball_drag_force(ds: xr.Dataset):

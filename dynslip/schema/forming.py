@@ -7,7 +7,6 @@ Heights are measured from the ball centre, upward. See docs/forming.md.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 from typing import Literal
@@ -309,12 +308,10 @@ def build_protocol(sc: FormingScenario):
         stop = StopRule(
             kind=s.until, duration=dur,
             force=(s.force_threshold_N or 0.0) / fs,
-            rate=(s.rest_rate_mm_s or 0.0) / r,
+            rate=((s.ball_speed_mm_s if s.until == "ball_speed_above" else s.rest_rate_mm_s) or 0.0) / r,
             hold=s.rest_hold_s or 0.0,
             angle=s.theta_stop_rad or 0.0,
         )
-        if s.until == "ball_speed_above":
-            stop = dataclasses.replace(stop, rate=s.ball_speed_mm_s / r)
         ckw = {"clamp_vz": vz}
         if s.clamp == "let_go":
             ckw = {"clamp_mode": CLAMP_FORCE}
