@@ -3,9 +3,17 @@
 The paper's static contact-region model (:mod:`dynslip.physics.sphere`, :mod:`dynslip.physics.cylinder`)
 and a whole-sheet forming simulator. Importing the package turns on float64 JAX and
 its persistent compilation cache (:mod:`dynslip._jaxconfig`).
+
+The Python API (:mod:`dynslip.api`, docs/python-api.md): :func:`load`, :func:`run`,
+:func:`sweep`, :func:`window`, the figures in :mod:`dynslip.plot`, and the errors
+:class:`InputError` and :class:`ComputationError`.
 """
 
 from dynslip import _jaxconfig  # noqa: F401  (side effect: x64 + compilation cache)
+from dynslip import plot
+from dynslip._version import FORMAT_VERSION, __version__
+from dynslip.api import Result, load, run, sweep, window
+from dynslip.errors import ComputationError, InputError
 
-__version__ = "0.1.0"
-FORMAT_VERSION = "1"
+__all__ = ["load", "run", "sweep", "window", "plot", "Result", "InputError", "ComputationError",
+           "__version__", "FORMAT_VERSION"]

@@ -61,32 +61,16 @@ def _check_file_out(out: str | None) -> None:
             raise InputError(f"--out {out!r}: {str(q)!r} is a file, not a folder; allowed: a file in a folder")
 
 
-def _inside(path, folder: Path) -> bool:
-    try:
-        Path(path).resolve().relative_to(folder.resolve())
-        return True
-    except (ValueError, OSError, RuntimeError):
-        return False
-
-
 def cmd_run(args) -> int:
+    from dynslip.app.kinds import run_into
     from dynslip.schema import base as sc
-    from dynslip.data.files import StagedRun
 
     scn = sc.load(args.scenario, args.set or [])
     out = _default_out(args.scenario, args.out)
-    staged = StagedRun(out, force=args.force)
-    staged.check()  # before anything is computed or created
-    if out.is_dir() and _inside(args.scenario, out):
-        raise InputError(f"--out {str(out)!r}: holds the scenario file {args.scenario!r}, which replacing "
-                         "the folder would delete; allowed: a folder that does not hold the scenario")
     console = _console()
     t0 = time.perf_counter()
-    if hasattr(scn, "preflight"):
-        scn.preflight(console)  # bad input found before anything is written (e.g. a start_from file)
-    with staged as staging:
-        console.print(f"[bold]dynslip run[/bold] {args.scenario} (kind: {scn.kind}) -> {out}/")
-        scn.run(staging, console)
+    run_into(scn, out, console, force=args.force, source=args.scenario,
+             header=f"[bold]dynslip run[/bold] {args.scenario} (kind: {scn.kind}) -> {out}/")
     console.print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}/")
     if getattr(args, "animate", False):
         traj = out / "trajectory.nc"
@@ -101,17 +85,30 @@ def cmd_run(args) -> int:
 
 
 def cmd_validate(args) -> int:
+    from dynslip.app.sweep import is_sweep_file, validate_sweep
     from dynslip.schema import base as sc
 
+    if is_sweep_file(args.scenario):
+        if args.set:
+            raise InputError(f"--set: {args.scenario}: a sweep file; allowed: --set with a scenario file "
+                             "(a sweep sets fields in its 'overrides')")
+        members = validate_sweep(args.scenario)
+        print(f"{args.scenario}: valid (sweep of {len(members)} members, every member validated)")
+        return 0
     scn = sc.load(args.scenario, args.set or [])
     print(f"{args.scenario}: valid (kind: {scn.kind})")
     return 0
 
 
 def cmd_schema(args) -> int:
+    from dynslip.app.sweep import Linspace, SweepSpec, WindowSpec
+    from dynslip.app.window import MAX_COARSE
     from dynslip.schema import base as sc
 
-    print(sc.schema_reference())
+    print(sc.schema_reference({"sweep file": SweepSpec, "sweep grid axis {start, stop, num}": Linspace,
+                               "sweep window (also `dynslip window --lo --hi --coarse --tol`)": WindowSpec}))
+    print(f"dynslip window: --coarse 2..{MAX_COARSE}; --tol finite, >= 1e-9 max(1, |lo|, |hi|); "
+          "lo, hi finite with lo < hi, each a valid value of the friction field")
     return 0
 
 
@@ -194,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true", help=FORCE_HELP)
     r.set_defaults(fn=cmd_run)
 
-    v = sub.add_parser("validate", help="check a scenario file without running it")
+    v = sub.add_parser("validate", help="check a scenario or sweep file without running it")
     v.add_argument("scenario")
     v.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
     v.set_defaults(fn=cmd_validate)
@@ -265,8 +262,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with sigterm_raises():  # SIGTERM raises like SIGINT: partial results kept and marked
             return args.fn(args)
-    except InputError as err:
-        print(f"dynslip: error: {err}", file=sys.stderr)
+    except InputError as err:  # one line, whatever text of the user's the message quotes
+        text = str(err).replace("\r", "\\r").replace("\n", "\\n")
+        print(f"dynslip: error: {text}", file=sys.stderr)
         return 2
     except (ComputationError, MaterialRangeError) as err:
         print(f"dynslip: computation failed: {err}", file=sys.stderr)

@@ -14,6 +14,8 @@ class InputError(ValueError):
 
 
 class ComputationError(RuntimeError):
-    """A computation that ran and failed: the CLI exits with status 3."""
+    """A computation that ran and failed: the CLI exits with status 3. ``partial``: what was
+    computed before it failed (set by the code that raises or passes it on; None if nothing)."""
 
     exit_code = 3
+    partial = None

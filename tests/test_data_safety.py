@@ -25,7 +25,7 @@ import dynslip.app.sweep as sweep_mod
 from dynslip.cli import main
 from dynslip.errors import ComputationError
 from dynslip.data.files import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
-from dynslip.schema.static import CylinderScenario
+from dynslip.app import kinds
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -61,11 +61,11 @@ def _stub_run(monkeypatch, fn):
     """Replace the cylinder runner by ``fn(out: Path) -> dict``."""
     calls = []
 
-    def run(self, out, console):
+    def run(scn, out, console):
         calls.append(Path(out))
         return fn(Path(out))
 
-    monkeypatch.setattr(CylinderScenario, "run", run)
+    monkeypatch.setitem(kinds.RUNNERS, "cylinder", run)
     return calls
 
 
@@ -306,9 +306,10 @@ def test_scenario_inside_out_refused(tmp_path, capsys, monkeypatch):
 def test_start_from_run_folder_follows_the_same_rule(tmp_path, capsys, monkeypatch):
     """The run a ``start_from`` scenario makes (into outputs/<stem>/) never replaces a
     user's folder: exit 2 before anything runs."""
-    import dynslip.schema.forming as sf
+    import dynslip.app.forming as af
 
-    monkeypatch.setattr(sf.FormingScenario, "run", lambda self, out, console: pytest.fail("ran"))
+    monkeypatch.setattr(af, "run_forming", lambda sc, out, console: pytest.fail("ran"))
+    monkeypatch.setitem(kinds.RUNNERS, "forming", lambda sc, out, console: pytest.fail("ran"))
     monkeypatch.chdir(tmp_path)
     start = tmp_path / "start.yaml"
     start.write_text(yaml.safe_dump({"kind": "forming"}))
@@ -504,14 +505,14 @@ def test_sigterm_subprocess_exit_143(tmp_path):
         import sys, time
         from pathlib import Path
         from dynslip.cli import main
-        from dynslip.schema.static import CylinderScenario
+        from dynslip.app import kinds
 
-        def run(self, out, console):
+        def run(scn, out, console):
             (Path(out) / "partial.txt").write_text("partial")
             print("READY", flush=True)
             time.sleep(60)
 
-        CylinderScenario.run = run
+        kinds.RUNNERS["cylinder"] = run
         sys.exit(main(["run", {CYL!r}, "--out", {str(out)!r}]))
     """)
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,

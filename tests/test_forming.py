@@ -19,6 +19,7 @@ from dynslip.errors import ComputationError, InputError
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
+from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import validate_data
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Settings, simulate
@@ -256,7 +257,7 @@ def test_runner_raises_computation_error_not_a_verdict(tmp_path):
     """Driven from Python: a failed run raises ComputationError (never 'not trapped')."""
     sc = validate_data({"kind": "forming", "numerics": {"nodes": 12, "max_steps": 100}}, "x")
     with pytest.raises(ComputationError):
-        sc.run(tmp_path, None)
+        run_scenario(sc, tmp_path, None)
 
 
 # ----------------------------------------------------------------------------- slow checks
@@ -292,7 +293,7 @@ def test_let_go_method2_traps_the_ball(tmp_path, scenarios_dir):
     from dynslip.schema.base import load
 
     sc = load(scenarios_dir / "method2_let_go.yaml")
-    s = sc.run(tmp_path, None)
+    s = run_scenario(sc, tmp_path, None)
     print(json.dumps({k: s[k] for k in ("trapped", "theta_max", "rbar_max", "opening_radius", "rest_state_check",
                                         "largest_stretch", "mu_mobilised_max", "energy_balance", "solver")}, indent=1))
     assert s["status"] == "ok"

@@ -11,6 +11,7 @@ import math
 import pytest
 
 from dynslip.analysis.compare import difference, end_state
+from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load
 
 from conftest import SCENARIOS
@@ -23,7 +24,7 @@ def test_method1_and_method2_at_default_settings(tmp_path):
     ends, sums = {}, {}
     for m in ("method1", "method2"):
         sc = load(SCENARIOS / f"{m}.yaml")
-        s = sc.run(tmp_path / m, None)
+        s = run_scenario(sc, tmp_path / m, None)
         sums[m] = s
         with xr.open_dataset(tmp_path / m / "trajectory.nc") as ds:
             ends[m] = end_state(ds.load())

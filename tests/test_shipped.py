@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from dynslip.app.release import GEOMETRY_FIELDS
+from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load, validate_data
 from dynslip.app.sweep import expand, load_spec
 
@@ -54,7 +55,7 @@ def test_method1_runs_at_small_size(tmp_path):
     import xarray as xr
 
     sc = load(SCENARIOS / "method1.yaml", ["numerics.nodes=12"])
-    s = sc.run(tmp_path, None)
+    s = run_scenario(sc, tmp_path, None)
     assert s["status"] == "ok"
     assert s["energy_balance"]["relative_residual"] < 1e-2
     with xr.open_dataset(tmp_path / "trajectory.nc") as ds:

@@ -12,6 +12,7 @@ from rich.console import Console
 
 from dynslip.data import files as io
 from dynslip.errors import ComputationError, InputError
+from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load
 
 SMALL = ["numerics.n_nodes=40"]
@@ -22,7 +23,7 @@ UREG = pint.UnitRegistry()
 def _run(scenarios_dir, tmp_path_factory, name, overrides):
     out = tmp_path_factory.mktemp(name)
     sc = load(scenarios_dir / f"{name}.yaml", overrides)
-    summary = sc.run(out, Console(width=120, record=True))
+    summary = run_scenario(sc, out, Console(width=120, record=True))
     return out, summary
 
 
@@ -116,7 +117,7 @@ def test_no_root_is_exit_3_with_partial_results(scenarios_dir, tmp_path):
               ["numerics.n_nodes=30", "physics.initial_shape=linear", "numerics.max_steps=20000",
                "numerics.mu_bracket=[1.0, 3.0]"])
     with pytest.raises(ComputationError, match=r"F_v\(1\) = .*F_v\(3\) = ") as exc:
-        sc.run(tmp_path, Console())
+        run_scenario(sc, tmp_path, Console())
     assert exc.value.exit_code == 3
     with xr.open_dataset(tmp_path / "result.nc") as ds:
         assert ds.attrs["complete"] == 0 and ds.attrs["status"] == "failed"

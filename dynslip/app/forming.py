@@ -19,7 +19,7 @@ import xarray as xr
 from dynslip.data import files as io
 from dynslip.errors import ComputationError, InputError
 
-__all__ = ["run_forming", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
+__all__ = ["run_forming", "preflight", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
 
 FLUSH_FRAMES = 25
 
@@ -238,6 +238,17 @@ def _progress(console, total):
     return prog, prog.add_task("compiling", total=total, t=0.0)
 
 
+def preflight(sc, console=None):
+    """Resolve and check ``sc.start_from`` (running its scenario first when needed) before any
+    output is written; bad input raises :class:`dynslip.errors.InputError`. Returns (start
+    state, provenance), or None without ``start_from``; kept on the scenario for the run."""
+    if sc.start_from and sc._start is None:
+        from dynslip.app.release import load_start
+
+        sc._start = load_start(sc, console, run=run_forming)
+    return sc._start
+
+
 def run_forming(sc, out: Path, console=None) -> dict:
     """Run a forming scenario into ``out``; return the summary (raises ComputationError on failure)."""
     from rich.console import Console
@@ -250,7 +261,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     model, protocol, kw = build_core(sc)
-    start, start_info = sc.preflight(console) or (None, None)
+    start, start_info = preflight(sc, console) or (None, None)
     names = protocol.names
     rbar = np.asarray(model.mesh.rbar)
     total = sum(s.max_duration for s in protocol.stages)

@@ -25,7 +25,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.app.window import _get
+from dynslip.schema.paths import get_path
 
 __all__ = ["load_start", "release_metrics", "plot_release", "GEOMETRY_FIELDS"]
 
@@ -42,7 +42,7 @@ def _resolve(path: str, base: Path | None) -> Path:
     return base / p
 
 
-def _start_dataset(sc, console) -> tuple[xr.Dataset, Path]:
+def _start_dataset(sc, console, run) -> tuple[xr.Dataset, Path]:
     from dynslip.data.trajectory import open_trajectory
 
     src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))
@@ -73,14 +73,18 @@ def _start_dataset(sc, console) -> tuple[xr.Dataset, Path]:
     staged.check()  # the same rule as --out: only a dynslip result is replaced, after success
     if console is not None:
         console.print(f"start_from: running {src} first -> {out}/")
+    if run is None:
+        raise TypeError("load_start: start_from names a scenario; give run= to run it")
     with staged as staging:
-        start_sc.run(staging, console)
+        run(start_sc, staging, console)
     return open_trajectory(traj), traj
 
 
-def load_start(sc, console=None) -> tuple[dict, dict]:
-    """(start state for :func:`dynslip.physics.simulate.simulate`, provenance) of ``sc.start_from``."""
-    ds, src = _start_dataset(sc, console)
+def load_start(sc, console=None, run=None) -> tuple[dict, dict]:
+    """(start state for :func:`dynslip.physics.simulate.simulate`, provenance) of ``sc.start_from``;
+    ``run(scenario, out, console)`` runs a start scenario that has no reusable result (needed
+    only when ``start_from`` names a scenario)."""
+    ds, src = _start_dataset(sc, console, run)
     if int(ds.attrs.get("complete", 0)) != 1:
         raise InputError(f"start_from: {str(src)!r} is an incomplete run (complete = 0); allowed: a finished run")
     try:
@@ -89,7 +93,7 @@ def load_start(sc, console=None) -> tuple[dict, dict]:
         raise InputError(f"start_from: {str(src)!r} carries no resolved scenario") from None
     mine = json.loads(sc.to_json())
     for field in GEOMETRY_FIELDS:
-        a, b = _get(mine, field), _get(start_res, field)
+        a, b = get_path(mine, field), get_path(start_res, field)
         if a != b:
             raise InputError(f"start_from: field '{field}' = {json.dumps(a)} differs from the start state's "
                              f"{json.dumps(b)} ({src}); allowed: the start's value")

@@ -60,7 +60,9 @@ import xarray as xr
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from dynslip.app.members import default_member_fn, resolve
 from dynslip.errors import ComputationError, InputError
+from dynslip.schema.paths import get_path, set_path
 
 MODES = ("sequential", "batched", "dask")
 #: The default runner: the fastest in ``benchmarks/sweep.py`` on the 2-core machine.
@@ -156,6 +158,22 @@ class SweepSpec(_Strict):
         }
 
 
+def is_sweep_file(path) -> bool:
+    """Whether ``path`` reads as a sweep file (a mapping with ``base`` and no ``kind``) rather
+    than a scenario; anything unreadable is left to the scenario loader to report."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        return False
+    return isinstance(data, dict) and "kind" not in data and BASE_KEY in data
+
+
+def validate_sweep(path, validate_fn: Callable | None = None) -> list[Member]:
+    """``dynslip validate SWEEP.yaml``: the sweep file and every member's scenario validated
+    (nothing runs); returns the members. Raises :class:`InputError` (one line)."""
+    return expand(load_spec(path), Path(path), validate_fn)
+
+
 def load_spec(path) -> SweepSpec:
     """Read and validate a sweep file; raises :class:`InputError` (one line)."""
     path = Path(path)
@@ -192,72 +210,6 @@ def load_spec(path) -> SweepSpec:
 
 # ---------------------------------------------------------------------------------------
 # Members
-
-
-def _step(node, k: str, dotted: str):
-    """One step of a dotted path: a mapping's key, or a list's item by index or by ``name``."""
-    if isinstance(node, dict) and k in node:
-        return node[k]
-    if isinstance(node, list):
-        if k.isdigit() and int(k) < len(node):
-            return node[int(k)]
-        for item in node:
-            if isinstance(item, dict) and item.get("name") == k:
-                return item
-    raise KeyError(dotted)
-
-
-def _get(data: dict, dotted: str):
-    node = data
-    for k in dotted.split("."):
-        node = _step(node, k, dotted)
-    return node
-
-
-def _set(data: dict, dotted: str, value, source: str) -> None:
-    """Set a dotted path; list items are named by index or by their ``name`` (stages)."""
-    keys = dotted.split(".")
-    if not all(keys):
-        raise InputError(f"{source}: field '{dotted}': not a dotted path section.key")
-    node = data
-    for i, k in enumerate(keys[:-1]):
-        if isinstance(node, dict) and node.get(k) is None:
-            node[k] = {}
-        try:
-            node = _step(node, k, dotted)
-        except KeyError:
-            raise InputError(
-                f"{source}: field '{dotted}' does not exist ('{'.'.join(keys[: i + 1])}' not found)"
-            ) from None
-        if not isinstance(node, (dict, list)):
-            raise InputError(f"{source}: field '{dotted}' does not exist ('{k}' is not a section)")
-    last = keys[-1]
-    if isinstance(node, list):
-        try:
-            item = _step(node, last, dotted)
-        except KeyError:
-            raise InputError(
-                f"{source}: field '{dotted}' does not exist ('{last}' is not an item)"
-            ) from None
-        node[node.index(item)] = value
-    else:
-        node[last] = value
-
-
-def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dict:
-    """Validate scenario data and return the resolved scenario (every default filled in)."""
-    if validate_fn is None:
-        from dynslip.schema.base import validate_data as validate_fn
-    return json.loads(validate_fn(data, source).to_json())
-
-
-def default_member_fn(data: dict, out_dir: Path, console=None) -> dict:
-    """The real member: validate the scenario data and run it into ``out_dir``."""
-    from rich.console import Console
-
-    from dynslip.schema.base import validate_data
-
-    return validate_data(data, "<member>").run(Path(out_dir), console or Console(quiet=True))
 
 
 @dataclass
@@ -313,14 +265,14 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
             bases[base_name] = resolve(load_data(base), str(base), validate_fn)
         data = copy.deepcopy(bases[base_name])
         for k, v in spec.overrides.items():
-            _set(data, k, v, f"{sweep_path}: overrides")
+            set_path(data, k, v, f"{sweep_path}: overrides")
         for k, v in assign.items():
             if k != BASE_KEY:
-                _set(data, k, v, src)
+                set_path(data, k, v, src)
         resolved = resolve(data, src, validate_fn)
         for k in list(spec.overrides) + [k for k in assign if k != BASE_KEY]:
             try:
-                _get(resolved, k)
+                get_path(resolved, k)
             except KeyError:
                 raise InputError(f"{src}: field '{k}' does not exist in the scenario") from None
         if window is not None:
@@ -378,7 +330,7 @@ def execute_member(
             from dynslip.app.window import friction_field, scenario_window
 
             field_name, tied = friction_field(resolved, window["field"])
-            mu0 = float(_get(resolved, field_name))
+            mu0 = float(get_path(resolved, field_name))
             t = rec["summary"].get("trapped") if rec["status"] == "ok" else None
             res = scenario_window(
                 data,
@@ -660,7 +612,7 @@ def _base_value(m: Member, k: str):
     if k == BASE_KEY:
         return str(m.base.name)
     try:
-        return _get(m.resolved, k)
+        return get_path(m.resolved, k)
     except KeyError:
         return math.nan
 

@@ -38,6 +38,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from dynslip.errors import ComputationError, InputError
+from dynslip.schema.paths import get_path, set_path
 
 
 @dataclass(frozen=True)
@@ -212,23 +213,6 @@ def find_windows(
 # A scenario's window: the predicate from running the scenario at each mu.
 
 
-def _get(data: dict, dotted: str):
-    node = data
-    for k in dotted.split("."):
-        if not isinstance(node, dict) or k not in node:
-            raise KeyError(dotted)
-        node = node[k]
-    return node
-
-
-def _set(data: dict, dotted: str, value) -> None:
-    keys = dotted.split(".")
-    node = data
-    for k in keys[:-1]:
-        node = node.setdefault(k, {})
-    node[keys[-1]] = value
-
-
 def friction_field(resolved: dict, field_name: str | None = None) -> tuple[str, list[str]]:
     """The swept friction field and the fields tied to it by a fixed ratio.
 
@@ -248,14 +232,14 @@ def friction_field(resolved: dict, field_name: str | None = None) -> tuple[str, 
                 "to search over"
             )
     try:
-        _get(resolved, field_name)
+        get_path(resolved, field_name)
     except KeyError:
         raise InputError(f"window: field '{field_name}' is not in the scenario") from None
     tied = []
     if field_name.endswith(".mu_s"):
         sib = field_name[: -len("mu_s")] + "mu_k"
         try:
-            _get(resolved, sib)
+            get_path(resolved, sib)
             tied.append(sib)
         except KeyError:
             pass
@@ -264,12 +248,12 @@ def friction_field(resolved: dict, field_name: str | None = None) -> tuple[str, 
 
 def member_at(data: dict, resolved: dict, field_name: str, tied: list[str], mu: float) -> dict:
     """The scenario data with ``field_name = mu`` and every tied field at its base ratio."""
-    base = float(_get(resolved, field_name))
+    base = float(get_path(resolved, field_name))
     out = copy.deepcopy(data)
-    _set(out, field_name, float(mu))
+    set_path(out, field_name, float(mu))
     for t in tied:
-        ratio = float(_get(resolved, t)) / base if base else 1.0
-        _set(out, t, float(mu) * ratio)
+        ratio = float(get_path(resolved, t)) / base if base else 1.0
+        set_path(out, t, float(mu) * ratio)
     return out
 
 
@@ -325,6 +309,7 @@ def run_window(
     member_fn: Callable | None = None,
     validate_fn: Callable | None = None,
     force: bool = False,
+    data: dict | None = None,
 ) -> dict:
     """``dynslip window SCENARIO``: the trapping windows of a scenario's loading path.
 
@@ -332,18 +317,20 @@ def run_window(
     ``<out>/window.png``; returns the dictionary written. ``out`` defaults to
     ``outputs/<stem>_window/``: new, empty or a dynslip result; ``force`` allows writing
     into another folder (never a file). Raises :class:`InputError` for bad input (before
-    anything is created) and :class:`ComputationError` when every run failed.
+    anything is created) and :class:`ComputationError` when every run failed. ``data``:
+    the scenario as data (:func:`dynslip.window`), instead of reading the file
+    ``scenario``, which then only names it.
     """
     from rich.console import Console
 
     from dynslip.schema import base as scen
     from dynslip.data.files import check_out, write_json, write_result_marker
-    from dynslip.app.sweep import default_member_fn, resolve
+    from dynslip.app.members import default_member_fn, resolve
 
     console = console or Console()
     member_fn = member_fn or default_member_fn
     path = Path(scenario)
-    data = scen.load_data(path, list(overrides))
+    data = scen.load_data(path, list(overrides)) if data is None else copy.deepcopy(data)
     resolved = resolve(data, str(path), validate_fn)
     field_name, tied = friction_field(resolved, field)
     d = WindowDefaults()

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-import dynslip
+from dynslip._version import FORMAT_VERSION, __version__
 from dynslip.errors import InputError
 
 INCOMPLETE = "INCOMPLETE"
@@ -118,8 +118,8 @@ def git_commit() -> str:
 def provenance(scenario_json: str, kind: str) -> dict:
     """Global attributes every dataset carries."""
     return {
-        "dynslip_version": dynslip.__version__,
-        "format_version": dynslip.FORMAT_VERSION,
+        "dynslip_version": __version__,
+        "format_version": FORMAT_VERSION,
         "git_commit": git_commit(),
         "scenario": scenario_json,
         "kind": kind,
@@ -193,8 +193,8 @@ def write_result_marker(folder, kind: str) -> Path:
     return write_json(Path(folder) / RESULT_MARKER, {
         "dynslip_result": True,
         "kind": kind,
-        "dynslip_version": dynslip.__version__,
-        "format_version": dynslip.FORMAT_VERSION,
+        "dynslip_version": __version__,
+        "format_version": FORMAT_VERSION,
         "written_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     })
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-import dynslip
+from dynslip._version import FORMAT_VERSION
 from dynslip.errors import InputError
 from dynslip.data.files import provenance, variable
 
@@ -73,10 +73,10 @@ def validate_trajectory(ds: xr.Dataset, source: str = "<dataset>") -> None:
             "(a file written by dynslip run for a forming scenario)"
         )
     version = str(ds.attrs.get("format_version"))
-    if version != dynslip.FORMAT_VERSION:
+    if version != FORMAT_VERSION:
         raise InputError(
             f"trajectory: {source!r} has format_version={version!r}; this dynslip reads "
-            f"format_version={dynslip.FORMAT_VERSION!r} only"
+            f"format_version={FORMAT_VERSION!r} only"
         )
     for dim in ("time", "rbar"):
         if dim not in ds.coords:

@@ -1,1 +1,23 @@
-"""Figures and animations, from datasets."""
+"""Figures from datasets (matplotlib only): each reads a dataset, so anything shown can be
+redrawn from a saved file. The entry points below return a :class:`matplotlib.figure.Figure`
+and import matplotlib only when called (``import dynslip`` stays light and never picks a
+backend).
+
+- :func:`meridian`, :func:`theta_rbar`, :func:`state_map`: a forming trajectory
+  (:mod:`dynslip.plot.forming`).
+"""
+
+from importlib import import_module
+
+_EXPORTS = {
+    "meridian": "dynslip.plot.forming",
+    "theta_rbar": "dynslip.plot.forming",
+    "state_map": "dynslip.plot.forming",
+}
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        return getattr(import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'dynslip.plot' has no attribute {name!r}")

@@ -11,16 +11,16 @@ import json
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+import xarray as xr
+from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
-from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
+from dynslip.data import files as io
 
-from dynslip.data import files as io  # noqa: E402
-
-__all__ = ["make_figures", "snapshot_indices", "plot_meridian", "plot_theta", "plot_state_map"]
+__all__ = ["make_figures", "snapshot_indices", "meridian", "theta_rbar", "state_map", "plot_meridian",
+           "plot_theta", "plot_state_map"]
 
 STATE_COLORS = ["#f2f2f2", "#2b6cb0", "#d69e2e", "#c53030"]
 STATE_LABELS = ["free", "stuck", "slipping toward pole", "slipping toward equator"]
@@ -48,7 +48,7 @@ def _label(ds, i):
 
 
 def plot_meridian(ds: xr.Dataset, ax, indices):
-    cmap = plt.get_cmap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     for k, i in enumerate(indices):
         c = cmap(k / max(len(indices) - 1, 1))
         fr = ds.isel(time=i)
@@ -56,7 +56,7 @@ def plot_meridian(ds: xr.Dataset, ax, indices):
         ax.plot(rho, z, color=c, lw=1.4, label=_label(ds, i))
         ax.plot(-rho, z, color=c, lw=1.4)
         zb = float(fr["ball_z"])
-        ax.add_patch(plt.Circle((0, zb), 1.0, fill=False, color=c, ls=":", lw=0.8))
+        ax.add_patch(Circle((0, zb), 1.0, fill=False, color=c, ls=":", lw=0.8))
         ax.plot([float(fr["clamp_rho"]), -float(fr["clamp_rho"])], [float(fr["clamp_z"])] * 2, "s", color=c, ms=4)
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
@@ -66,7 +66,7 @@ def plot_meridian(ds: xr.Dataset, ax, indices):
 
 
 def plot_theta(ds: xr.Dataset, ax, indices):
-    cmap = plt.get_cmap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     rbar = ds["rbar"].values
     for k, i in enumerate(indices):
         th = ds["theta"].values[i]
@@ -118,26 +118,40 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     ax.set_xlabel("time (s)")
     ax.set_ylabel("rbar / R")
     ax.set_title("contact and slip state")
-    cb = plt.colorbar(m, ax=ax, ticks=[0, 1, 2, 3])
+    cb = ax.figure.colorbar(m, ax=ax, ticks=[0, 1, 2, 3])
     cb.ax.set_yticklabels(STATE_LABELS, fontsize=7)
     ax.legend(fontsize=7, loc="lower right")
 
 
+def meridian(ds: xr.Dataset, indices=None) -> Figure:
+    """The figure ``meridian.png`` from a trajectory dataset: meridian snapshots (rho, z) of
+    sheet, ball and clamp at ``indices`` (default :func:`snapshot_indices`)."""
+    fig = Figure(figsize=(7, 7))
+    plot_meridian(ds, fig.subplots(), snapshot_indices(ds) if indices is None else indices)
+    return fig
+
+
+def theta_rbar(ds: xr.Dataset, indices=None) -> Figure:
+    """The figure ``theta_rbar.png``: theta(rbar) on the contact region at ``indices``."""
+    fig = Figure(figsize=(7, 5))
+    plot_theta(ds, fig.subplots(), snapshot_indices(ds) if indices is None else indices)
+    return fig
+
+
+def state_map(ds: xr.Dataset) -> Figure:
+    """The figure ``state_map.png``: the contact and slip state against time and rbar."""
+    fig = Figure(figsize=(9, 5))
+    plot_state_map(ds, fig.subplots())
+    return fig
+
+
 def make_figures(ds: xr.Dataset, out: Path) -> list[Path]:
-    """Write the three figures into ``out``; returns their paths."""
+    """Write the three figures into ``out``; returns their paths. The figures are not
+    pyplot's (no backend is chosen or changed)."""
     out = Path(out)
     idx = snapshot_indices(ds)
-    paths = []
-    fig, ax = plt.subplots(figsize=(7, 7))
-    plot_meridian(ds, ax, idx)
-    paths.append(io.save_figure(fig, out / "meridian.png", dpi=120))
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(7, 5))
-    plot_theta(ds, ax, idx)
-    paths.append(io.save_figure(fig, out / "theta_rbar.png", dpi=120))
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(9, 5))
-    plot_state_map(ds, ax)
-    paths.append(io.save_figure(fig, out / "state_map.png", dpi=120))
-    plt.close(fig)
-    return paths
+    return [
+        io.save_figure(meridian(ds, idx), out / "meridian.png", dpi=120),
+        io.save_figure(theta_rbar(ds, idx), out / "theta_rbar.png", dpi=120),
+        io.save_figure(state_map(ds), out / "state_map.png", dpi=120),
+    ]

@@ -22,6 +22,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
 from dynslip.errors import InputError
+from dynslip.schema.paths import set_path
 
 # kind -> (module, class). Each module defines its scenario class with ``kind: Literal[kind]``.
 KINDS: dict[str, tuple[str, str]] = {
@@ -54,18 +55,11 @@ class ScenarioBase(Strict):
         """The resolved scenario (every default filled in) as JSON."""
         return self.model_dump_json()
 
-    def run(self, out: Path, console) -> dict:  # pragma: no cover - abstract
-        raise NotImplementedError
-
 
 def _classes() -> dict[str, type]:
-    out = {}
-    for kind, (mod, cls) in KINDS.items():
-        try:
-            out[kind] = getattr(importlib.import_module(mod), cls)
-        except (ImportError, AttributeError):
-            continue  # a kind whose module is not built yet is simply not offered
-    return out
+    """kind -> scenario class. An import error of a schema module propagates: it is a bug,
+    not an unknown kind."""
+    return {kind: getattr(importlib.import_module(mod), cls) for kind, (mod, cls) in KINDS.items()}
 
 
 def _adapter():
@@ -76,19 +70,6 @@ def _adapter():
         return TypeAdapter(classes[0])
     union = Annotated[Union[tuple(classes)], Field(discriminator="kind")]  # noqa: UP007
     return TypeAdapter(union)
-
-
-def _set_dotted(data: dict, dotted: str, value: Any, source: str) -> None:
-    keys = dotted.split(".")
-    node = data
-    for k in keys[:-1]:
-        nxt = node.get(k)
-        if nxt is None:
-            nxt = node[k] = {}
-        if not isinstance(nxt, dict):
-            raise InputError(f"{source}: --set {dotted}: '{k}' is not a section")
-        node = nxt
-    node[keys[-1]] = value
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -174,13 +155,20 @@ def load_data(path, overrides: list[str] | tuple[str, ...] = ()) -> dict:
         raise InputError(f"{path}: a scenario must be a mapping of sections, got {type(data).__name__}")
     for text in overrides:
         key, value = parse_override(text)
-        _set_dotted(data, key, value, str(path))
+        set_path(data, key, value, f"{path}: --set")
     return data
 
 
-def load(path, overrides: list[str] | tuple[str, ...] = ()):
-    """Load, override and validate a scenario file; raises :class:`InputError`."""
-    obj = validate_data(load_data(path, overrides), str(path))
+def load(path, overrides: list[str] | tuple[str, ...] = (), values: dict[str, Any] | None = None):
+    """Load, override and validate a scenario file; raises :class:`InputError`.
+
+    ``overrides``: ``section.key=value`` texts (``--set``); ``values``: ``{dotted path:
+    value}`` applied after them (:func:`dynslip.load`'s ``set=``). Both take the paths of
+    :mod:`dynslip.schema.paths`."""
+    data = load_data(path, overrides)
+    for key, value in (values or {}).items():
+        set_path(data, key, value, f"{path}: set")
+    obj = validate_data(data, str(path))
     if hasattr(obj, "_source_dir"):
         obj._source_dir = Path(path).resolve().parent  # where relative start_from paths may live
     return obj

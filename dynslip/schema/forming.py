@@ -265,21 +265,8 @@ class FormingScenario(ScenarioBase):
         assert isinstance(prot, Protocol)
         return self
 
+    # the resolved start state of ``start_from`` (filled in by :func:`dynslip.app.forming.preflight`)
     _start: tuple | None = PrivateAttr(default=None)
-
-    def preflight(self, console=None):
-        """Resolve and check ``start_from`` (running its scenario first when needed) before any
-        output is written; bad input raises :class:`dynslip.errors.InputError`."""
-        if self.start_from and self._start is None:
-            from dynslip.app.release import load_start
-
-            self._start = load_start(self, console)
-        return self._start
-
-    def run(self, out: Path, console) -> dict:
-        from dynslip.app.forming import run_forming
-
-        return run_forming(self, Path(out), console)
 
 
 def ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:

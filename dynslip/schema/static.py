@@ -12,7 +12,6 @@ and the march's integrator.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Annotated, Literal, Union
 
 from pydantic import Field, field_validator, model_validator
@@ -148,12 +147,6 @@ class StaticScenario(ScenarioBase):
     physics: StaticPhysics = F(StaticPhysics(), description="physics")
     numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
 
-    def run(self, out: Path, console) -> dict:
-        from dynslip.app.static import run_static
-
-        return run_static(self, Path(out), console)
-
-
 class Figure4Physics(Geometry):
     """The three models of the paper's Fig. 4 (Hookean, neo-Hookean, Gent)."""
 
@@ -168,12 +161,6 @@ class Figure4Scenario(ScenarioBase):
     kind: Literal["figure4"] = "figure4"
     physics: Figure4Physics = F(Figure4Physics(), description="physics")
     numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
-
-    def run(self, out: Path, console) -> dict:
-        from dynslip.app.static import run_figure4
-
-        return run_figure4(self, Path(out), console)
-
 
 class FamilyPhysics(Geometry):
     """The fully mobilised family of the three models, swept along its switch point."""
@@ -210,12 +197,6 @@ class FamilyScenario(ScenarioBase):
     physics: FamilyPhysics = F(FamilyPhysics(), description="physics")
     numerics: FamilyNumerics = F(FamilyNumerics(), description="numerics")
 
-    def run(self, out: Path, console) -> dict:
-        from dynslip.app.static import run_family
-
-        return run_family(self, Path(out), console)
-
-
 class CylinderPhysics(Strict):
     """A membrane on a rigid cylinder (paper Section 5)."""
 
@@ -245,8 +226,3 @@ class CylinderScenario(ScenarioBase):
     kind: Literal["cylinder"] = "cylinder"
     physics: CylinderPhysics = F(CylinderPhysics(), description="physics")
     numerics: CylinderNumerics = F(CylinderNumerics(), description="numerics")
-
-    def run(self, out: Path, console) -> dict:
-        from dynslip.app.static import run_cylinder
-
-        return run_cylinder(self, Path(out), console)

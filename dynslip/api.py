@@ -1,0 +1,190 @@
+"""The Python entry points, for notebooks and scripts (docs/python-api.md).
+
+Example::
+
+    import dynslip
+
+    scn = dynslip.load("scenarios/method2.yaml", set={"numerics.nodes": 20})
+    res = dynslip.run(scn)                 # in memory; out="DIR" also writes the usual folder
+    res.trajectory                         # xarray.Dataset (docs/trajectory-contract.md)
+    res.summary                            # dict, as summary.json
+    fig = dynslip.plot.meridian(res.trajectory)
+    ds = dynslip.sweep("scenarios/sweep_method2.yaml")   # xarray.Dataset, as sweep.nc
+    dynslip.window(scn)                    # the trapping windows, as window.json
+
+Bad input raises :class:`~dynslip.errors.InputError` (one line naming the field); a
+computation that ran and failed raises :class:`~dynslip.errors.ComputationError` whose
+``partial`` holds what was computed (a :class:`Result`, a sweep's dataset or a window's
+dictionary). Without ``out`` nothing is kept on disk (the runners write into a temporary
+folder, read back into memory and deleted); with ``out`` the folder follows the same rules
+as the command line (:mod:`dynslip.data.files`): checked before anything is computed,
+replaced only by a run that succeeded, a failed run kept as ``<out>.incomplete-<time>/``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dynslip.errors import ComputationError, InputError
+
+__all__ = ["Result", "load", "run", "sweep", "window", "InputError", "ComputationError"]
+
+
+@dataclass(frozen=True)
+class Result:
+    """What a run returns: its scenario, summary and datasets, loaded into memory.
+
+    ``trajectory``: the trajectory of a forming run (None for the static kinds);
+    ``dataset``: the run's dataset whatever the kind (``trajectory.nc`` or ``result.nc``);
+    ``summary``: as ``summary.json`` (NaN written as None); ``out``: the folder the files
+    were written to, or None for a run in memory.
+    """
+
+    scenario: Any
+    summary: dict
+    dataset: Any = None
+    trajectory: Any = None
+    out: Path | None = None
+
+
+def load(path, set: dict[str, Any] | None = None):  # noqa: A002 - the documented keyword
+    """Load and validate a scenario file; ``set``: ``{dotted path: value}`` overrides, the
+    paths of ``--set`` (:mod:`dynslip.schema.paths`: lists by index or by name)."""
+    from dynslip.schema.base import load as load_scenario
+
+    return load_scenario(path, values=set)
+
+
+def _console(console):
+    if console is not None:
+        return console
+    from rich.console import Console
+
+    return Console(quiet=True)
+
+
+def _read(scn, folder: Path, out: Path | None) -> Result:
+    """The files a runner wrote into ``folder``, in memory."""
+    import xarray as xr
+
+    summary = {}
+    if (folder / "summary.json").is_file():
+        summary = json.loads((folder / "summary.json").read_text())
+    dataset = None
+    for name in ("trajectory.nc", "result.nc"):
+        if (folder / name).is_file():
+            dataset = xr.load_dataset(folder / name, engine="netcdf4")
+            break
+    trajectory = dataset if getattr(scn, "kind", None) == "forming" else None
+    return Result(scenario=scn, summary=summary, dataset=dataset, trajectory=trajectory, out=out)
+
+
+def _failed(err: Exception, partial, folder: Path | None = None) -> ComputationError:
+    """``err`` as a :class:`ComputationError` carrying ``partial``; a temporary folder named
+    in its message is replaced by where the partial result now is."""
+    new = err if isinstance(err, ComputationError) else ComputationError(str(err))
+    if folder is not None:
+        with contextlib.suppress(AttributeError, TypeError):
+            new.args = tuple(a.replace(str(folder), "<in memory: err.partial>") if isinstance(a, str) else a
+                             for a in new.args)
+    new.partial = partial
+    return new
+
+
+def run(scn, out=None, *, force: bool = False, console=None) -> Result:
+    """Run a scenario (from :func:`load`); return its :class:`Result`.
+
+    ``out``: also write the usual run folder there (the command line's rules; ``force``
+    replaces a folder that is not a dynslip result). ``console``: a :class:`rich.console.Console`
+    for the progress and the summary table (default: quiet).
+    """
+    from dynslip.app import kinds
+    from dynslip.physics.materials import MaterialRangeError
+
+    console = _console(console)
+    if out is not None:
+        out = Path(out)
+        try:
+            kinds.run_into(scn, out, console, force=force)
+        except (ComputationError, MaterialRangeError) as err:
+            kept = getattr(err, "dynslip_kept", None)
+            failed = _failed(err, _read(scn, Path(kept), Path(kept)) if kept is not None else None)
+            if failed is err:
+                raise
+            raise failed from err
+        return _read(scn, out, out)
+    kinds.preflight(scn, console)  # bad input before anything runs
+    with tempfile.TemporaryDirectory(prefix="dynslip-run-") as tmp:
+        folder = Path(tmp) / "run"
+        folder.mkdir()
+        try:
+            kinds.run(scn, folder, console)
+        except (ComputationError, MaterialRangeError) as err:
+            failed = _failed(err, _read(scn, folder, None), folder)
+            if failed is err:
+                raise
+            raise failed from err
+        return _read(scn, folder, None)
+
+
+def sweep(path, out=None, *, mode: str | None = None, force: bool = False, console=None):
+    """Run a sweep file (docs/sweeps.md); return its dataset (``sweep.nc``), in memory.
+
+    ``out``: write (and resume from) the sweep's folder there, as ``dynslip sweep --out``;
+    without it the sweep runs in a temporary folder (no resume). When every member failed,
+    :class:`ComputationError` carries the dataset (``partial``), with each member's error.
+    """
+    import xarray as xr
+
+    from dynslip.app.sweep import run_sweep
+
+    console = _console(console)
+
+    def go(folder: Path, plot: bool):
+        try:
+            run_sweep(Path(path), out=folder, mode=mode, console=console, force=force, plot=plot)
+        except ComputationError as err:
+            nc = folder / "sweep.nc"
+            raise _failed(err, xr.load_dataset(nc) if nc.is_file() else None) from None
+        return xr.load_dataset(folder / "sweep.nc")
+
+    if out is not None:
+        return go(Path(out), True)
+    with tempfile.TemporaryDirectory(prefix="dynslip-sweep-") as tmp:
+        return go(Path(tmp) / "sweep", False)
+
+
+def window(scn, *, lo: float | None = None, hi: float | None = None, coarse: int | None = None,
+           tol: float | None = None, field: str | None = None, out=None, force: bool = False,
+           console=None) -> dict:
+    """The trapping windows of a scenario's friction coefficient (:mod:`dynslip.app.window`):
+    the dictionary of ``window.json`` (``windows``, every evaluation, failed points).
+
+    ``field``: the swept field (default ``physics.friction.mu``, or ``mu_s`` with ``mu_k``
+    tied); ``lo``, ``hi``, ``coarse``, ``tol``: as ``dynslip window``. ``out``: also write
+    ``window.json`` and ``window.png`` there.
+    """
+    from dynslip.app.window import run_window
+
+    console = _console(console)
+    data = json.loads(scn.to_json())
+    name = scn.name or f"<{scn.kind} scenario>"
+    kw = dict(lo=lo, hi=hi, coarse=coarse, tol=tol, field=field, console=console, force=force, data=data)
+
+    def go(folder: Path):
+        try:
+            return run_window(name, out=folder, **kw)
+        except ComputationError as err:  # every run failed: window.json says why
+            found = folder / "window.json"
+            err.partial = json.loads(found.read_text()) if found.is_file() else None
+            raise
+
+    if out is not None:
+        return go(Path(out))
+    with tempfile.TemporaryDirectory(prefix="dynslip-window-") as tmp:
+        return go(Path(tmp) / "window")

@@ -1,0 +1,79 @@
+"""Which runner runs which kind of scenario: schema objects describe, the app runs them.
+
+:data:`RUNNERS` maps a scenario's ``kind`` to ``runner(scenario, out, console) -> summary``
+(the runner writes its files into the folder ``out``); :data:`PREFLIGHTS` maps a kind to
+the check that must pass before any output folder is touched (``start_from`` of a
+forming scenario). :func:`run_into` is the one way a run folder is written, by
+``dynslip run`` and by :func:`dynslip.run` with ``out=``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from dynslip.app import forming, static
+from dynslip.errors import InputError
+
+__all__ = ["RUNNERS", "PREFLIGHTS", "runner", "preflight", "run", "run_into"]
+
+RUNNERS: dict[str, Callable] = {
+    "static": static.run_static,
+    "figure4": static.run_figure4,
+    "family": static.run_family,
+    "cylinder": static.run_cylinder,
+    "forming": forming.run_forming,
+}
+PREFLIGHTS: dict[str, Callable] = {
+    "forming": forming.preflight,
+}
+
+
+def runner(kind: str) -> Callable:
+    """The runner of a kind; :class:`InputError` for a kind no runner runs."""
+    try:
+        return RUNNERS[kind]
+    except KeyError:
+        raise InputError(f"kind {kind!r}: no runner; allowed: {', '.join(RUNNERS)}") from None
+
+
+def preflight(scn, console=None) -> None:
+    """The checks of ``scn``'s kind that need no output folder (bad input raises
+    :class:`InputError` before anything is written)."""
+    check = PREFLIGHTS.get(scn.kind)
+    if check is not None:
+        check(scn, console)
+
+
+def run(scn, out, console=None) -> dict:
+    """Run ``scn`` into the folder ``out`` (its files written there); return its summary."""
+    return runner(scn.kind)(scn, Path(out), console)
+
+
+def _inside(path, folder: Path) -> bool:
+    try:
+        Path(path).resolve().relative_to(folder.resolve())
+        return True
+    except (ValueError, OSError, RuntimeError):
+        return False
+
+
+def run_into(scn, out, console, *, force: bool = False, source=None, header: str | None = None) -> dict:
+    """Run ``scn`` into the run folder ``out`` under the rules of :mod:`dynslip.data.files`:
+    ``out`` is checked before anything is computed or created; the run writes into a staging
+    folder that replaces ``out`` only on success; a failed or interrupted run is kept as
+    ``<out>.incomplete-<UTC time>/``. ``source``: the scenario file, which ``out`` must not
+    hold; ``header``: printed once the checks have passed."""
+    from dynslip.data.files import StagedRun
+
+    out = Path(out)
+    staged = StagedRun(out, force=force)
+    staged.check()  # before anything is computed or created
+    if source is not None and out.is_dir() and _inside(source, out):
+        raise InputError(f"--out {str(out)!r}: holds the scenario file {str(source)!r}, which replacing "
+                         "the folder would delete; allowed: a folder that does not hold the scenario")
+    preflight(scn, console)  # bad input found before anything is written (e.g. a start_from file)
+    with staged as staging:
+        if header is not None:
+            console.print(header)
+        return run(scn, staging, console)
