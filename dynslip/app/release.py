@@ -157,7 +157,12 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     in_stage = ds["stage"].values == idx
     threshold = float(stages[idx]["ball_speed_mm_s"])
     slow = np.flatnonzero(in_stage & (speed_mm_s < threshold))
-    torn = bool(np.any(in_stage & (speed_mm_s >= threshold)))
+    # torn out: a saved frame past the threshold, or the stage's stop rule ended it early (the rule sees
+    # the instantaneous speed; the saved frames only their differences)
+    ts = t[in_stage]
+    ended_early = bool(ts.size and ts[-1] - t[max(int(np.flatnonzero(in_stage)[0]) - 1, 0)]
+                       < float(stages[idx]["duration_s"]) - 1e-9)
+    torn = bool(np.any(in_stage & (speed_mm_s >= threshold))) or ended_early
     if slow.size == 0:
         return {"release_force_N": None, "torn_out": torn, "threshold_mm_s": threshold}
     i = int(slow[-1])
