@@ -127,7 +127,7 @@ def cmd_animate(args) -> int:
 
 
 def cmd_fronts(args) -> int:
-    from dynslip.analysis.fronts import run_fronts
+    from dynslip.app.fronts import run_fronts
 
     _check_dir_out(args.out)
     paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed)

@@ -113,7 +113,7 @@ def test_trajectory_readers_bad_input_exit_2(tmp_path, capsys, command, case):
     import numpy as np
     import xarray as xr
 
-    from dynslip.data.trajectory import synthetic_trajectory
+    from helpers import synthetic_trajectory
 
     state = np.zeros((6, 8), np.int8)
     state[:, :3] = 1

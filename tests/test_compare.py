@@ -6,7 +6,7 @@ import numpy as np
 
 from dynslip.analysis.compare import run_compare
 from dynslip.data.files import write_netcdf
-from dynslip.data.trajectory import synthetic_trajectory
+from helpers import synthetic_trajectory
 
 
 def _run_dir(tmp_path, name, slope, n_contact, nr=21):

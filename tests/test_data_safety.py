@@ -386,7 +386,7 @@ def test_sweep_out_file_fronts_out_file_animate_out_dir(tmp_path, capsys, monkey
     d = tmp_path / "folder"
     d.mkdir()
     traj = tmp_path / "trajectory.nc"
-    from dynslip.data.trajectory import synthetic_trajectory
+    from helpers import synthetic_trajectory
 
     state = np.zeros((6, 8), np.int8)
     state[:, :3] = 1

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from dynslip.app.fronts import run_fronts
 from dynslip.errors import InputError
 from dynslip.analysis.fronts import (
     BIRTH_EVENTS,
@@ -17,13 +18,12 @@ from dynslip.analysis.fronts import (
     fronts_dataset,
     fronts_in_frame,
     motion_state,
-    run_fronts,
     stage_summary,
     summary_lines,
     track_fronts,
 )
 from dynslip.data.files import check_units, write_netcdf
-from dynslip.data.trajectory import synthetic_trajectory
+from helpers import synthetic_trajectory
 
 CODES = {".": 0, "S": 1, "p": 2, "e": 3}
 

@@ -7,12 +7,13 @@ import pytest
 
 from dynslip.physics import sphere as S
 from dynslip.errors import ComputationError
+from dynslip.analysis.paper import PAPER_MU
 from dynslip.physics.materials import Gent, Hookean, NeoHookean
 
 RMAX, TMAX, N = 0.9, 1.8, 100
 SEL = 0.25  # the selection rule: switch radius rbar_s = 0.25 R (docs/static-model.md)
 MATS = {"hookean": Hookean(), "neo_hookean": NeoHookean(), "gent": Gent(jm=50.0)}
-PAPER = {"hookean": 1.47, "neo_hookean": 0.99, "gent": 1.1}
+PAPER = PAPER_MU  # the paper's mu, from its one place
 
 
 @pytest.fixture(scope="session")

@@ -17,6 +17,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.data import files as io
+from dynslip.data import trajectory
 from dynslip.errors import ComputationError, InputError
 
 __all__ = ["run_forming", "preflight", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
@@ -57,7 +58,7 @@ PER_TIME = {
     "dissipation_drag": ("1", "accumulated drag dissipation (ball drag included)", "G*h0*R^2"),
     "energy_residual": ("1", "work - (change of stored energy) - dissipation", "G*h0*R^2"),
 }
-STATE_MEANINGS = "free stuck slipping_toward_pole slipping_toward_equator"
+STATE_MEANINGS = " ".join(trajectory.STATE_MEANINGS)  # the contract's state codes, one place
 
 
 def build_core(sc):

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from dynslip.analysis.paper import MEASURED_RELEASE_FORCE_N
 from dynslip.errors import InputError
 from dynslip.schema.paths import get_path
 
@@ -126,7 +127,7 @@ def release_metrics(ds: xr.Dataset, model=None) -> dict:
         "peak_displacement_mm": float(disp_mm[i_peak]),
         "opening_reached_R": bool(below.size),
         "displacement_at_opening_R_mm": float(disp_mm[first]) if below.size else None,
-        "measured_release_force_N": 2.3,
+        "measured_release_force_N": MEASURED_RELEASE_FORCE_N,
         "force_scale_N": fs,
     }
     ramp = force_ramp_metrics(ds)
@@ -241,7 +242,8 @@ def plot_release(ds: xr.Dataset, metrics: dict, out: Path) -> Path:
     fig, (a, b) = plt.subplots(2, 1, figsize=(6.4, 6.4), sharex=True, constrained_layout=True)
     a.plot(disp, sheet_force(ds) * fs, "-", color="C0", label="force against the sheet (hold less ball drag)")
     a.plot(disp, ds["ball_reaction"].values * fs, ":", color="C0", lw=0.8, label="force of the hold")
-    a.axhline(2.3, color="k", ls=":", label="measured release force 2.3 N")
+    a.axhline(MEASURED_RELEASE_FORCE_N, color="k", ls=":",
+              label=f"measured release force {MEASURED_RELEASE_FORCE_N:g} N")
     a.plot([metrics["peak_displacement_mm"]], [metrics["peak_force_N"]], "o", color="C3",
            label=f"peak {metrics['peak_force_N']:.2f} N (until opening radius R)")
     if metrics.get("displacement_at_opening_R_mm") is not None:

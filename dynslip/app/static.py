@@ -17,22 +17,15 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from dynslip.analysis.paper import PAPER_MU, paper_mu
 from dynslip.data import files as io
 from dynslip.errors import ComputationError
+from dynslip.plot.style import MODEL_LABELS as LABEL
 
 __all__ = ["PAPER_MU", "compute_static", "static_dataset", "run_static", "run_figure4", "run_family",
            "run_cylinder", "paper_mu"]
 
-PAPER_MU = {"hookean": 1.47, "neo_hookean": 0.99, "gent": 1.1}  # paper Fig. 4 (Gent at J_m = 50)
-LABEL = {"hookean": "Hookean", "neo_hookean": "neo-Hookean", "gent": "Gent", "mooney_rivlin": "Mooney-Rivlin"}
 SAT_REL = 0.02  # |F_m| = mu F_N within 2% counts as saturated
-
-
-def paper_mu(model: str, jm: float | None = None) -> float | None:
-    """The paper's mu for a model (Gent only at J_m = 50), else None."""
-    if model == "gent" and (jm is None or abs(jm - 50.0) > 1e-12):
-        return None
-    return PAPER_MU.get(model)
 
 
 def _scales(p) -> dict:

@@ -20,19 +20,10 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.analysis.fronts import (
-    STATE_COLORS,
-    _rest_speed,
-    draw_spacetime,
-    fronts_dataset,
-    motion_state,
-)
-from dynslip.data.trajectory import (
-    STATE_MEANINGS,
-    open_trajectory,
-    stage_names,
-    time_indices,
-)
+from dynslip.analysis.fronts import _rest_speed, fronts_dataset, motion_state
+from dynslip.data.trajectory import open_trajectory, stage_names, time_indices
+from dynslip.plot.fronts import draw_spacetime
+from dynslip.plot.style import STATE_COLORS, STATE_LABELS
 
 FORMATS = ("gif", "mp4")
 DEFAULT_SIZE = (960, 432)
@@ -133,8 +124,8 @@ class _Renderer:
         )
         (self.clamp,) = self.ax.plot([], [], "s", ms=8, color="k", zorder=4, ls="none")
         handles = [
-            Line2D([], [], color=c, lw=3, label=m.replace("_", " "))
-            for c, m in zip(STATE_COLORS, STATE_MEANINGS, strict=True)
+            Line2D([], [], color=c, lw=3, label=m)
+            for c, m in zip(STATE_COLORS, STATE_LABELS, strict=True)
         ]
         handles += [
             Line2D([], [], marker="D", mfc="k", mec="w", ls="none", label="stick front"),

@@ -13,18 +13,15 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 import xarray as xr
-from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
+from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.data import files as io
+from dynslip.plot.style import STATE_LABELS, state_colormap
 
 __all__ = ["make_figures", "snapshot_indices", "meridian", "theta_rbar", "state_map", "plot_meridian",
            "plot_theta", "plot_state_map"]
-
-STATE_COLORS = ["#f2f2f2", "#2b6cb0", "#d69e2e", "#c53030"]
-STATE_LABELS = ["free", "stuck", "slipping toward pole", "slipping toward equator"]
-
 
 def snapshot_indices(ds: xr.Dataset, per_stage: int = 2) -> list[int]:
     """Frames at the end of every stage plus ``per_stage - 1`` inside each (sorted, unique)."""
@@ -75,7 +72,9 @@ def plot_theta(ds: xr.Dataset, ax, indices):
         ax.plot(rbar, th, "o-", ms=2.5, color=cmap(k / max(len(indices) - 1, 1)), label=_label(ds, i))
     ax.axhline(np.pi / 2, color="k", lw=0.6, ls="--")
     ax.text(0.02, np.pi / 2 + 0.03, "equator", fontsize=7)
-    ax.plot([0.9], [1.8], "kx", ms=8, label="paper (rough): rbar_max 0.9, theta_max 1.8")
+    rough = ROUGH_END_STATE
+    ax.plot([rough["rbar_max"]], [rough["theta_max"]], "kx", ms=8,
+            label=f"paper (rough): rbar_max {rough['rbar_max']:g}, theta_max {rough['theta_max']:g}")
     ax.set_xlabel("rbar / R (material radius)")
     ax.set_ylabel("theta (rad), where in contact")
     ax.set_title("theta(rbar) on the contact region")
@@ -95,8 +94,7 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     state = ds["state"].values.astype(float)
     t = ds["time"].values
     rbar = ds["rbar"].values
-    cmap = ListedColormap(STATE_COLORS)
-    norm = BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], cmap.N)
+    cmap, norm = state_colormap()
     m = ax.pcolormesh(t, rbar, state.T, cmap=cmap, norm=norm, shading="nearest")
     stage = ds["stage"].values
     names = _names(ds)

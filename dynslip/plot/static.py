@@ -16,9 +16,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from dynslip.plot.style import MODEL_LABELS as LABEL  # noqa: E402
+
 __all__ = ["figure4_row", "figure4", "family_plot", "cylinder_plot"]
 
-LABEL = {"hookean": "Hookean", "neo_hookean": "neo-Hookean", "gent": "Gent", "mooney_rivlin": "Mooney-Rivlin"}
 C_EQ, C_POLE = "#fde0c5", "#cfe3f5"  # friction toward the equator / toward the pole
 
 

@@ -1,0 +1,114 @@
+"""Helpers shared by the tests: a small contract-conforming trajectory whose ``state``
+field is prescribed (fronts, animations, comparisons and the command line are tested on it
+without running the simulator)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import xarray as xr
+
+from dynslip.data.files import provenance, variable
+from dynslip.data.trajectory import FREE, SLIP_EQUATOR, SLIP_POLE, STATE_MEANINGS
+
+
+def synthetic_trajectory(
+    state,
+    time=None,
+    rbar=None,
+    stage=None,
+    stage_names=("push", "release"),
+    theta_of_rbar: float = 2.0,
+    clamp_rho: float = 2.54,
+    clamp_z=-1.5,
+    clamp_force=None,
+    attrs: dict | None = None,
+) -> xr.Dataset:
+    """A small contract-conforming trajectory whose ``state`` field is prescribed.
+
+    For tests and examples: ``state`` (time, rbar) holds the contract's flags; nodes in
+    contact sit on the unit ball at ``theta = theta_of_rbar * rbar``; free nodes lie on the
+    straight line from the last contact node to the clamp at (``clamp_rho``, ``clamp_z``).
+    Pressure is 1 in contact and 0 elsewhere; the other fields are simple but consistent
+    placeholders. ``rbar`` defaults to ``linspace(0, clamp_rho, n)``, ``time`` to
+    ``arange(n_time)`` s, ``stage`` to 0 for the first half of the frames and 1 after.
+    """
+    state = np.asarray(state, dtype=np.int8)
+    nt, nr = state.shape
+    time = np.arange(nt, dtype=float) if time is None else np.asarray(time, dtype=float)
+    rbar = np.linspace(0.0, clamp_rho, nr) if rbar is None else np.asarray(rbar, dtype=float)
+    if stage is None:
+        stage = (np.arange(nt) >= nt // 2).astype(np.int8) if len(stage_names) > 1 else np.zeros(nt)
+    stage = np.asarray(stage, dtype=np.int8)
+    clamp_z = np.broadcast_to(np.asarray(clamp_z, dtype=float), (nt,)).copy()
+    contact = state != FREE
+    theta = np.where(contact, theta_of_rbar * rbar[None, :], np.nan)
+    rho = np.empty((nt, nr))
+    z = np.empty((nt, nr))
+    theta_max = np.full(nt, np.nan)
+    rbar_max = np.full(nt, np.nan)
+    for k in range(nt):
+        on = np.flatnonzero(contact[k])
+        last = on.max() if on.size else -1
+        th = theta_of_rbar * rbar
+        rho[k] = np.sin(th)
+        z[k] = np.cos(th)
+        r0, z0, rb0 = (0.0, 1.0, 0.0) if last < 0 else (rho[k, last], z[k, last], rbar[last])
+        if last >= 0:
+            theta_max[k], rbar_max[k] = th[last], rbar[last]
+        free = np.arange(nr) > last
+        frac = (rbar[free] - rb0) / max(rbar[-1] - rb0, 1e-12)
+        rho[k, free] = r0 + frac * (clamp_rho - r0)
+        z[k, free] = z0 + frac * (clamp_z[k] - z0)
+    pressure = np.where(contact, 1.0, 0.0)
+    slip_v = np.select([state == SLIP_POLE, state == SLIP_EQUATOR], [-1.0, 1.0], 0.0)
+    force = np.zeros(nt) if clamp_force is None else np.asarray(clamp_force, dtype=float)
+    tn = ("time", "rbar")
+    scen = json.dumps({"kind": "forming", "name": "synthetic"})
+    data = {
+        "rho": variable(rho, tn, "1", "deformed distance from the axis", scale="R"),
+        "z": variable(z, tn, "1", "deformed height", scale="R"),
+        "theta": variable(theta, tn, "1", "polar angle on the ball where in contact"),
+        "lambda_theta": variable(np.ones((nt, nr)), tn, "1", "meridional stretch"),
+        "lambda_phi": variable(np.ones((nt, nr)), tn, "1", "hoop stretch"),
+        "T_theta": variable(np.zeros((nt, nr)), tn, "1", "meridional tension", scale="G*h0"),
+        "T_phi": variable(np.zeros((nt, nr)), tn, "1", "hoop tension", scale="G*h0"),
+        "pressure": variable(pressure, tn, "1", "contact pressure", scale="G*h0/R"),
+        "friction": variable(np.zeros((nt, nr)), tn, "1", "meridional friction", scale="G*h0/R"),
+        "slip_velocity": variable(slip_v, tn, "1/s", "meridional slip speed", scale="R/s"),
+        "mu_mobilised": variable(np.where(contact, 0.5, np.nan), tn, "1", "mobilised friction"),
+        "state": variable(
+            state,
+            tn,
+            "1",
+            "contact state",
+            flag_values=np.array([0, 1, 2, 3], dtype=np.int8),
+            flag_meanings=" ".join(STATE_MEANINGS),
+        ),
+        "stage": variable(stage, ("time",), "1", "index into stage_names"),
+        "clamp_z": variable(clamp_z, ("time",), "1", "clamp height", scale="R"),
+        "clamp_rho": variable(np.full(nt, clamp_rho), ("time",), "1", "clamp radius", scale="R"),
+        "clamp_force": variable(force, ("time",), "1", "clamp axial force", scale="G*h0*R"),
+        "ball_z": variable(np.zeros(nt), ("time",), "1", "ball centre height", scale="R"),
+        "ball_reaction": variable(force, ("time",), "1", "force of the hold", scale="G*h0*R"),
+        "theta_max": variable(theta_max, ("time",), "1", "largest polar angle in contact"),
+        "rbar_max": variable(rbar_max, ("time",), "1", "outermost contact radius", scale="R"),
+    }
+    coords = {
+        "time": variable(time, ("time",), "s", "time"),
+        "rbar": variable(rbar, ("rbar",), "1", "undeformed radius", scale="R"),
+    }
+    ds = xr.Dataset(data, coords=coords)
+    ds.attrs.update(provenance(scen, "trajectory"))
+    ds.attrs.update(
+        complete=1,
+        R_m=0.02,
+        G_Pa=2e6 / 3,
+        h0_m=150e-6,
+        force_scale_N=2.0,
+        stage_names=json.dumps(list(stage_names)),
+        contact_threshold=1e-6,
+    )
+    ds.attrs.update(attrs or {})
+    return ds

@@ -1,0 +1,147 @@
+"""The layers of the package (docs in /work/shared/docs/style.md, "Layers"; issue 12): every
+import of every module follows them, and no module imports itself back through others.
+
+    cli, api -> app -> plot -> analysis -> data;   app -> schema -> physics;   analysis -> physics
+
+A layer may import the layers below it (transitively); nothing imports ``app`` but ``cli``
+and ``api``; ``data`` imports neither ``schema`` nor ``physics``. ``errors``,
+``_version`` and ``_jaxconfig`` are the base every layer may import. Imports inside
+functions count: a lazy import is still a dependency. The upstream-fix subclasses of
+``physics/upstream.py`` (diffrax, optimistix internals) are physics importing third-party
+code, which these rules do not constrain.
+
+One cycle is known and allowed until the load-stepping issue splits ``simulate``: the
+load-stepping solver and the driver import each other inside functions
+(:data:`KNOWN_CYCLES`); :func:`test_known_cycles_are_still_there` fails once it is gone,
+so that the allowance goes with it.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[1] / "dynslip"
+BASE = {"errors", "_version", "_jaxconfig"}
+# layer -> the layers it may import (itself and the base included)
+ALLOWED = {
+    "physics": {"physics"},
+    "schema": {"schema", "physics"},
+    "data": {"data"},
+    "analysis": {"analysis", "data", "physics"},
+    "plot": {"plot", "analysis", "data", "physics"},
+    "app": {"app", "plot", "analysis", "data", "schema", "physics"},
+    "api": {"api", "app", "plot", "analysis", "data", "schema", "physics"},
+    "cli": {"cli", "app", "plot", "analysis", "data", "schema", "physics"},
+    "__init__": {"api", "plot"},  # the package re-exports the API and the figures
+}
+#: cycles allowed for now, each as the set of its modules (see the module docstring)
+KNOWN_CYCLES = [{"dynslip.physics.simulate", "dynslip.physics.loadstep"}]
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(PKG.rglob("*.py"))}
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """The dynslip modules ``name`` imports (``from dynslip.x import y`` counts as
+    ``dynslip.x.y`` when that is a module, else ``dynslip.x``)."""
+    mods = _modules()
+    is_pkg = path.name == "__init__.py"
+    here = name if is_pkg else name.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = here.split(".")[: len(here.split(".")) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            targets = [f"{mod}.{a.name}" if f"{mod}.{a.name}" in mods else mod for a in node.names]
+        else:
+            continue
+        for t in targets:
+            if t == "dynslip" or t.startswith("dynslip."):
+                while t not in mods and "." in t:
+                    t = t.rpartition(".")[0]
+                if t != name:
+                    out.add(t)
+    return out
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return "__init__" if len(parts) == 1 else parts[1]
+
+
+def _graph() -> dict[str, set[str]]:
+    return {name: _imports(name, path) for name, path in _modules().items()}
+
+
+def test_every_import_follows_the_layers():
+    bad = []
+    for name, targets in _graph().items():
+        layer = _layer(name)
+        for t in targets:
+            to = _layer(t)
+            if to in BASE:
+                continue
+            if layer in BASE:
+                bad.append(f"{name} -> {t} (the base imports no layer)")
+            elif to not in ALLOWED[layer]:
+                bad.append(f"{name} -> {t} ({layer} may import {sorted(ALLOWED[layer])})")
+    assert not bad, "imports against the layers:\n" + "\n".join(sorted(bad))
+
+
+def _cycles() -> list[list[str]]:
+    graph = _graph()
+    cycles, state = [], {}
+
+    def visit(n, stack):
+        state[n] = 1
+        stack.append(n)
+        for m in sorted(graph.get(n, ())):
+            if state.get(m) == 1:
+                cycles.append(" -> ".join(stack[stack.index(m):] + [m]))
+            elif m not in state:
+                visit(m, stack)
+        stack.pop()
+        state[n] = 2
+
+    for n in sorted(graph):
+        if n not in state:
+            visit(n, [])
+    return cycles
+
+
+def test_no_import_cycle():
+    new = [c for c in _cycles() if set(c.split(" -> ")) not in KNOWN_CYCLES]
+    assert not new, "import cycles:\n" + "\n".join(new)
+
+
+def test_known_cycles_are_still_there():
+    found = [set(c.split(" -> ")) for c in _cycles()]
+    gone = [sorted(k) for k in KNOWN_CYCLES if k not in found]
+    assert not gone, f"cycle(s) {gone} no longer exist: remove them from KNOWN_CYCLES"
+
+
+@pytest.mark.parametrize(("src", "dst", "ok"), [
+    ("dynslip.plot.x", "dynslip.app.y", False), ("dynslip.data.x", "dynslip.schema.y", False),
+    ("dynslip.data.x", "dynslip.physics.y", False), ("dynslip.schema.x", "dynslip.app.y", False),
+    ("dynslip.analysis.x", "dynslip.plot.y", False), ("dynslip.app.x", "dynslip.physics.y", True),
+    ("dynslip.cli", "dynslip.app.y", True), ("dynslip.physics.x", "dynslip.errors", True),
+])
+def test_the_rules_themselves(src, dst, ok):
+    """The table above says what the issue says (a check of the checker)."""
+    to = _layer(dst)
+    assert (to in BASE or to in ALLOWED[_layer(src)]) == ok
