@@ -151,8 +151,13 @@ def cmd_sweep(args) -> int:
 
 
 def cmd_window(args) -> int:
-    from dynslip.app.window import run_window
+    from dynslip.app.window import parse_nodes, run_window, run_window_nodes
 
+    if args.nodes:
+        run_window_nodes(Path(args.scenario), parse_nodes(args.nodes), overrides=args.set or [], lo=args.lo,
+                         hi=args.hi, coarse=args.coarse, tol=args.tol, out=Path(args.out) if args.out else None,
+                         console=_console(), force=args.force)
+        return 0
     run_window(
         Path(args.scenario),
         overrides=args.set or [],
@@ -235,6 +240,8 @@ def build_parser() -> argparse.ArgumentParser:
     n.add_argument("--tol", type=float, default=None)
     n.add_argument("--out")
     n.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
+    n.add_argument("--nodes", default=None, metavar="N1,N2,N3",
+                   help="search at each mesh size; window.json gets critical_mu per N and its extrapolation")
     n.set_defaults(fn=cmd_window)
 
     c = sub.add_parser("compare", help="compare the end states of forming runs")

@@ -9,11 +9,13 @@
 
 from __future__ import annotations
 
-__all__ = ["PAPER_MU", "paper_mu", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N"]
+__all__ = ["PAPER_MU", "paper_mu", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S", "MEASURED_MU_K"]
 
 PAPER_MU = {"hookean": 1.47, "neo_hookean": 0.99, "gent": 1.1}  # paper Fig. 4 (Gent at J_m = 50)
 ROUGH_END_STATE = {"theta_max": 1.8, "rbar_max": 0.9}
 MEASURED_RELEASE_FORCE_N = 2.3
+MEASURED_MU_S = 0.99  # latex on the ball, static (paper Section 2)
+MEASURED_MU_K = 0.82  # kinetic
 
 
 def paper_mu(model: str, jm: float | None = None) -> float | None:

@@ -99,16 +99,29 @@ def _grid(lo: float, hi: float, coarse: int) -> list[float]:
     return [lo + (hi - lo) * i / (coarse - 1) for i in range(coarse)]
 
 
+#: the most coarse scan points of a window search (each is a full run)
+MAX_COARSE = 1000
+#: the finest bisection tolerance, relative to max(1, |lo|, |hi|)
+MIN_REL_TOL = 1e-9
+#: the largest |lo|, |hi| of a search
+MAX_ABS_RANGE = 1e6
+
+
 def check_range(lo: float, hi: float, coarse: int, tol: float, source: str = "window") -> None:
-    """Raise :class:`InputError` unless ``lo < hi`` (finite), ``coarse >= 2`` and ``tol > 0``."""
+    """Raise :class:`InputError` unless ``lo < hi`` (finite), ``2 <= coarse <= MAX_COARSE`` and
+    ``tol`` finite and at least ``MIN_REL_TOL * max(1, |lo|, |hi|)`` (a finer bracket than the
+    floats can resolve would bisect for ever)."""
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise InputError(
             f"{source}: range [lo, hi] = [{lo}, {hi}]: need finite lo < hi (an empty range)"
         )
-    if coarse < 2:
-        raise InputError(f"{source}: coarse = {coarse}: need at least 2 scan points")
-    if not (tol > 0):
-        raise InputError(f"{source}: tol = {tol}: need tol > 0")
+    if max(abs(lo), abs(hi)) > MAX_ABS_RANGE:
+        raise InputError(f"{source}: range [lo, hi] = [{lo}, {hi}]: allowed: |lo|, |hi| <= {MAX_ABS_RANGE:g}")
+    if not 2 <= coarse <= MAX_COARSE:
+        raise InputError(f"{source}: coarse = {coarse}: allowed: 2..{MAX_COARSE} scan points")
+    tol_min = MIN_REL_TOL * max(1.0, abs(lo), abs(hi))
+    if not (math.isfinite(tol) and tol >= tol_min):
+        raise InputError(f"{source}: tol = {tol}: allowed: a finite tol >= {tol_min:.3g}")
 
 
 def find_windows(
@@ -378,6 +391,8 @@ def run_window(
         console=None,
         progress=progress,
     )
+    from dynslip.analysis.convergence import critical_edge
+
     result = {
         "scenario": str(path),
         "overrides": list(overrides),
@@ -385,6 +400,13 @@ def run_window(
         "tied": tied,
         **res.to_dict(),
     }
+    # the path's critical mu: the lowest friction at which it ends trapped (the lowest window's
+    # lower edge; None when nothing traps). Upper edges are reported as found: artefacts
+    # unless they survive mesh refinement (run with --nodes).
+    result["critical_mu"] = critical_edge(result["windows_detail"])
+    if tied:
+        result["critical_mu_tied"] = ({k: v * result["critical_mu"]["value"] for k, v in tied.items()}
+                                      if result["critical_mu"] else None)
     write_json(out / "window.json", result)
     if res.evaluations and all(v is None for v in res.evaluations.values()):
         raise ComputationError(
@@ -399,4 +421,59 @@ def run_window(
     )
     if res.failed:
         console.print(f"[yellow]{len(res.failed)} failed runs: {res.failed}[/yellow]")
+    return result
+
+
+def parse_nodes(text: str) -> list[int]:
+    """``--nodes 50,100,200`` as a list of mesh sizes (increasing, each 6..4000)."""
+    try:
+        ns = [int(x) for x in str(text).split(",") if x.strip()]
+    except ValueError:
+        raise InputError(f"--nodes = {text!r}: allowed: comma-separated mesh sizes, e.g. 50,100,200") from None
+    if not ns or any(not 6 <= n <= 4000 for n in ns) or sorted(set(ns)) != ns:
+        raise InputError(f"--nodes = {text!r}: allowed: increasing mesh sizes, each in 6..4000")
+    return ns
+
+
+def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | None = None, console=None,
+                     force: bool = False, **kw) -> dict:
+    """``dynslip window SCENARIO --nodes 50,100,200``: the window search at each mesh size
+    (``<out>/N<n>/``), then ``<out>/window.json`` with ``critical_mu`` per N (value, err),
+    its Richardson extrapolation with the measured order
+    (:func:`dynslip.analysis.convergence.richardson`) and ``<out>/critical_mu.png``."""
+    from rich.console import Console
+
+    from dynslip.analysis.convergence import richardson
+    from dynslip.data.files import check_out, write_json, write_result_marker
+    from dynslip.plot.sweep import plot_critical_mu
+
+    console = console or Console()
+    path = Path(scenario)
+    out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_window"
+    check_out(out, force=force, in_place=True)
+    per_n = {}
+    for n in nodes:
+        console.print(f"[bold]N = {n}[/bold]")
+        per_n[n] = run_window(scenario, [*overrides, f"numerics.nodes={n}"], out=out / f"N{n}", console=console,
+                              force=force, **kw)
+    out.mkdir(parents=True, exist_ok=True)
+    write_result_marker(out, "window")
+    crit = {str(n): per_n[n]["critical_mu"] for n in nodes}
+    found = [n for n in nodes if per_n[n]["critical_mu"] is not None]
+    extrap = (richardson(found, [per_n[n]["critical_mu"]["value"] for n in found],
+                         [per_n[n]["critical_mu"]["err"] for n in found])
+              if found else {"extrapolable": False, "reason": "no window at any mesh size"})
+    first = per_n[nodes[0]]
+    result = {"scenario": str(path), "overrides": list(overrides), "field": first["field"], "tied": first["tied"],
+              "nodes": list(nodes), "critical_mu": crit, "extrapolation": extrap,
+              "windows": {str(n): per_n[n]["windows"] for n in nodes},
+              "upper_edges": "reported as found; an upper edge is an artefact unless it survives refinement"}
+    write_json(out / "window.json", result)
+    plot_critical_mu(result, out / "critical_mu.png")
+    console.print(f"critical {result['field']} per N: "
+                  + ", ".join(f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c else f"{n}: none" for n, c in crit.items()))
+    if extrap.get("extrapolable"):
+        console.print(f"extrapolated: {extrap['value']:.4g} +- {extrap['err']:.2g} (order {extrap['order']:.2f})")
+    else:
+        console.print(f"not extrapolable: {extrap.get('reason')}")
     return result

@@ -193,3 +193,32 @@ def plot_window(result: dict, path) -> Path:
     out = save_figure(fig, path, dpi=120)
     plt.close(fig)
     return out
+
+
+def plot_critical_mu(result: dict, path) -> Path:
+    """critical_mu.png: the path's critical mu (lowest window's lower edge, +- half its
+    bracket) against the mesh size, with the Richardson value where extrapolable."""
+    from dynslip.data.files import save_figure
+
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(5, 3.2))
+    pts = [(int(n), c["value"], c["err"]) for n, c in result["critical_mu"].items() if c]
+    if pts:
+        ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], fmt="ko-", capsize=3,
+                    label="critical mu (window search)")
+    ex = result.get("extrapolation", {})
+    if ex.get("extrapolable"):
+        ax.axhspan(ex["value"] - ex["err"], ex["value"] + ex["err"], color="C0", alpha=0.2,
+                   label=f"extrapolated {ex['value']:.3f} (order {ex['order']:.2f})")
+    from dynslip.analysis.paper import MEASURED_MU_S
+
+    ax.axhline(MEASURED_MU_S, color="C3", ls=":", label=f"measured mu_s = {MEASURED_MU_S:g}")
+    ax.set_xscale("log")
+    ax.set_xlabel("nodes N")
+    ax.set_ylabel(result.get("field", "mu"))
+    ax.set_title("critical mu of the path against the mesh", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    out = save_figure(fig, path, dpi=120)
+    plt.close(fig)
+    return out
