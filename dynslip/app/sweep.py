@@ -92,8 +92,13 @@ KNOWN_VARIABLES: dict[str, tuple[str, str]] = {
 # The sweep file
 
 
+#: the most members a sweep may have (a grid's product of axis lengths, or a list's length)
+MAX_MEMBERS = 10_000
+
+
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # strict: numbers given as text ("0.3") are errors, as in scenario files; finite numbers only
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
 
 
 class Linspace(_Strict):
@@ -101,7 +106,7 @@ class Linspace(_Strict):
 
     start: float
     stop: float
-    num: int = Field(ge=1)
+    num: int = Field(ge=1, le=MAX_MEMBERS, description="number of values, 1..10000")
 
     def values(self) -> list[float]:
         return [float(v) for v in np.linspace(self.start, self.stop, self.num)]
@@ -111,10 +116,10 @@ class WindowSpec(_Strict):
     """The trapping-window search run for each member (see :mod:`dynslip.app.window`)."""
 
     field: str | None = Field(None, description="friction field; default mu (ideal law) or mu_s")
-    lo: float = Field(0.0, ge=0)
-    hi: float = Field(3.0, gt=0)
-    coarse: int = Field(13, ge=2)
-    tol: float = Field(0.02, gt=0)
+    lo: float = Field(0.0, ge=0, le=100)
+    hi: float = Field(3.0, gt=0, le=100)
+    coarse: int = Field(13, ge=2, le=1000, description="coarse scan points, 2..1000")
+    tol: float = Field(0.02, ge=1e-6, le=100, description="width of the final brackets, in [1e-6, 100]")
 
     @model_validator(mode="after")
     def _range(self):
@@ -130,8 +135,9 @@ class SweepSpec(_Strict):
     description: str = ""
     base: str = Field(description="scenario file, relative to the sweep file")
     overrides: dict[str, Any] = Field(default_factory=dict)
-    grid: dict[str, list[Any] | Linspace] | None = None
-    list_: list[dict[str, Any]] | None = Field(None, alias="list")
+    grid: dict[str, list[Any] | Linspace] | None = Field(
+        None, description="field -> list of values or {start, stop, num}; at most 10000 members in all")
+    list_: list[dict[str, Any]] | None = Field(None, alias="list", description="members, at most 10000")
     window: WindowSpec | None = None
     out: str | None = None
     mode: Literal["sequential", "batched", "dask"] | None = None
@@ -145,10 +151,15 @@ class SweepSpec(_Strict):
             raise ValueError("empty grid: name at least one field")
         if self.list_ is not None and not self.list_:
             raise ValueError("empty list: give at least one member")
+        n = 1
         for k, v in (self.grid or {}).items():
             vals = v.values() if isinstance(v, Linspace) else v
             if not vals:
                 raise ValueError(f"grid field '{k}': empty range (no values)")
+            n *= len(vals)
+        n = len(self.list_) if self.list_ is not None else n
+        if n > MAX_MEMBERS:
+            raise ValueError(f"{n} members: allowed at most {MAX_MEMBERS} (split the study)")
         return self
 
     def grid_values(self) -> dict[str, list[Any]]:
@@ -176,13 +187,10 @@ def validate_sweep(path, validate_fn: Callable | None = None) -> list[Member]:
 
 def load_spec(path) -> SweepSpec:
     """Read and validate a sweep file; raises :class:`InputError` (one line)."""
+    from dynslip.schema.yamlio import read_yaml
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: sweep file not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError:
-        raise InputError(f"{path}: malformed YAML") from None
+    data = read_yaml(path, "sweep")  # UTF-8 text, duplicate keys refused; InputError otherwise
     if not isinstance(data, dict):
         raise InputError(f"{path}: a sweep file must be a mapping (base, grid or list, ...)")
     try:

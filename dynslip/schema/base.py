@@ -16,10 +16,11 @@ from __future__ import annotations
 import importlib
 import json
 from pathlib import Path
-from typing import Annotated, Any, Union
+import types
+from typing import Annotated, Any, Union, get_args, get_origin
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
 
 from dynslip.errors import InputError
 from dynslip.schema.paths import set_path
@@ -34,10 +35,69 @@ KINDS: dict[str, tuple[str, str]] = {
 }
 
 
-class Strict(BaseModel):
-    """Base of every schema section: unknown keys are errors; values are frozen."""
+#: the error type of a number given as text (or a boolean): see :meth:`Strict._numbers_are_numbers`
+NUMBER_AS_TEXT = "number_as_text"
 
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+def _wants_number(tp) -> bool:
+    """The annotation takes numbers only (``float``, ``int``, optionally ``None``)."""
+    if tp in (int, float):
+        return True
+    origin = get_origin(tp)
+    if origin is Annotated:
+        return _wants_number(get_args(tp)[0])
+    if origin in (Union, types.UnionType):
+        args = [a for a in get_args(tp) if a is not type(None)]
+        return bool(args) and all(_wants_number(a) for a in args)
+    return False
+
+
+def _text_for_number(tp, value) -> str | None:
+    """Why ``value`` is refused for a field of type ``tp``: a string or a boolean where only a
+    number is allowed (pydantic would read "0.5" as 0.5 and true as 1); ``None`` when fine."""
+    if _wants_number(tp):
+        if isinstance(value, str):
+            return "a number is required, not text (write it without quotes)"
+        if isinstance(value, bool):
+            return "a number is required, not a boolean"
+        return None
+    origin = get_origin(tp)
+    if origin is Annotated:
+        return _text_for_number(get_args(tp)[0], value)
+    if origin in (Union, types.UnionType):
+        args = [a for a in get_args(tp) if a is not type(None)]
+        return _text_for_number(args[0], value) if len(args) == 1 else None
+    if origin in (tuple, list) and isinstance(value, (list, tuple)):
+        args = get_args(tp)
+        for i, v in enumerate(value):
+            if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
+                item = args[i] if i < len(args) else None
+            else:
+                item = args[0] if args else None
+            why = None if item is None else _text_for_number(item, v)
+            if why:
+                return f"item {i}: {why}"
+    return None
+
+
+class Strict(BaseModel):
+    """Base of every schema section: unknown keys are errors; values are frozen; numbers are
+    finite (NaN and infinities refused) and never given as text or booleans."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, data):
+        # (a model validator: pydantic allows no field validator on a union's discriminator field)
+        if isinstance(data, dict):
+            for key, value in data.items():
+                field = cls.model_fields.get(key) if isinstance(key, str) else None
+                why = None if field is None else _text_for_number(field.annotation, value)
+                if why:
+                    raise PydanticCustomError(NUMBER_AS_TEXT, "field '{field}': {why}",
+                                              {"field": key, "why": why, "value": value})
+        return data
 
 
 def F(default: Any = ..., *, unit: str = "1", description: str = "", **kw) -> Any:
@@ -80,11 +140,9 @@ def parse_override(text: str) -> tuple[str, Any]:
     key = key.strip()
     if not key or any(not k for k in key.split(".")):
         raise InputError(f"--set {text!r}: expected section.key=value")
-    try:
-        value = yaml.safe_load(raw)
-    except yaml.YAMLError:
-        value = raw
-    return key, value
+    from dynslip.schema.yamlio import parse_value
+
+    return key, parse_value(raw)  # YAML, as in files (1e-5 a float); unparsable text stays text
 
 
 def _field_path(loc, data) -> str:
@@ -109,18 +167,40 @@ def _field_path(loc, data) -> str:
 def format_validation_error(err: ValidationError, source: str, data=None) -> str:
     """One line: the first offending field, its value and what is allowed."""
     e = err.errors()[0]
+    eloc = tuple(e["loc"])
+    if e["type"] == NUMBER_AS_TEXT:  # raised by the section: the field is in its context
+        eloc = (*eloc, (e.get("ctx") or {}).get("field"))
+    elif e["type"] == "value_error" and isinstance(e.get("input"), dict) and eloc and \
+            eloc[-1] in (e["input"].get("model"), e["input"].get("kind")):
+        eloc = eloc[:-1]  # a check of a tagged section (material: mooney_rivlin): not the tag
     if data is not None:
-        loc = _field_path(e["loc"], data)
+        loc = _field_path(eloc, data)
     else:
-        loc = ".".join(str(p) for p in e["loc"] if not (isinstance(p, str) and p in _classes()))
+        loc = ".".join(str(p) for p in eloc if not (isinstance(p, str) and p in _classes()))
+    if len(eloc) == 1 and loc in _classes():  # a check of the whole scenario (its kind's tag)
+        loc = ""
     value = e.get("input")
-    shown = json.dumps(value) if isinstance(value, (int, float, str, bool, type(None))) else type(value).__name__
-    msg = e["msg"]
+    msg = " ".join(str(e["msg"]).split()).removeprefix("Value error, ")
     if e["type"] == "extra_forbidden":
         msg = "unknown field (not in the schema; see `dynslip schema`)"
-    if e["type"] == "union_tag_invalid":
-        loc, msg = "kind", f"unknown kind; allowed: {', '.join(_classes())}"
+    if e["type"] == "union_tag_invalid":  # a nested discriminated union (material: {model: ...})
+        ctx = e.get("ctx") or {}
+        disc = str(ctx.get("discriminator", "kind")).strip("'\"")
+        loc = f"{loc}.{disc}" if loc else disc
+        value = value.get(disc) if isinstance(value, dict) else ctx.get("tag", value)
+        what = "kind" if disc == "kind" else disc
+        msg = f"unknown {what}; allowed: {ctx.get('expected_tags') or ', '.join(_classes())}"
+    if e["type"] == NUMBER_AS_TEXT:
+        ctx = e.get("ctx") or {}
+        value, msg = ctx.get("value"), str(ctx.get("why"))
     more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
+    if e["type"] == "value_error" and isinstance(value, dict):  # a check across fields: its message names them
+        return f"{source}: {loc + ': ' if loc else ''}{msg}{more}"
+    if isinstance(value, (int, float, str, bool, type(None))):
+        shown = json.dumps(value)
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+    else:
+        shown = type(value).__name__
     return f"{source}: field '{loc or '<root>'}' = {shown}: {msg}{more}"
 
 
@@ -130,8 +210,10 @@ def validate_data(data: Any, source: str = "<scenario>"):
         raise InputError(f"{source}: a scenario must be a mapping of sections, got {type(data).__name__}")
     if "kind" not in data:
         raise InputError(f"{source}: field 'kind' missing; allowed: {', '.join(_classes())}")
-    if data["kind"] not in _classes():
-        raise InputError(f"{source}: field 'kind' = {json.dumps(data['kind'])}: unknown kind; allowed: {', '.join(_classes())}")
+    if not isinstance(data["kind"], str) or data["kind"] not in _classes():
+        kind = data["kind"]
+        shown = json.dumps(kind) if isinstance(kind, (int, float, str, bool, type(None))) else type(kind).__name__
+        raise InputError(f"{source}: field 'kind' = {shown[:80]}: unknown kind; allowed: {', '.join(_classes())}")
     try:
         return _adapter().validate_python(data)
     except ValidationError as err:
@@ -140,15 +222,10 @@ def validate_data(data: Any, source: str = "<scenario>"):
 
 def load_data(path, overrides: list[str] | tuple[str, ...] = ()) -> dict:
     """Read a YAML scenario file and apply ``section.key=value`` overrides."""
+    from dynslip.schema.yamlio import read_yaml
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: scenario file not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise InputError(f"{path}: malformed YAML{where}") from None
+    data = read_yaml(path, "scenario")  # UTF-8 text, duplicate keys refused; InputError otherwise
     if data is None:
         data = {}
     if not isinstance(data, dict):
@@ -174,6 +251,35 @@ def load(path, overrides: list[str] | tuple[str, ...] = (), values: dict[str, An
     return obj
 
 
+def _bounds(p: dict) -> str:
+    """``> 0, <= 1e+04`` from the JSON schema of a number."""
+    out = []
+    for key, sym in (("exclusiveMinimum", ">"), ("minimum", ">="), ("exclusiveMaximum", "<"), ("maximum", "<=")):
+        if key in p:
+            v = p[key]
+            out.append(f"{sym} {v:g}" if isinstance(v, float) else f"{sym} {v}")
+    return ", ".join(out)
+
+
+def _range_text(prop: dict) -> str:
+    """The allowed range of a field: its bounds, those of a ``X | None``, of a tuple's items
+    (``each ...`` or ``[i] ...``) or a list's length."""
+    rng = _bounds(prop)
+    if not rng and "anyOf" in prop:
+        rng = " | ".join(b for b in (_bounds(p) for p in prop["anyOf"]) if b)
+    items = prop.get("prefixItems")
+    if items:
+        parts = [_bounds(p) for p in items]
+        if len(set(parts)) == 1:
+            rng = f"each {parts[0]}" if parts[0] else ""
+        else:
+            rng = "; ".join(f"[{i}] {b}" for i, b in enumerate(parts) if b)
+    elif "minItems" in prop or "maxItems" in prop:
+        n = [f"{sym} {prop[key]}" for key, sym in (("minItems", ">="), ("maxItems", "<=")) if key in prop]
+        rng = ", ".join([rng, "items " + ", ".join(n)] if rng else ["items " + ", ".join(n)])
+    return rng
+
+
 def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
     for name, prop in schema.get("properties", {}).items():
         if "$ref" in prop:
@@ -191,34 +297,33 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
             typ = " | ".join(map(str, prop["enum"]))
         if "const" in prop:
             typ = repr(prop["const"])
-        rng = []
-        for key, sym in (("exclusiveMinimum", ">"), ("minimum", ">="), ("exclusiveMaximum", "<"), ("maximum", "<=")):
-            if key in prop:
-                rng.append(f"{sym} {prop[key]}")
-        if "minItems" in prop:
-            rng.append(f"items >= {prop['minItems']}")
         rows.append(
             (
                 prefix + name,
                 str(typ),
                 json.dumps(prop.get("default")) if "default" in prop else "required",
-                ", ".join(rng),
+                _range_text(prop),
                 prop.get("unit", ""),
                 prop.get("description", ""),
             )
         )
+        ref = (prop.get("items") or {}).get("$ref") if isinstance(prop.get("items"), dict) else None
+        if ref:  # a list of sections (stages): their fields, as name[].field
+            _rows(defs[ref.split("/")[-1]], defs, f"{prefix}{name}[].", rows)
 
 
-def schema_reference() -> str:
-    """A plain-text reference of every field of every scenario kind."""
+def schema_reference(extra: dict[str, type] | None = None) -> str:
+    """A plain-text reference of every field of every scenario kind (and of the models in
+    ``extra``, title -> pydantic class: the sweep file)."""
     lines = []
-    for kind, cls in _classes().items():
-        sch = cls.model_json_schema()
+    sections = [(f"kind: {kind}", cls) for kind, cls in _classes().items()] + list((extra or {}).items())
+    for title, cls in sections:
+        sch = cls.model_json_schema(by_alias=True)
         rows: list = []
         _rows(sch, sch.get("$defs", {}), "", rows)
-        lines.append(f"kind: {kind}  ({(cls.__doc__ or '').strip().splitlines()[0]})")
-        lines.append(f"  {'field':42s} {'type':18s} {'default':14s} {'range':16s} {'unit':6s} description")
-        for r in rows:
-            lines.append(f"  {r[0]:42s} {r[1][:18]:18s} {r[2][:14]:14s} {r[3][:16]:16s} {r[4]:6s} {r[5]}")
+        lines.append(f"{title}  ({(cls.__doc__ or '').strip().splitlines()[0]})")
+        lines.append(f"  {'field':42s} {'type':18s} {'default':14s} {'range':20s} {'unit':6s} description")
+        for r in rows:  # the range is never cut: a bound is part of the contract
+            lines.append(f"  {r[0]:42s} {r[1][:18]:18s} {r[2][:14]:14s} {r[3]:20s} {r[4]:6s} {r[5]}")
         lines.append("")
     return "\n".join(lines)

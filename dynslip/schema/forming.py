@@ -17,13 +17,18 @@ from dynslip.schema.base import F, ScenarioBase, Strict
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec", "FrictionSpec"]
 
+#: bounds of the loading path: the longest time of a stage (s), the most stages, the most saved frames
+MAX_TIME_S = 1e6
+MAX_STAGES = 100
+MAX_FRAMES = 1_000_000
+
 
 class MaterialSpec(Strict):
     """The sheet's strain energy (physics.md Section 2)."""
 
     model: Literal["gent", "neo_hookean", "mooney_rivlin", "hookean"] = F(
         "gent", description="strain energy; hookean is refused beyond stretch 3")
-    jm: float = F(50.0, gt=0, description="Gent locking parameter J_m")
+    jm: float = F(50.0, gt=0, le=1e4, description="Gent locking parameter J_m, in (0, 1e4]")
     c1: float = F(0.5, ge=0, le=0.5, description="Mooney-Rivlin C1 (C2 = 1/2 - C1)")
 
 
@@ -37,7 +42,8 @@ class FrictionSpec(Strict):
     mu: float = F(1.15, ge=0, le=10, description="friction coefficient of law: coulomb")
     mu_s: float = F(0.99, ge=0, le=10, description="static coefficient of law: slip_weakening (paper: 0.99)")
     mu_k: float = F(0.82, ge=0, le=10, description="kinetic coefficient of law: slip_weakening (paper: 0.82); <= mu_s")
-    d_c_mm: float = F(0.4, unit="mm", gt=0, description="weakening slip distance of law: slip_weakening; the mesh "
+    d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4, description="weakening slip distance of law: slip_weakening, "
+                      "in (0, 1e4] mm; the mesh "
                       "must be much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
 
     @model_validator(mode="after")
@@ -56,13 +62,16 @@ class StageSpec(Strict):
     """One stage: clamp motion, what holds the ball, and when the stage ends."""
 
     name: str = F(..., min_length=1, description="stage name (unique)")
-    clamp_to_z_mm: float | None = F(None, unit="mm",
-                                    description="clamp height to move to (from the ball centre); needs clamp_speed_mm_s")
-    clamp_speed_mm_s: float | None = F(None, unit="mm/s", gt=0, description="speed of a clamp_to_z_mm move")
-    clamp_velocity_mm_s: float = F(0.0, unit="mm/s",
-                                   description="signed vertical clamp velocity (up > 0) for stages ended by a condition or duration")
-    duration_s: float | None = F(None, unit="s", gt=0,
-                                 description="stage duration; for condition stages the longest it may run")
+    clamp_to_z_mm: float | None = F(None, unit="mm", ge=-1e4, le=1e4,
+                                    description="clamp height to move to (from the ball centre), in [-1e4, 1e4] mm; "
+                                    "needs clamp_speed_mm_s")
+    clamp_speed_mm_s: float | None = F(None, unit="mm/s", ge=1e-6, le=1e4,
+                                       description="speed of a clamp_to_z_mm move, in [1e-6, 1e4] mm/s")
+    clamp_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
+                                   description="signed vertical clamp velocity (up > 0) for stages ended by a condition "
+                                   "or duration, in [-1e4, 1e4] mm/s")
+    duration_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
+                                 description="stage duration, in (0, 1e6] s; for condition stages the longest it may run")
     until: Literal["duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above"] = F(
         "duration", description="stop rule: the duration, the clamp's axial force below a threshold, rest, "
         "the contact edge's polar angle below theta_stop_rad, or the ball's speed above ball_speed_mm_s (a pull "
@@ -74,13 +83,17 @@ class StageSpec(Strict):
                                    "toward the pocket's opening < 0), ramped linearly from 0 over duration_s")
     theta_stop_rad: float | None = F(None, unit="rad", gt=0, lt=math.pi,
                                      description="until: theta_max_below: the polar angle (pi/2: opening radius R)")
-    ball_velocity_mm_s: float = F(0.0, unit="mm/s",
-                                  description="signed velocity (up > 0) of a held ball (ball: hold); the pole of the "
+    ball_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
+                                  description="signed velocity (up > 0), in [-1e4, 1e4] mm/s, of a held ball (ball: "
+                                  "hold); the pole of the "
                                   "ball points up, the pocket's opening down")
-    force_threshold_N: float | None = F(None, unit="N", gt=0, description="threshold of until: clamp_force_below")
-    rest_rate_mm_s: float | None = F(None, unit="mm/s", gt=0,
-                                     description="until: rest: largest slip speed and ball speed below this")
-    rest_hold_s: float | None = F(None, unit="s", gt=0, description="until: rest: for this long")
+    force_threshold_N: float | None = F(None, unit="N", gt=0, le=1e6,
+                                        description="threshold of until: clamp_force_below, in (0, 1e6] N")
+    rest_rate_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e4,
+                                     description="until: rest: largest slip speed and ball speed below this, "
+                                     "in (0, 1e4] mm/s")
+    rest_hold_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
+                                  description="until: rest: for this long, in (0, 1e6] s")
     clamp: Literal["move", "let_go", "free"] = F(
         "move", description="move: the clamp holds the edge and moves as given; let_go: its force on the sheet is "
         "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held")
@@ -147,21 +160,25 @@ def _default_stages() -> list[StageSpec]:
 class FormingPhysics(Strict):
     """Geometry, material, friction and the loading path (physical units)."""
 
-    ball_radius_mm: float = F(20.0, unit="mm", gt=0, description="ball radius R")
-    ball_mass_g: float = F(2.7, unit="g", ge=0, description="ball mass (only with gravity on)")
-    thickness_um: float = F(150.0, unit="um", gt=0, description="sheet thickness h0")
-    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, description="Young's modulus E (G = E/3)")
+    ball_radius_mm: float = F(20.0, unit="mm", gt=0, le=1e4, description="ball radius R, in (0, 1e4] mm")
+    ball_mass_g: float = F(2.7, unit="g", ge=0, le=1e6, description="ball mass (only with gravity on), in [0, 1e6] g")
+    thickness_um: float = F(150.0, unit="um", gt=0, le=1e6, description="sheet thickness h0, in (0, 1e6] um")
+    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, le=1e6, description="Young's modulus E (G = E/3), "
+                                  "in (0, 1e6] MPa")
     material: MaterialSpec = MaterialSpec()
     friction: FrictionSpec = FrictionSpec()
-    rim_radius_mm: float = F(50.8, unit="mm", gt=0, description="radius of the held edge (tube rim, or hands)")
+    rim_radius_mm: float = F(50.8, unit="mm", gt=0, le=1e4,
+                             description="radius of the held edge (tube rim, or hands), in (0, 1e4] mm")
     pre_stretch: float = F(1.05, ge=1.0, le=3.0,
                            description="radial stretch of the held sheet: method 2, the small stretch of the disc "
                            "clamped on the rim; method 1, the hand pre-stretch (the held disc has material radius "
                            "rim_radius / pre_stretch)")
-    sheet_gap_mm: float = F(0.4, unit="mm", gt=0, description="initial height of the flat sheet above the ball top")
+    sheet_gap_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
+                            description="initial height of the flat sheet above the ball top, in (0, 1e4] mm")
     gravity: bool = F(False, description="ball weight on (off by default: a downward-opening membrane pocket "
                       "cannot carry it; physics.md Section 4)")
-    stages: list[StageSpec] = F(default_factory=_default_stages, description="the loading path, in order")
+    stages: list[StageSpec] = F(default_factory=_default_stages, max_length=MAX_STAGES,
+                                description="the loading path, in order (at most 100 stages)")
 
     @model_validator(mode="after")
     def _geometry(self):
@@ -186,6 +203,10 @@ class FormingPhysics(Strict):
                                      "unknown): use clamp_velocity_mm_s with duration_s")
                 if abs(s.clamp_to_z_mm - z) < 1e-9:
                     raise ValueError(f"stages.{s.name}: empty stage (clamp already at {z} mm)")
+                if abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s > MAX_TIME_S:
+                    raise ValueError(f"stages.{s.name}: the clamp_to_z_mm move lasts "
+                                     f"{abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s:.3g} s (|dz| / "
+                                     "clamp_speed_mm_s); allowed: at most 1e6 s")
                 z = s.clamp_to_z_mm
             else:
                 z += s.clamp_velocity_mm_s * s.duration_s
@@ -202,11 +223,12 @@ class FormingPhysics(Strict):
 class FormingNumerics(Strict):
     """Mesh, drag, solver and regularisations (nondimensional unless a unit is given)."""
 
-    nodes: int = F(50, ge=6, le=4000, description="nodes from the pole to the clamp")
-    drag_time_s: float = F(0.1, unit="s", gt=0,
+    nodes: int = F(50, ge=6, le=4000, description="nodes from the pole to the clamp, 6..4000")
+    drag_time_s: float = F(0.1, unit="s", gt=0, le=MAX_TIME_S,
                            description="drag time tau = eta R^2/(G h0) of the overdamped sheet; loading is "
                            "slow when a stage lasts >> tau (docs/forming.md)")
-    ball_drag: float = F(1.0, gt=0, description="ball drag as a multiple of the sheet drag over the ball's area 4 pi R^2")
+    ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet drag over the ball's "
+                         "area 4 pi R^2, in (0, 1e6]")
     solver: Literal["kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F("kvaerno5", description="stiff solver")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
@@ -217,24 +239,29 @@ class FormingNumerics(Strict):
     atol: float = F(1e-7, gt=0, lt=1, description="absolute tolerance")
     pid_pcoeff: float = F(0.3, ge=0, le=1, description="PID controller proportional coefficient")
     pid_icoeff: float = F(0.3, gt=0, le=1, description="PID controller integral coefficient")
-    penalty_stiffness: float = F(1e4, gt=0, unit="1",
-                                 description="contact penalty stiffness k, units G h0 / R^3 per reference area")
-    penalty_width: float = F(1e-3, gt=0, description="penalty smoothing width w, units of R (C^2 penalty)")
-    friction_smoothing: float = F(1e-3, ge=0,
+    penalty_stiffness: float = F(1e4, gt=0, le=1e12, unit="1",
+                                 description="contact penalty stiffness k, units G h0 / R^3 per reference area, "
+                                 "in (0, 1e12]")
+    penalty_width: float = F(1e-3, gt=0, lt=1, description="penalty smoothing width w, units of R (C^2 penalty), "
+                             "in (0, 1)")
+    friction_smoothing: float = F(1e-3, ge=0, lt=1,
                                   description="force-space smoothing epsilon of the Coulomb law, units G h0 / R "
                                   "(exactly stuck below mu F_N - epsilon); 0 is the ideal law")
-    contact_threshold: float = F(1e-2, gt=0, description="contact where the pressure exceeds this (G h0 / R)")
+    contact_threshold: float = F(1e-2, gt=0, le=1e3, description="contact where the pressure exceeds this "
+                                 "(G h0 / R), in (0, 1e3]")
     support_stiffness: float = F(1e3, gt=0, le=1e8,
                                  description="ball: support: contact stiffness of the bottle neck on the ball, units "
                                  "G h0 (force G h0 R per penetration R; 1e3 lets the ball sink ~1e-3 R under a "
                                  "force of G h0 R)")
-    max_steps: int = F(50000, ge=100, description="step limit per save segment")
-    save_interval_s: float = F(2.0, unit="s", gt=0, description="time between saved frames (and condition checks)")
+    max_steps: int = F(50000, ge=100, le=100_000_000, description="step limit per save segment, 100..1e8")
+    save_interval_s: float = F(2.0, unit="s", ge=1e-4, le=MAX_TIME_S,
+                               description="time between saved frames (and condition checks), in [1e-4, 1e6] s; "
+                               "at most 1e6 frames in all")
     heal_rate_mm_s: float = F(0.002, unit="mm/s", ge=0, le=1.0,
                               description="healing criterion of slip_weakening: a node's slip distance resets where "
                               "its slip rate is at most this (checked at every save); 0 is the bare force criterion "
                               "S = 0, which a node settling onto its friction limit never reaches (docs/forming.md)")
-    trap_reaction_tol: float = F(1e-3, gt=0,
+    trap_reaction_tol: float = F(1e-3, gt=0, lt=1,
                                  description="trapped needs |ball reaction| below this (units G h0 R) at the end")
 
 
@@ -263,6 +290,10 @@ class FormingScenario(ScenarioBase):
         if self.start_from is None and prot.clamp_min_distance_to_ball() <= 1.0:
             raise ValueError("physics.stages: the clamp path enters the ball")
         assert isinstance(prot, Protocol)
+        frames = sum(s.max_duration for s in prot.stages) / self.numerics.save_interval_s
+        if frames > MAX_FRAMES:  # every saved frame is held in memory
+            raise ValueError(f"numerics.save_interval_s = {self.numerics.save_interval_s}: the loading path "
+                             f"(at its longest) would save {frames:.3g} frames; allowed: at most {MAX_FRAMES:.0e}")
         return self
 
     # the resolved start state of ``start_from`` (filled in by :func:`dynslip.app.forming.preflight`)

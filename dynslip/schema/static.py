@@ -62,10 +62,15 @@ class Gent(Strict):
     """Gent -(J_m/2) ln(1 - (I1 - 3)/J_m)."""
 
     model: Literal["gent"] = "gent"
-    jm: float = F(50.0, gt=0, description="locking parameter J_m (I1 < J_m + 3)")
+    jm: float = F(50.0, gt=0, le=1e4, description="locking parameter J_m (I1 < J_m + 3), in (0, 1e4]")
 
 
 Material = Annotated[Union[Hookean, NeoHookean, MooneyRivlin, Gent], Field(discriminator="model")]  # noqa: UP007
+
+#: bounds of the numbers in tuples (the mu bracket, the shooting's Newton start)
+MuValue = Annotated[float, Field(ge=0, le=100)]
+StretchValue = Annotated[float, Field(ge=1, le=10)]
+SwitchValue = Annotated[float, Field(gt=0, lt=math.pi)]
 
 
 def material_of(spec):
@@ -83,16 +88,19 @@ class Selection(Strict):
         "switch_radius",
         description="switch_radius: F_m changes sign at undeformed radius `value` (units R); "
         "switch_angle: at polar angle `value` (rad), which is also where the largest stretch sits")
-    value: float = F(0.25, gt=0, description="switch radius (units R) or switch angle (rad)")
+    value: float = F(0.25, gt=0, lt=math.pi, description="switch radius (units R) or switch angle (rad), in (0, pi)")
 
 
 class Geometry(Strict):
     """The contact region and the physical scales (paper Section 3.3)."""
 
-    ball_radius_mm: float = F(20.0, unit="mm", gt=0, description="ball radius R (sets the length scale)")
-    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, description="Young's modulus E = 3 G (force scale only)")
-    thickness_mm: float = F(0.15, unit="mm", gt=0, description="sheet thickness h0 (force scale only)")
-    rbar_max: float = F(0.9, gt=0, description="undeformed radius of the lift-off point, units R")
+    ball_radius_mm: float = F(20.0, unit="mm", gt=0, le=1e4, description="ball radius R (sets the length scale), "
+                              "in (0, 1e4] mm")
+    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, le=1e6,
+                                  description="Young's modulus E = 3 G (force scale only), in (0, 1e6] MPa")
+    thickness_mm: float = F(0.15, unit="mm", gt=0, le=1e4, description="sheet thickness h0 (force scale only), "
+                            "in (0, 1e4] mm")
+    rbar_max: float = F(0.9, gt=0, le=10, description="undeformed radius of the lift-off point, units R, in (0, 10]")
     theta_max: float = F(1.8, unit="rad", gt=0, lt=math.pi, description="polar angle of the lift-off point")
 
 
@@ -116,16 +124,19 @@ class StaticNumerics(Strict):
         "euler", description="diffrax solver: euler (constant stable step) or tsit5 (adaptive)")
     diffrax_rtol: float = F(1e-6, gt=0, lt=1, description="tsit5 relative tolerance")
     dt_safety: float = F(0.4, gt=0, le=1, description="explicit step as a fraction of h^2 / (2 D)")
-    rest_velocity: float = F(1e-6, gt=0, description="rest when max |d theta/dt| is below this (units rad per time unit)")
-    max_steps: int = F(400_000, ge=100, description="largest number of march steps per mu")
-    mu_bracket: tuple[float, float] = F((0.1, 5.0), description="search bracket for mu [low, high]")
+    rest_velocity: float = F(1e-6, gt=0, lt=1, description="rest when max |d theta/dt| is below this (units rad per "
+                             "time unit), in (0, 1)")
+    max_steps: int = F(400_000, ge=100, le=100_000_000, description="largest number of march steps per mu, 100..1e8")
+    mu_bracket: tuple[MuValue, MuValue] = F((0.1, 5.0), description="search bracket for mu [low, high], "
+                                            "0 <= low < high <= 100")
     mu_tol: float = F(1e-4, gt=0, lt=0.1, description="relative width of the final mu bracket")
-    fv_tol: float | None = F(None, ge=0, unit="1",
+    fv_tol: float | None = F(None, ge=0, le=1, unit="1",
                              description="F_v counts as vanished at or below this (units G*h0*R); null: "
                              "1e-3 (99/(n_nodes-1))^2, the O(h^2) discretisation error of F_v scaled from N=100")
     ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the fully mobilised shooting ODE")
-    switch_guess: tuple[float, float, float] = F(
-        (2.2, 1.0, 0.25), description="Newton start (pole stretch, mu, switch radius) of the shooting")
+    switch_guess: tuple[StretchValue, MuValue, SwitchValue] = F(
+        (2.2, 1.0, 0.25), description="Newton start (pole stretch in [1, 10], mu in [0, 100], switch radius in "
+        "(0, pi)) of the shooting")
 
     def fv_tolerance(self) -> float:
         """The F_v tolerance of the search (``fv_tol``, or its O(h^2) default)."""
@@ -150,7 +161,7 @@ class StaticScenario(ScenarioBase):
 class Figure4Physics(Geometry):
     """The three models of the paper's Fig. 4 (Hookean, neo-Hookean, Gent)."""
 
-    jm: float = F(50.0, gt=0, description="Gent J_m (paper: 50)")
+    jm: float = F(50.0, gt=0, le=1e4, description="Gent J_m (paper: 50), in (0, 1e4]")
     initial_shape: Literal["fully_mobilised", "linear"] = F("fully_mobilised", description="as in kind static")
     selection: Selection = F(Selection(), description="one selection rule for all three models")
 
@@ -165,11 +176,11 @@ class Figure4Scenario(ScenarioBase):
 class FamilyPhysics(Geometry):
     """The fully mobilised family of the three models, swept along its switch point."""
 
-    jm: float = F(50.0, gt=0, description="Gent J_m")
+    jm: float = F(50.0, gt=0, le=1e4, description="Gent J_m, in (0, 1e4]")
     switch_by: Literal["switch_radius", "switch_angle"] = F(
         "switch_radius", description="parameter of the family")
-    switch_from: float = F(0.15, gt=0, description="first switch value (units R, or rad)")
-    switch_to: float = F(0.32, gt=0, description="last switch value (units R, or rad)")
+    switch_from: float = F(0.15, gt=0, lt=math.pi, description="first switch value (units R, or rad), in (0, pi)")
+    switch_to: float = F(0.32, gt=0, lt=math.pi, description="last switch value (units R, or rad), in (0, pi)")
     selection: Selection = F(Selection(), description="rule marked on the plot")
 
     @model_validator(mode="after")
@@ -186,8 +197,9 @@ class FamilyNumerics(Strict):
 
     n_members: int = F(18, ge=2, le=400, description="members along the switch range")
     ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the shooting ODE")
-    switch_guess: tuple[float, float, float] = F(
-        (2.2, 1.0, 0.25), description="Newton start (pole stretch, mu, switch radius) at the middle member")
+    switch_guess: tuple[StretchValue, MuValue, SwitchValue] = F(
+        (2.2, 1.0, 0.25), description="Newton start (pole stretch in [1, 10], mu in [0, 100], switch radius in "
+        "(0, pi)) at the middle member")
 
 
 class FamilyScenario(ScenarioBase):
@@ -214,10 +226,18 @@ class CylinderPhysics(Strict):
 class CylinderNumerics(Strict):
     """Random admissible friction profiles and their grid."""
 
-    n_profiles: int = F(200, ge=1, le=100_000, description="random admissible friction profiles")
-    n_nodes: int = F(400, ge=8, le=100_000, description="nodes on [0, theta_max]")
-    n_angles: int = F(30, ge=2, le=1000, description="lift-off angles sampled")
-    seed: int = F(0, ge=0, description="random seed")
+    n_profiles: int = F(200, ge=1, le=10_000, description="random admissible friction profiles, 1..1e4 "
+                        "(n_profiles * n_nodes <= 1e7)")
+    n_nodes: int = F(400, ge=8, le=10_000, description="nodes on [0, theta_max], 8..1e4")
+    n_angles: int = F(30, ge=2, le=1000, description="lift-off angles sampled, 2..1000")
+    seed: int = F(0, ge=0, le=2**31 - 2, description="random seed, 0..2^31-2 (seed + 1 seeds the plotted profiles)")
+
+    @model_validator(mode="after")
+    def _size(self):
+        if self.n_profiles * self.n_nodes > 10_000_000:
+            raise ValueError(f"n_profiles * n_nodes = {self.n_profiles * self.n_nodes}: allowed at most 1e7 "
+                             "(the profiles of one angle are held in memory at once)")
+        return self
 
 
 class CylinderScenario(ScenarioBase):
