@@ -80,7 +80,9 @@ def build_core(sc):
     weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0
     settings = Settings(solver=nu.solver, rtol=nu.rtol, atol=nu.atol, pcoeff=nu.pid_pcoeff, icoeff=nu.pid_icoeff,
                         max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
-                        contact_threshold=nu.contact_threshold, heal_rate=nu.heal_rate_mm_s / r)
+                        contact_threshold=nu.contact_threshold, heal_rate=nu.heal_rate_mm_s / r,
+                        max_increment=nu.max_increment, max_increment_free=nu.max_increment_free,
+                        newton_max_iter=nu.newton_max_iter)
     kwargs = dict(
         friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
                                d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
@@ -221,6 +223,7 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "steps": st["steps"], "accepted": st["accepted"], "rejected": st["rejected"],
             "segments": st["segments"], "compile_s": st["compile_s"], "run_s": st["run_s"],
             "time_per_step_ms": st["time_per_step_ms"], "wall_s": st.get("wall_s"),
+            "method": st.get("method"), "newton_iterations": st.get("newton_iterations"),
         },
         "nodes": sc.numerics.nodes,
     }

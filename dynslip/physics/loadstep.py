@@ -22,16 +22,14 @@ advanced by the same rule, so
   $\tfrac12 \Delta x^T H \Delta x$ per increment, first order in $\Delta t$ overall
   (``tests/test_loadstep.py`` measures it).
 
-**Solver.** :class:`dynslip.physics.upstream.ImplicitEuler` (diffrax's, with the fix of
-diffrax PR #753: a failed Newton solve rejects the increment) with an
+**Solver.** :class:`LoadStepEuler`, a :class:`dynslip.physics.upstream.ImplicitEuler`
+(diffrax's, with the fix of diffrax PR #753: a failed Newton solve rejects the increment) with an
 :class:`optimistix.Newton` root finder (``rtol``, ``atol`` of the scenario's numerics,
 max norm, Cauchy termination: the last Newton correction below
 ``atol + rtol |dx|`` *and* the residual below ``atol``) whose linear solver is
 :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`. Newton starts from
-ImplicitEuler's predictor $\Delta t\,f(t_0, x_0)$, which after an accepted implicit
-Euler increment is exactly the previous increment rescaled to the new $\Delta t$
-($f(t_0, x_0) = (x_0 - x_{-1})/\Delta t_{-1}$); at a stage start or after a reset of the
-slip distance it is the rate of the restarted state.
+the previous increment rescaled to the new $\Delta t$, and from zero at the start of a
+save segment (see :class:`LoadStepEuler` for why not diffrax's $\Delta t\,f(t_0, x_0)$).
 
 **Increments** (as Abaqus/FEBio): a ``lax.while_loop`` over ``solver.step``; a failed
 Newton solve (iteration limit, divergence, non-finite state) rejects the increment and
@@ -66,29 +64,73 @@ import jax
 import jax.numpy as jnp
 import lineax as lx
 import optimistix as optx
+from diffrax._solver.implicit_euler import _implicit_relation
+from equinox.internal import ω
 
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
-from dynslip.physics.upstream import ImplicitEuler
+from dynslip.physics.upstream import ImplicitEuler, reject_failed
 
-__all__ = ["load_step_solver", "segment_solver", "GROW", "CUT", "GROW_BELOW", "SHRINK_ABOVE"]
+__all__ = ["LoadStepEuler", "IncrementState", "load_step_solver", "increments", "run_segment", "segment_solver", "GROW", "CUT", "GROW_BELOW",
+           "SHRINK_ABOVE"]
 
 GROW = 1.5  # increment growth after a fast Newton solve
-GROW_BELOW = 4  # ... of at most this many iterations
+GROW_BELOW = 6  # ... of at most this many iterations
 SHRINK = 0.7  # increment shrink after a slow Newton solve
-SHRINK_ABOVE = 8  # ... of at least this many iterations
+SHRINK_ABOVE = 12  # ... of at least this many iterations
 CUT = 0.5  # cut-back after a failed Newton solve
 MIN_FRACTION = 1e-10  # smallest increment, as a fraction of the segment
 
 
-def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 10):
+class IncrementState(eqx.Module):
+    """Solver state of :class:`LoadStepEuler`: the last accepted increment per unit time
+    (zero at a restart) and the Newton iterations of the last step."""
+
+    rate: jax.Array
+    iterations: jax.Array
+
+
+class LoadStepEuler(ImplicitEuler):
+    r"""Implicit Euler (:class:`dynslip.physics.upstream.ImplicitEuler`, diffrax PR #753's
+    rejection of a failed solve) with Newton started from the previous increment.
+
+    $x_1 = x_0 + \Delta t f(t_1, x_1)$ is solved for the increment $k = x_1 - x_0$ by the root
+    finder, starting from $k^{(0)} = \Delta t\,r$, $r$ the last accepted increment per unit
+    time (zero after a restart: a save segment's or a stage's start, where the slip
+    distance is reset or the loads change). diffrax's own predictor $\Delta t f(t_0, x_0)$
+    equals this after an accepted increment with unchanged loads, but not after a restart,
+    where it can throw a slack free edge far enough that Newton cycles between its slack
+    and taut branches; zero is then the safe start. The solver state carries the root
+    finder's iteration count (diffrax drops it), which the increment control reads. The
+    error estimate $(k - k^{(0)})/2$ (the predictor's error) is infinite where Newton failed.
+    """
+
+    def init(self, terms, t0, t1, y0, args):
+        del terms, t0, t1, args
+        return IncrementState(rate=jnp.zeros_like(y0), iterations=jnp.array(0, dtype=jnp.int32))
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        del made_jump
+        control = terms.contr(t0, t1)
+        k0 = solver_state.rate * (t1 - t0)
+        sol = optx.root_find(_implicit_relation, self.root_finder, k0, (terms.vf_prod, t1, y0, args, control),
+                             throw=False, max_steps=self.root_find_max_steps)
+        k1 = sol.value
+        y1 = (y0**ω + k1**ω).ω
+        result = diffrax.RESULTS.promote(sol.result)
+        y_error = reject_failed((0.5 * (k1**ω - k0**ω)).ω, result)
+        state = IncrementState(rate=k1 / (t1 - t0), iterations=jnp.asarray(sol.stats["num_steps"], jnp.int32))
+        return y1, y_error, dict(y0=y0, y1=y1), state, result
+
+
+def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 16):
     """The implicit Euler solver of a load increment: Newton with explicit tolerances."""
     from dynslip.physics.simulate import sheet_structure
 
     lin = (BorderedBlockTridiagonal(sheet_structure(layout)) if linear_solver == "structured"
            else lx.AutoLinearSolver(well_posed=None))
     newton = optx.Newton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True)
-    return ImplicitEuler(root_finder=newton, root_find_max_steps=max_iter)
+    return LoadStepEuler(root_finder=newton, root_find_max_steps=max_iter)
 
 
 def increment_cap(args, max_increment, max_increment_free):
@@ -100,39 +142,47 @@ def increment_cap(args, max_increment, max_increment_free):
 
 def run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, *, max_steps: int, max_iter: int,
                 max_increment: float, max_increment_free: float, linear_solver: str = "structured"):
-    """Load increments from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected, newton_iterations)``.
-
-    Not jitted (see :func:`segment_solver`). ``dt0`` is the first increment tried.
+    """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
+    newton_iterations)``. Not jitted (see :func:`segment_solver`). ``dt0`` is the first increment tried.
     """
     from dynslip.physics.simulate import vector_field
 
     term = diffrax.ODETerm(vector_field(model, layout))
     solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter)
     cap = increment_cap(args, max_increment, max_increment_free)
+    return increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps)
+
+
+def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int):
+    """The increment loop over ``solver.step`` (a :class:`LoadStepEuler`) for any diffrax term:
+    ``(y1, ok, steps, accepted, rejected, newton_iterations)``; increments at most ``cap``."""
     dt_min = MIN_FRACTION * (t1 - t0)
     zero = jnp.array(0, dtype=jnp.int32)
 
     def cond(c):
-        t, _, dt, nacc, nrej, _ = c
+        t, _, _, dt, _, nacc, nrej, _ = c
         return (t < t1) & (nacc + nrej < max_steps) & (dt >= dt_min)
 
     def body(c):
-        t, y, dt, nacc, nrej, nit = c
+        t, y, state, dt, was_cut, nacc, nrej, nit = c
         left = t1 - t
         last = left <= 1.25 * dt  # stretch the increment to the save time rather than leave a sliver
         h = jnp.where(last, left, dt)
         t_next = jnp.where(last, t1, t + h)
-        y1, y_err, _, iters, result = solver.step(term, t, t_next, y, args, solver.init(term, t, t_next, y, args),
-                                                  False)
+        y1, y_err, _, new_state, result = solver.step(term, t, t_next, y, args, state, False)
+        iters = new_state.iterations
         ok = diffrax.is_okay(result) & jnp.all(jnp.isfinite(y_err)) & jnp.all(jnp.isfinite(y1))
         factor = jnp.where(iters <= GROW_BELOW, GROW, jnp.where(iters >= SHRINK_ABOVE, SHRINK, 1.0))
+        factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)  # no growth right after a cut-back
         # an increment clipped to the save time does not shrink the next one
         dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
         dt_new = jnp.where(ok, dt_ok, CUT * h)
-        return (jnp.where(ok, t_next, t), jnp.where(ok, y1, y), dt_new, nacc + ok, nrej + (~ok), nit + iters)
+        state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, state)
+        return (jnp.where(ok, t_next, t), jnp.where(ok, y1, y), state, dt_new, ~ok, nacc + ok, nrej + (~ok),
+                nit + iters)
 
-    init = (t0, y0, jnp.minimum(dt0, cap), zero, zero, zero)
-    t, y, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
+    init = (t0, y0, solver.init(term, t0, t1, y0, args), jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
+    t, y, _, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
     ok = (t >= t1) & jnp.all(jnp.isfinite(y))
     return y, ok, nacc + nrej, nacc, nrej, nit
 

@@ -202,7 +202,7 @@ class Settings:
     linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
     # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
     # increment bound in drag times, driven stages / stages with the ball or clamp under a force
-    newton_max_iter: int = 10
+    newton_max_iter: int = 16
     max_increment: float = 20.0
     max_increment_free: float = 5.0
 

@@ -12,10 +12,8 @@ import jax
 import jax.numpy as jnp
 import optimistix as optx
 from diffrax._root_finder._verychord import _converged, _diverged, _small
-from diffrax._solver.implicit_euler import _implicit_relation
-from equinox.internal import ω
 
-__all__ = ["VeryChord", "ImplicitEuler"]
+__all__ = ["VeryChord", "ImplicitEuler", "reject_failed"]
 
 
 class VeryChord(diffrax.VeryChord):
@@ -55,39 +53,26 @@ class VeryChord(diffrax.VeryChord):
 class ImplicitEuler(diffrax.ImplicitEuler):
     r"""``diffrax.ImplicitEuler`` whose failed root find rejects the step (diffrax issue #752, PR #753).
 
-    diffrax 0.7.2's ``ImplicitEuler.step`` returns the root finder's result but a finite
-    error estimate when the nonlinear solve fails (iteration limit, divergence, a failed
-    linear solve); ``diffeqsolve`` hands the estimate to the step-size controller, which
-    accepts the unconverged step, and the failure surfaces only as an error at the end.
-    PR #753 (merged, unreleased) sets the error estimate to infinity on failure, as
-    ``AbstractRungeKutta`` does, so that a controller rejects the step and retries a
-    smaller one. This class is the 0.7.2 ``step`` with that line.
+    diffrax 0.7.2's ``ImplicitEuler.step`` returns the root finder's failure code but a
+    finite error estimate when the nonlinear solve fails (iteration limit, divergence, a
+    failed linear solve); ``diffeqsolve`` hands the estimate to the step-size controller,
+    which accepts the unconverged step, and the failure surfaces only at the end of the
+    solve. PR #753 (merged, unreleased) sets the error estimate to infinity on failure, as
+    ``AbstractRungeKutta`` does, so that the controller rejects the step and retries a
+    smaller one. This class is diffrax's ``step`` followed by that line.
 
-    One addition that is not upstream: the solver state (``None`` in diffrax) is the root
-    finder's iteration count in the last step, which diffrax drops and an increment
-    controller driven by Newton's iteration count needs
-    (:mod:`dynslip.physics.loadstep`). When a diffrax release with PR #753 is pinned,
+    Drop this class (use ``diffrax.ImplicitEuler``) once the pinned diffrax contains PR #753:
     ``tests/test_loadstep.py::test_pinned_implicit_euler_still_accepts_a_failed_solve``
-    fails: keep only the iteration count here (or in ``loadstep``) then.
+    fails then.
     """
 
-    def init(self, terms, t0, t1, y0, args):
-        del terms, t0, t1, y0, args
-        return jnp.array(0, dtype=jnp.int32)
-
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
-        del made_jump, solver_state
-        control = terms.contr(t0, t1)
-        k0 = terms.vf_prod(t0, y0, args, control)
-        rargs = (terms.vf_prod, t1, y0, args, control)
-        nonlinear_sol = optx.root_find(_implicit_relation, self.root_finder, k0, rargs, throw=False,
-                                       max_steps=self.root_find_max_steps)
-        k1 = nonlinear_sol.value
-        y1 = (y0**ω + k1**ω).ω
-        result = diffrax.RESULTS.promote(nonlinear_sol.result)
-        y_error = (0.5 * (k1**ω - k0**ω)).ω
-        # diffrax PR #753: an unconverged implicit solve must not pass the controller
-        y_error = jax.tree_util.tree_map(lambda e: jnp.where(diffrax.is_okay(result), e, jnp.inf), y_error)
-        dense_info = dict(y0=y0, y1=y1)
-        iterations = jnp.asarray(nonlinear_sol.stats["num_steps"], dtype=jnp.int32)
-        return y1, y_error, dense_info, iterations, result
+        y1, y_error, dense_info, solver_state, result = super().step(terms, t0, t1, y0, args, solver_state,
+                                                                     made_jump)
+        y_error = reject_failed(y_error, result)
+        return y1, y_error, dense_info, solver_state, result
+
+
+def reject_failed(y_error, result):
+    """diffrax PR #753: an infinite error estimate where the implicit solve failed."""
+    return jax.tree_util.tree_map(lambda e: jnp.where(diffrax.is_okay(result), e, jnp.inf), y_error)

@@ -229,7 +229,15 @@ class FormingNumerics(Strict):
                            "slow when a stage lasts >> tau (docs/forming.md)")
     ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet drag over the ball's "
                          "area 4 pi R^2, in (0, 1e6]")
-    solver: Literal["kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F("kvaerno5", description="stiff solver")
+    solver: Literal["kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler", "load_step"] = F(
+        "kvaerno5", description="stiff solver; load_step: quasi-static implicit Euler load increments controlled "
+        "by Newton's iteration count (first order in time: for slow paths; rtol, atol are Newton's tolerances)")
+    max_increment: float = F(20.0, gt=0, le=1e4, description="load_step: largest increment in drag times, driven "
+                             "stages, in (0, 1e4] (the drag eta A / dt keeps Newton's matrix regular on slack sheet)")
+    max_increment_free: float = F(5.0, gt=0, le=1e4, description="load_step: largest increment in drag times where "
+                                  "the ball or the clamp moves under a force (let-go, release, rest), in (0, 1e4]")
+    newton_max_iter: int = F(16, ge=2, le=100, description="load_step: Newton iterations before an increment is "
+                             "cut, 2..100")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
         description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "

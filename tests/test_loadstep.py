@@ -1,0 +1,203 @@
+"""Quasi-static load stepping (issue 10 section 2, :mod:`dynslip.physics.loadstep`).
+
+The local ImplicitEuler fix (diffrax PR #753) against the pinned class; load stepping
+against Kvaerno5 on a short push-down path; the one-node friction ramp under load
+stepping; the energy balance residual (implicit Euler's own numerical dissipation) and
+the end state's error, with their order in the increment measured by a log-log fit.
+Small mesh (N = 24), the push-down path of test_forming.
+"""
+
+import math
+
+import diffrax
+import equinox as eqx
+import jax.numpy as jnp
+import lineax as lx
+import numpy as np
+import optimistix as optx
+import pytest
+
+from dynslip.physics.friction import Coulomb, make_friction
+from dynslip.physics.loadstep import LoadStepEuler, increments, run_segment
+from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.simulate import Layout, Settings, _stage_args, initial_state, simulate
+from dynslip.physics.upstream import ImplicitEuler
+
+from test_forming import MAT, PRE, RIM, Z0, push_protocol, residual
+
+N = 24
+MODEL = SheetModel(make_mesh(N, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
+TAU = 0.1  # drag time (s)
+MU = 0.8
+
+
+def _friction():
+    return Coulomb(mu=jnp.asarray(MU), eps=jnp.asarray(1e-3))
+
+
+def _run(solver, **kw):
+    return simulate(MODEL, push_protocol(), friction=_friction(), eps=1e-3, drag=TAU, ball_drag=TAU * 4 * math.pi,
+                    pre_stretch=PRE, z_sheet=Z0, settings=Settings(solver=solver, save_interval=1.0, **kw))
+
+
+# ----------------------------------------------------------------------------- diffrax PR #753
+
+
+def _failing_step(cls):
+    """One step of y' = -y^3 from y = 1 over dt = 1 with a single Newton iteration allowed:
+    the root find fails (iteration limit)."""
+    term = diffrax.ODETerm(lambda t, y, args: -(y**3))
+    solver = cls(root_finder=optx.Newton(rtol=1e-10, atol=1e-12), root_find_max_steps=1)
+    y0 = jnp.array([1.0])
+    return solver.step(term, 0.0, 1.0, y0, None, solver.init(term, 0.0, 1.0, y0, None), False)
+
+
+def test_failed_newton_solve_is_rejected():
+    _, y_err, _, _, result = _failing_step(ImplicitEuler)
+    assert result != diffrax.RESULTS.successful
+    assert not np.all(np.isfinite(np.asarray(y_err)))
+
+
+def test_pinned_implicit_euler_still_accepts_a_failed_solve():
+    """diffrax 0.7.2 returns a finite error estimate with a failed solve (issue #752): when this
+    fails, a release with PR #753 is pinned: drop dynslip.physics.upstream.ImplicitEuler."""
+    _, y_err, _, _, result = _failing_step(diffrax.ImplicitEuler)
+    assert result != diffrax.RESULTS.successful
+    assert np.all(np.isfinite(np.asarray(y_err)))
+
+
+# ----------------------------------------------------------------------------- against Kvaerno5
+
+
+@pytest.fixture(scope="module")
+def reference():
+    res = _run("kvaerno5", rtol=1e-7, atol=1e-9)
+    assert res.failed is None, res.failed
+    return res
+
+
+def test_load_step_matches_kvaerno5_on_a_short_push_down(reference):
+    """Same end state (after the hold) within 1e-5 R in rho and z; far fewer steps; the Newton
+    iterations and the method reported."""
+    res = _run("load_step")
+    assert res.failed is None, res.failed
+    fa, fb = reference.frames[-1], res.frames[-1]
+    d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))
+    st = res.stats
+    print(f"load_step vs kvaerno5 (N = {N}): max |dx| = {d:.2e} R; steps {st['steps']} ({st['rejected']} rejected, "
+          f"{st['newton_iterations']} Newton iterations) vs {reference.stats['steps']}")
+    assert d < 1e-5
+    assert abs(float(fa["theta_max"]) - float(fb["theta_max"])) < 1e-4
+    assert st["method"] == "load_step" and st["newton_iterations"] >= st["accepted"] > 0
+    assert st["steps"] < reference.stats["steps"]
+    assert st["accepted"] + st["rejected"] == st["steps"]
+
+
+# ----------------------------------------------------------------------------- energy and order
+
+
+@eqx.filter_jit
+def _fixed_increments(model, layout, y0, t1, h, args):
+    """The push-down stage in increments of h (the cap; with h <= tau Newton converges fast, so
+    every increment but the first few and a cut-back or two is h)."""
+    return run_segment(model, layout, y0, jnp.asarray(0.0), t1, h, args, jnp.asarray(1e-8), jnp.asarray(1e-10),
+                       max_steps=100000, max_iter=16, max_increment=h / TAU, max_increment_free=h / TAU)
+
+
+def test_energy_residual_and_end_state_are_first_order_in_the_increment(reference):
+    """Work = change of stored energy + drag + friction dissipation, every term accumulated
+    from its backward-Euler increment; the residual is implicit Euler's numerical dissipation,
+    O(h) over the path, as is the end state's error against Kvaerno5 (rtol 1e-7)."""
+    protocol = push_protocol()
+    stage = protocol.stages[0]
+    layout = Layout(N, 0)
+    args = _stage_args(stage, 0.0, protocol.ball_z0, 0.0, (0.0, 0.0), _friction(), 1e-3, TAU, TAU * 4 * math.pi, 0.0)
+    y0 = initial_state(MODEL, layout, PRE, Z0, protocol.ball_z0)
+    t1 = jnp.asarray(stage.max_duration)
+    # Kvaerno5's state at the end of push-down (the frame at the stage boundary)
+    ref = next(f for f in reference.frames if abs(f["time"] - stage.max_duration) < 1e-9)
+
+    def energy(y):
+        rho, z, zb, acc = layout.unpack(y)
+        stored = MODEL.elastic_energy(rho, z) + MODEL.penalty_energy(rho, z, zb)
+        return float(acc[0] + acc[1]), float(stored), float(acc[2] + acc[3])
+
+    w0, e0, _ = energy(y0)
+    hs = np.array([0.1, 0.05, 0.025, 0.0125])
+    resid, err, steps = [], [], []
+    for h in hs:
+        y1, ok, nst, nacc, nrej, nit = _fixed_increments(MODEL, layout, y0, t1, jnp.asarray(h), args)
+        assert bool(ok)
+        w, e, d = energy(y1)
+        resid.append(abs(w - (e - e0) - d) / abs(w))
+        rho, z, _, _ = layout.unpack(y1)
+        err.append(max(np.max(np.abs(np.asarray(rho) - ref["rho"])), np.max(np.abs(np.asarray(z) - ref["z"]))))
+        steps.append((int(nacc), int(nrej), int(nit)))
+
+    p_res = np.polyfit(np.log(hs), np.log(resid), 1)[0]
+    p_err = np.polyfit(np.log(hs), np.log(err), 1)[0]
+    print(f"increments {hs} s: energy residual / work {np.array(resid)} (order {p_res:.2f}); "
+          f"|x - x_kvaerno5| {np.array(err)} R (order {p_err:.2f}); (accepted, rejected, Newton) {steps}")
+    assert resid[-1] < 1e-2
+    assert 0.85 < p_res < 1.15  # measured 0.99
+    assert 0.7 < p_err < 1.3  # measured 0.98
+
+
+# ----------------------------------------------------------------------------- one node
+
+
+MU_S, MU_K, D_C = 0.99, 0.82, 0.02
+
+
+@eqx.filter_jit
+def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta):
+    """The one-node ramp of test_weakening under load stepping: eta x' = S(K (X(t) - x), mu(delta) N),
+    delta' = |x'|, in increments of at most 0.01 s (the node's drag time eta / K)."""
+
+    def vf(t, y, args):
+        x, delta = y
+        f = stiff * (x_drive0 + v_drive * (t - t0) - x)
+        s = fr.slip_force(f, normal, delta)
+        return jnp.stack([s / eta, fr.internal_rate(s / eta, normal, delta)])
+
+    newton = optx.Newton(rtol=1e-10, atol=1e-12, norm=optx.max_norm, linear_solver=lx.LU(), cauchy_termination=True)
+    solver = LoadStepEuler(root_finder=newton, root_find_max_steps=16)
+    y1, ok, *_ = increments(diffrax.ODETerm(vf), solver, y0, t0, t1, jnp.asarray(1e-3), None, jnp.asarray(0.01), 10000)
+    f1 = stiff * (x_drive0 + v_drive * (t1 - t0) - y1[0])
+    return y1, ok, f1, fr.slip_force(f1, normal, y1[1])
+
+
+def test_one_node_ramp_under_load_stepping():
+    """K = 10, V = 0.01, N = 1, eta = 0.1: exactly stuck until K V t = mu_s N (no motion at all:
+    the increment's trial force is inside the cone), peak at mu_s N, sliding at mu_k N + eta V
+    past d_c; unloading re-sticks it, the slip distance is reset, reloading needs mu_s N again."""
+    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    stiff, normal, eta, v, seg = 10.0, 1.0, 0.1, 0.01, 0.05
+    y = jnp.zeros(2)
+    t, xd = 0.0, 0.0
+    rows = [(0.0, 0.0, 0.0, 0.0, 0.0)]
+    for dur, vel in [(20.0, v), (2.0, -v), (18.0, v)]:
+        for _ in range(int(round(dur / seg))):
+            y, ok, f, s = _node_segment(fr, y, jnp.asarray(t), jnp.asarray(t + seg), jnp.asarray(xd),
+                                        jnp.asarray(vel), stiff, normal, eta)
+            assert bool(ok)
+            y = y.at[1].set(fr.reset(y[1], s / eta, normal))  # the driver's reset at a segment end
+            t, xd = t + seg, xd + vel * seg
+            rows.append((t, float(y[0]), float(y[1]), float(f), float(s)))
+    t, x, delta, force, slip = (np.array(c) for c in zip(*rows, strict=True))
+    first = t <= 20.0 + 1e-9
+    t_onset = MU_S / (stiff * v)
+    assert np.all(x[t < t_onset * (1 - 1e-3)] == 0.0)
+    assert np.all(x[(t > t_onset * 1.01) & first] > 0.0)
+    peak1 = force[first].max()
+    assert abs(peak1 - MU_S) / MU_S < 1e-2, peak1
+    late = (t > 17.0) & first
+    assert np.all(delta[late] > D_C)
+    assert np.allclose(force[late], MU_K + eta * v, rtol=1e-2), force[late]
+    back = (t > 20.2) & (t <= 22.0 + 1e-9)
+    assert np.all(slip[back] == 0.0) and np.all(delta[back] == 0.0)
+    assert np.ptp(x[back]) == 0.0
+    peak2 = force[t > 22.0].max()
+    assert abs(peak2 - MU_S) / MU_S < 1e-2, peak2
+    print(f"one-node ramp, load stepping: peaks {peak1:.5f}, {peak2:.5f} (mu_s N = {MU_S}); sliding force "
+          f"{force[late].mean():.5f} (mu_k N + eta V = {MU_K + eta * v:.5f})")
