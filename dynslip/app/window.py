@@ -344,6 +344,10 @@ def run_window(
     member_fn = member_fn or default_member_fn
     path = Path(scenario)
     data = scen.load_data(path, list(overrides)) if data is None else copy.deepcopy(data)
+    start = data.get("start_from") if isinstance(data, dict) else None
+    if isinstance(start, str) and not Path(start).is_absolute() and not Path(start).exists():
+        # members run without the file's folder: a start_from relative to it is made absolute
+        data["start_from"] = str((path.parent / start).resolve())
     resolved = resolve(data, str(path), validate_fn)
     field_name, tied = friction_field(resolved, field)
     d = WindowDefaults()
