@@ -216,7 +216,7 @@ def free_span_check(ds: xr.Dataset, model) -> dict:
             continue
         p = np.asarray(model.free_span_axial_force(jnp.asarray(f["rho"].values), jnp.asarray(f["z"].values)))[el]
         hold = float(static[i])
-        if abs(hold) < 1e-2 * scale:  # a slack span: relative measures are meaningless
+        if scale == 0 or abs(hold) < 1e-2 * scale:  # a slack span: relative measures are meaningless
             continue
         mean = float(np.mean(p))
         spreads.append(float(np.ptp(p) / abs(mean)))
