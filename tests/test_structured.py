@@ -15,9 +15,9 @@ N = 12
 
 
 def _setup():
-    sc = load(SCENARIOS / "method2.yaml", [f"numerics.nodes={N}"])
+    sc = load(SCENARIOS / "method2_let_go.yaml", [f"numerics.nodes={N}"])
     model, protocol, kw = build_core(sc)
-    layout = Layout(N, kw["friction"].n_internal())  # method2.yaml: slip weakening, one state per node
+    layout = Layout(N, kw["friction"].n_internal())  # slip weakening, one state per node; stage 0 holds the ball (a force-controlled ball couples every node to the clamp: not this pattern)
     stage = protocol.stages[0]
     args = _stage_args(stage, 0.0, float(protocol.ball_z0), 0.0, 0.0, kw["friction"], kw["eps"], kw["drag"],
                        kw["ball_drag"], kw["weight"])
