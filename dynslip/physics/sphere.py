@@ -25,7 +25,8 @@ Solvers:
 
 - the paper's soft-threshold march $\dot\theta_i = S(F_{m,i}, \mu F_{N,i})$,
   $S(f, c) = \mathrm{sign}(f)\max(|f| - c, 0)$, to rest: :func:`march_explicit` (a jitted
-  forward-Euler ``lax.while_loop``) and :func:`march_diffrax` (diffrax with a
+  forward-Euler ``lax.while_loop``), :func:`march_implicit` (backward Euler with growing
+  steps, each solved by semi-smooth Newton) and :func:`march_diffrax` (diffrax with a
   steady-state event);
 - the search on $\mu$ for $F_v = 0$: :func:`search_mu` (bracket and bisection);
 - the well-posed form, the fully mobilised family (:func:`solve_member`): $F_m = +\mu F_N$
@@ -60,6 +61,8 @@ __all__ = [
     "stable_dt",
     "MarchResult",
     "march_explicit",
+    "march_implicit",
+    "velocity_jacobian",
     "march_diffrax",
     "march",
     "SearchResult",
@@ -148,6 +151,10 @@ def vertical_force(material: AbstractMaterial, theta, h):
     f = fields(material, theta, h)
     integrand = (f.fn * jnp.cos(theta) + f.fm * jnp.sin(theta)) * jnp.sin(theta) * f.lt
     return 2.0 * jnp.pi * _trapz(integrand, h)
+
+
+# F_v compiled once per material and grid size (eagerly it costs more than a march near rest)
+_vertical_force_jit = eqx.filter_jit(vertical_force)
 
 
 def vertical_force_identity(material: AbstractMaterial, theta, h):
@@ -255,16 +262,97 @@ def march_diffrax(material, theta0, h, mu, dt, t_end, vtol, rtol, solver: str = 
     return MarchResult(theta, vmax, sol.stats["num_steps"], vmax <= vtol)
 
 
+_BAND = 2  # the march velocity at node i depends on theta at nodes i-2 .. i+2
+
+
+def velocity_jacobian(material, theta, h, mu):
+    r"""$\partial\dot\theta/\partial\theta$ of :func:`velocity` (N, N), dense, from five
+    Jacobian-vector products: the velocity at node $i$ depends on $\theta_{i-2..i+2}$ only
+    (centred differences of centred differences), so seeds $e_j$ summed over $j \equiv c$
+    (mod 5) do not overlap. JAX's derivative of the soft threshold (1 where a node slips, 0
+    where it sticks) makes this a generalised Jacobian: Newton on it is semi-smooth Newton."""
+    n = theta.shape[0]
+    width = 2 * _BAND + 1
+    idx = jnp.arange(n)
+    seeds = (idx[None, :] % width == jnp.arange(width)[:, None]).astype(theta.dtype)  # (5, N)
+    fn = lambda th: velocity(material, th, h, mu)  # noqa: E731
+    cols = jax.vmap(lambda s: jax.jvp(fn, (theta,), (s,))[1])(seeds)  # (5, N): cols[c, i]
+    # J[i, j] = cols[j % 5, i] for |i - j| <= 2, else 0
+    jj = idx[None, :]
+    ii = idx[:, None]
+    band = jnp.abs(ii - jj) <= _BAND
+    return jnp.where(band, cols[jj % width, ii], 0.0)
+
+
+@eqx.filter_jit
+def march_implicit(material, theta0, h, mu, dt0, vtol, max_steps, growth=4.0, dt_max=1e6,
+                   newton_tol=1e-12, max_newton=30):
+    r"""The paper's march to rest with backward-Euler steps,
+    $\theta^{n+1} = \theta^n + \Delta t_n\,S(F_m(\theta^{n+1}), \mu F_N(\theta^{n+1}))$, each solved by
+    semi-smooth Newton on $G = \theta - \theta^n - \Delta t\,\dot\theta(\theta)$
+    (:func:`velocity_jacobian`, dense LU) from $\theta^n$ until the Newton update is at most
+    ``newton_tol`` (rad) at every node.
+
+    The steps grow by ``growth`` from ``dt0`` up to ``dt_max``; a step whose Newton solve does
+    not converge in ``max_newton`` iterations is rejected and retried at a quarter of the
+    step. Stops at rest, $\max|\dot\theta| \le$ ``vtol`` (the same test as
+    :func:`march_explicit`), or after ``max_steps`` attempted steps. ``steps`` counts the
+    accepted steps. The end state is the rest state reached along the (first-order
+    accurate) path; with the large steps it tracks the overdamped flow only coarsely, see
+    docs/static-model.md for the measured difference to the explicit march."""
+    n = theta0.shape[0]
+    eye = jnp.eye(n, dtype=theta0.dtype)
+
+    def newton(theta_n, dt):
+        def g(th):
+            return th - theta_n - dt * velocity(material, th, h, mu)
+
+        def cond(c):
+            _, k, r = c
+            return (r > newton_tol) & (k < max_newton) & jnp.isfinite(r)
+
+        def body(c):
+            th, k, _ = c
+            jac = eye - dt * velocity_jacobian(material, th, h, mu)
+            d = jnp.linalg.solve(jac, g(th))
+            return th - d, k + 1, jnp.max(jnp.abs(d))
+
+        th, k, r = jax.lax.while_loop(cond, body, (theta_n, jnp.asarray(0), jnp.asarray(1e300, theta_n.dtype)))
+        return th, k, (r <= newton_tol) & jnp.all(jnp.isfinite(th))
+
+    def cond(c):
+        _, _, n_att, _, vmax, _ = c
+        return (vmax > vtol) & (n_att < max_steps)
+
+    def body(c):
+        theta, dt, n_att, n_acc, vmax, n_newton = c
+        th1, k, ok = newton(theta, dt)
+        theta = jnp.where(ok, th1, theta)
+        vmax = jnp.where(ok, jnp.max(jnp.abs(velocity(material, theta, h, mu))), vmax)
+        dt = jnp.where(ok, jnp.minimum(dt * growth, dt_max), dt / 4.0)
+        return theta, dt, n_att + 1, n_acc + ok.astype(n_acc.dtype), vmax, n_newton + k
+
+    v0 = jnp.max(jnp.abs(velocity(material, theta0, h, mu)))
+    z = jnp.asarray(0)
+    theta, _, _, n_acc, vmax, _ = jax.lax.while_loop(cond, body, (theta0, jnp.asarray(dt0, theta0.dtype), z, z, v0, z))
+    return MarchResult(theta, vmax, n_acc, vmax <= vtol)
+
+
 def march(material, theta0, h, mu, *, method: str = "explicit", vtol=1e-6, max_steps=400_000,
-          dt=None, rtol=1e-6, solver="euler") -> MarchResult:
-    """Run the march with ``method`` ``"explicit"`` (jitted loop) or ``"diffrax"`` (with
-    ``solver`` ``"euler"`` or ``"tsit5"``); ``dt`` defaults to :func:`stable_dt`."""
+          dt=None, rtol=1e-6, solver="euler", implicit_dt_factor=100.0, implicit_growth=4.0) -> MarchResult:
+    """Run the march with ``method`` ``"explicit"`` (jitted loop), ``"implicit"`` (backward
+    Euler, :func:`march_implicit`: first step ``implicit_dt_factor * dt``, each next one
+    ``implicit_growth`` times longer) or ``"diffrax"`` (with ``solver`` ``"euler"`` or
+    ``"tsit5"``); ``dt`` defaults to :func:`stable_dt`."""
     theta0 = jnp.asarray(theta0, float)
     if dt is None:
         dt = stable_dt(material, theta0, h)
     h, mu, dt, vtol = (jnp.asarray(x, float) for x in (h, mu, dt, vtol))
     if method == "explicit":
         return march_explicit(material, theta0, h, mu, dt, vtol, jnp.asarray(max_steps))
+    if method == "implicit":
+        return march_implicit(material, theta0, h, mu, dt * implicit_dt_factor, vtol, jnp.asarray(max_steps),
+                              growth=implicit_growth)
     if method == "diffrax":
         t_end = dt * max_steps
         return march_diffrax(material, theta0, h, mu, dt, t_end, vtol, rtol, solver, int(max_steps))
@@ -303,7 +391,7 @@ def search_mu(material, theta0, h, mu_lo, mu_hi, *, method="explicit", mu_tol=1e
 
     def fv_of(mu):
         res = march(material, theta0, h, mu, method=method, **march_kw)
-        fv = float(vertical_force(material, res.theta, h))
+        fv = float(_vertical_force_jit(material, res.theta, jnp.asarray(h, float)))
         cache[mu] = (fv, res)
         return fv
 

@@ -119,7 +119,9 @@ class StaticNumerics(Strict):
     """Grid, march and search settings."""
 
     n_nodes: int = F(100, ge=8, le=2000, description="grid nodes from the pole to rbar_max (paper: 100)")
-    march: Literal["explicit", "diffrax"] = F("explicit", description="march integrator: jitted loop or diffrax")
+    march: Literal["implicit", "explicit", "diffrax"] = F(
+        "implicit", description="march integrator: implicit (backward Euler, semi-smooth Newton, growing steps), "
+        "explicit (forward-Euler jitted loop at the stable step) or diffrax")
     diffrax_solver: Literal["euler", "tsit5"] = F(
         "euler", description="diffrax solver: euler (constant stable step) or tsit5 (adaptive)")
     diffrax_rtol: float = F(1e-6, gt=0, lt=1, description="tsit5 relative tolerance")
