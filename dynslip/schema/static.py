@@ -88,7 +88,17 @@ class Selection(Strict):
         "switch_radius",
         description="switch_radius: F_m changes sign at undeformed radius `value` (units R); "
         "switch_angle: at polar angle `value` (rad), which is also where the largest stretch sits")
-    value: float = F(0.25, gt=0, lt=math.pi, description="switch radius (units R) or switch angle (rad), in (0, pi)")
+    value: float = F(0.25, gt=0, lt=math.pi, description="switch radius (units R) or switch angle (rad), in (0, pi); "
+                     "when omitted: 0.25 R for switch_radius, pi/4 rad (the paper's statement) for switch_angle")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _value_of_rule(cls, data):
+        # The paper states the rule as "F_m changes sign where theta = pi/4": that is the
+        # default value of switch_angle (0.25 is the default of switch_radius only).
+        if isinstance(data, dict) and data.get("rule") == "switch_angle" and "value" not in data:
+            data = {**data, "value": math.pi / 4}
+        return data
 
 
 class Geometry(Strict):
