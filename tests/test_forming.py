@@ -201,7 +201,7 @@ def _scenario(**physics):
         ({"stages": [{"name": "a", "clamp_velocity_mm_s": 0, "duration_s": 10},
                      {"name": "b", "duration_s": 5}], "rim_radius_mm": 19.0}, "inside the ball"),
         ({"stages": [{"name": "a", "duration_s": -1}]}, "greater than 0"),
-        ({"stages": [{"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": -2}]}, "greater than 0"),
+        ({"stages": [{"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": -2}]}, "clamp_speed_mm_s"),
         ({"stages": [{"name": "a", "duration_s": 5, "until": "clamp_force_below", "force_threshold_N": 0.1}]},
          "can never hold"),
         ({"stages": [{"name": "a", "duration_s": 5, "until": "rest", "rest_rate_mm_s": 0.1, "rest_hold_s": 9}]},
