@@ -8,7 +8,6 @@ run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -23,42 +22,6 @@ from dynslip.errors import ComputationError, InputError
 __all__ = ["run_forming", "preflight", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
 
 FLUSH_FRAMES = 25
-
-PER_NODE = {
-    "rho": ("1", "deformed distance from the axis", "R"),
-    "z": ("1", "deformed height (ball centre at the origin when ball_z = 0)", "R"),
-    "theta": ("1", "polar angle on the ball where in contact (NaN where free)", None),
-    "lambda_theta": ("1", "meridional stretch", None),
-    "lambda_phi": ("1", "hoop stretch", None),
-    "T_theta": ("1", "relaxed meridional tension per deformed length", "G*h0"),
-    "T_phi": ("1", "relaxed hoop tension per deformed length", "G*h0"),
-    "pressure": ("1", "contact pressure F_N", "G*h0/R"),
-    "friction": ("1", "meridional friction force density on the sheet, + toward the equator", "G*h0/R"),
-    "slip_velocity": ("1/s", "meridional slip speed relative to the ball, + toward the equator (R/s)", "R"),
-    "mu_mobilised": ("1", "|friction| / pressure where in contact", None),
-    "mu_current": ("1", "friction coefficient of the law at the node (mu; or mu(slip distance) between mu_s and "
-                   "mu_k) where in contact", None),
-    "slip_distance": ("1", "slip distance since the node last stuck (slip_weakening; 0 for coulomb)", "R"),
-}
-PER_TIME = {
-    "stage": ("1", "index into stage_names", None),
-    "clamp_z": ("1", "clamp height", "R"),
-    "clamp_rho": ("1", "clamp radius", "R"),
-    "clamp_force": ("1", "axial force the clamp exerts on the sheet, + along +z", "G*h0*R"),
-    "clamp_force_rho": ("1", "radial force the clamp exerts on the sheet, + outward", "G*h0*R"),
-    "ball_z": ("1", "ball centre height", "R"),
-    "ball_reaction": ("1", "force of the hold on the ball, + along +z (0 once released)", "G*h0*R"),
-    "theta_max": ("1", "largest polar angle in contact", None),
-    "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
-    "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),
-    "work_ball": ("1", "accumulated work of the hold (and gravity) on the ball", "G*h0*R^2"),
-    "energy_elastic": ("1", "stored relaxed elastic energy (pre-stretch included)", "G*h0*R^2"),
-    "energy_penalty": ("1", "contact penalty energy", "G*h0*R^2"),
-    "dissipation_friction": ("1", "accumulated friction dissipation", "G*h0*R^2"),
-    "dissipation_drag": ("1", "accumulated drag dissipation (ball drag included)", "G*h0*R^2"),
-    "energy_residual": ("1", "work - (change of stored energy) - dissipation", "G*h0*R^2"),
-}
-STATE_MEANINGS = " ".join(trajectory.STATE_MEANINGS)  # the contract's state codes, one place
 
 
 def build_core(sc):
@@ -93,53 +56,20 @@ def build_core(sc):
     return model, protocol, kwargs
 
 
-def _attrs_scale(scale):
-    return {"scale": scale} if scale else {}
-
-
 def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None) -> xr.Dataset:
-    """The trajectory contract (docs/trajectory-contract.md) from the driver's frames."""
+    """The trajectory contract from the driver's frames (:func:`dynslip.data.trajectory.to_dataset`),
+    handed the scenario's values as plain data."""
     p = sc.physics
-    time = np.array([f["time"] for f in frames])
-    data = {}
-    for name, (units, long_name, scale) in PER_NODE.items():
-        arr = np.stack([np.asarray(f[name], float) for f in frames])
-        data[name] = io.variable(arr, ("time", "rbar"), units, long_name, **_attrs_scale(scale))
-    state = np.stack([np.asarray(f["state"], np.int8) for f in frames])
-    data["state"] = io.variable(state, ("time", "rbar"), "1", "contact and slip state of the node",
-                                flag_values=np.array([0, 1, 2, 3], np.int8), flag_meanings=STATE_MEANINGS)
-    scal = {k: np.array([float(f[k]) for f in frames]) for k in PER_TIME if k not in ("energy_residual", "stage")}
-    scal["stage"] = np.array([int(f["stage"]) for f in frames], np.int16)
-    scal["energy_residual"] = (scal["work_clamp"] + scal["work_ball"]
-                               - (scal["energy_elastic"] + scal["energy_penalty"] - e0)
-                               - scal["dissipation_friction"] - scal["dissipation_drag"])
-    for name, (units, long_name, scale) in PER_TIME.items():
-        data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
-    coords = {
-        "time": io.variable(time, ("time",), "s", "physical time of the saved frame"),
-        "rbar": io.variable(np.asarray(rbar), ("rbar",), "1", "undeformed (material) radius / R", scale="R"),
-    }
-    attrs = io.provenance(sc.to_json(), "trajectory")
-    attrs["kind"] = "trajectory"
-    attrs.update({
-        "complete": int(bool(complete)),
-        "R_m": p.ball_radius_mm * 1e-3,
-        "G_Pa": p.youngs_modulus_MPa * 1e6 / 3.0,
-        "h0_m": p.thickness_um * 1e-6,
-        "force_scale_N": p.force_scale_N,
-        "stage_names": json.dumps(list(stage_names)),
-        "contact_threshold": sc.numerics.contact_threshold,
-        "energy_initial": float(e0),
-        "mu": p.friction.nominal_mu,
-        "friction_law": p.friction.law,
-        "mu_s": p.friction.mu_s if p.friction.law == "slip_weakening" else p.friction.mu,
-        "mu_k": p.friction.mu_k if p.friction.law == "slip_weakening" else p.friction.mu,
-        "d_c": p.friction.d_c_mm / p.ball_radius_mm if p.friction.law == "slip_weakening" else 0.0,
-        "friction_smoothing": sc.numerics.friction_smoothing,
-    })
-    if extra_attrs:
-        attrs.update(extra_attrs)
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    f = p.friction
+    weakening = f.law == "slip_weakening"
+    return trajectory.to_dataset(
+        frames, rbar, e0, complete, stage_names, scenario_json=sc.to_json(),
+        scales={"R_m": p.ball_radius_mm * 1e-3, "G_Pa": p.youngs_modulus_MPa * 1e6 / 3.0,
+                "h0_m": p.thickness_um * 1e-6, "force_scale_N": p.force_scale_N},
+        contact_threshold=sc.numerics.contact_threshold,
+        friction={"mu": f.nominal_mu, "friction_law": f.law, "mu_s": f.mu_s if weakening else f.mu,
+                  "mu_k": f.mu_k if weakening else f.mu, "d_c": f.d_c_mm / p.ball_radius_mm if weakening else 0.0},
+        friction_smoothing=sc.numerics.friction_smoothing, extra_attrs=extra_attrs)
 
 
 def summarize(sc, ds: xr.Dataset, result) -> dict:

@@ -1,9 +1,11 @@
-"""Reading ``trajectory.nc``: validation against the contract, time ranges, state codes.
+"""``trajectory.nc``: building it from the driver's frames, reading and validating it against
+the contract, time ranges, state codes.
 
 The contract is ``docs/trajectory-contract.md`` (format version :data:`dynslip.FORMAT_VERSION`).
-Readers (animations, fronts, comparisons) open a file with :func:`open_trajectory`, which
-refuses anything that is not a dynslip trajectory of the supported format version with a
-one-line :class:`~dynslip.errors.InputError` (exit 2).
+The runner builds the dataset with :func:`to_dataset` (plain data in: frames, mesh and the
+scenario's values; no schema object). Readers (animations, fronts, comparisons) open a
+file with :func:`open_trajectory`, which refuses anything that is not a dynslip trajectory
+of the supported format version with a one-line :class:`~dynslip.errors.InputError` (exit 2).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip._version import FORMAT_VERSION
+from dynslip.data import files as io
 from dynslip.errors import InputError
 
 FREE, STUCK, SLIP_POLE, SLIP_EQUATOR = 0, 1, 2, 3
@@ -35,6 +38,94 @@ REQUIRED_VARIABLES = (
     "rbar_max",
 )
 """Variables every reader of this module needs (a subset of the contract)."""
+
+PER_NODE = {
+    "rho": ("1", "deformed distance from the axis", "R"),
+    "z": ("1", "deformed height (ball centre at the origin when ball_z = 0)", "R"),
+    "theta": ("1", "polar angle on the ball where in contact (NaN where free)", None),
+    "lambda_theta": ("1", "meridional stretch", None),
+    "lambda_phi": ("1", "hoop stretch", None),
+    "T_theta": ("1", "relaxed meridional tension per deformed length", "G*h0"),
+    "T_phi": ("1", "relaxed hoop tension per deformed length", "G*h0"),
+    "pressure": ("1", "contact pressure F_N", "G*h0/R"),
+    "friction": ("1", "meridional friction force density on the sheet, + toward the equator", "G*h0/R"),
+    "slip_velocity": ("1/s", "meridional slip speed relative to the ball, + toward the equator (R/s)", "R"),
+    "mu_mobilised": ("1", "|friction| / pressure where in contact", None),
+    "mu_current": ("1", "friction coefficient of the law at the node (mu; or mu(slip distance) between mu_s and "
+                   "mu_k) where in contact", None),
+    "slip_distance": ("1", "slip distance since the node last stuck (slip_weakening; 0 for coulomb)", "R"),
+}
+"""Per-node variables (time, rbar) of the contract: name -> (units, long_name, scale)."""
+PER_TIME = {
+    "stage": ("1", "index into stage_names", None),
+    "clamp_z": ("1", "clamp height", "R"),
+    "clamp_rho": ("1", "clamp radius", "R"),
+    "clamp_force": ("1", "axial force the clamp exerts on the sheet, + along +z", "G*h0*R"),
+    "clamp_force_rho": ("1", "radial force the clamp exerts on the sheet, + outward", "G*h0*R"),
+    "ball_z": ("1", "ball centre height", "R"),
+    "ball_reaction": ("1", "force of the hold on the ball, + along +z (0 once released)", "G*h0*R"),
+    "theta_max": ("1", "largest polar angle in contact", None),
+    "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
+    "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),
+    "work_ball": ("1", "accumulated work of the hold (and gravity) on the ball", "G*h0*R^2"),
+    "energy_elastic": ("1", "stored relaxed elastic energy (pre-stretch included)", "G*h0*R^2"),
+    "energy_penalty": ("1", "contact penalty energy", "G*h0*R^2"),
+    "dissipation_friction": ("1", "accumulated friction dissipation", "G*h0*R^2"),
+    "dissipation_drag": ("1", "accumulated drag dissipation (ball drag included)", "G*h0*R^2"),
+    "energy_residual": ("1", "work - (change of stored energy) - dissipation", "G*h0*R^2"),
+}
+"""Per-frame variables (time) of the contract: name -> (units, long_name, scale)."""
+
+
+def _attrs_scale(scale):
+    return {"scale": scale} if scale else {}
+
+
+def to_dataset(frames, rbar, e0, complete: bool, stage_names, *, scenario_json: str, scales: dict,
+               contact_threshold: float, friction: dict, friction_smoothing: float,
+               extra_attrs=None) -> xr.Dataset:
+    """The trajectory contract (docs/trajectory-contract.md) from the driver's frames.
+
+    Plain data only: ``frames`` (the driver's records), ``rbar`` (the material radii),
+    ``e0`` (stored energy at the start), ``complete``, ``stage_names``; the scenario's
+    values as global attributes: ``scenario_json`` (the resolved scenario), ``scales``
+    (``R_m``, ``G_Pa``, ``h0_m``, ``force_scale_N``), ``contact_threshold``, ``friction``
+    (``mu``, ``friction_law``, ``mu_s``, ``mu_k``, ``d_c``) and ``friction_smoothing``;
+    ``extra_attrs`` last (e.g. the provenance of a start state)."""
+    time = np.array([f["time"] for f in frames])
+    data = {}
+    for name, (units, long_name, scale) in PER_NODE.items():
+        arr = np.stack([np.asarray(f[name], float) for f in frames])
+        data[name] = io.variable(arr, ("time", "rbar"), units, long_name, **_attrs_scale(scale))
+    state = np.stack([np.asarray(f["state"], np.int8) for f in frames])
+    data["state"] = io.variable(state, ("time", "rbar"), "1", "contact and slip state of the node",
+                                flag_values=np.array([0, 1, 2, 3], np.int8),
+                                flag_meanings=" ".join(STATE_MEANINGS))
+    scal = {k: np.array([float(f[k]) for f in frames]) for k in PER_TIME if k not in ("energy_residual", "stage")}
+    scal["stage"] = np.array([int(f["stage"]) for f in frames], np.int16)
+    scal["energy_residual"] = (scal["work_clamp"] + scal["work_ball"]
+                               - (scal["energy_elastic"] + scal["energy_penalty"] - e0)
+                               - scal["dissipation_friction"] - scal["dissipation_drag"])
+    for name, (units, long_name, scale) in PER_TIME.items():
+        data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
+    coords = {
+        "time": io.variable(time, ("time",), "s", "physical time of the saved frame"),
+        "rbar": io.variable(np.asarray(rbar), ("rbar",), "1", "undeformed (material) radius / R", scale="R"),
+    }
+    attrs = io.provenance(scenario_json, "trajectory")
+    attrs["kind"] = "trajectory"
+    attrs.update({
+        "complete": int(bool(complete)),
+        **{k: scales[k] for k in ("R_m", "G_Pa", "h0_m", "force_scale_N")},
+        "stage_names": json.dumps(list(stage_names)),
+        "contact_threshold": contact_threshold,
+        "energy_initial": float(e0),
+        **{k: friction[k] for k in ("mu", "friction_law", "mu_s", "mu_k", "d_c")},
+        "friction_smoothing": friction_smoothing,
+    })
+    if extra_attrs:
+        attrs.update(extra_attrs)
+    return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 def open_trajectory(path) -> xr.Dataset:
