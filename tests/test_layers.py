@@ -10,10 +10,8 @@ functions count: a lazy import is still a dependency. The upstream-fix subclasse
 ``physics/upstream.py`` (diffrax, optimistix internals) are physics importing third-party
 code, which these rules do not constrain.
 
-One cycle is known and allowed until the load-stepping issue splits ``simulate``: the
-load-stepping solver and the driver import each other inside functions
-(:data:`KNOWN_CYCLES`); :func:`test_known_cycles_are_still_there` fails once it is gone,
-so that the allowance goes with it.
+No cycle is allowed (the one between the load-stepping solver and the driver went when the
+state and vector field moved to ``physics/field.py``, imported by both).
 """
 
 import ast
@@ -35,8 +33,6 @@ ALLOWED = {
     "cli": {"cli", "app", "plot", "analysis", "data", "schema", "physics"},
     "__init__": {"api", "plot"},  # the package re-exports the API and the figures
 }
-#: cycles allowed for now, each as the set of its modules (see the module docstring)
-KNOWN_CYCLES = [{"dynslip.physics.simulate", "dynslip.physics.loadstep"}]
 
 
 def _module_name(path: Path) -> str:
@@ -125,14 +121,8 @@ def _cycles() -> list[list[str]]:
 
 
 def test_no_import_cycle():
-    new = [c for c in _cycles() if set(c.split(" -> ")) not in KNOWN_CYCLES]
-    assert not new, "import cycles:\n" + "\n".join(new)
-
-
-def test_known_cycles_are_still_there():
-    found = [set(c.split(" -> ")) for c in _cycles()]
-    gone = [sorted(k) for k in KNOWN_CYCLES if k not in found]
-    assert not gone, f"cycle(s) {gone} no longer exist: remove them from KNOWN_CYCLES"
+    found = _cycles()
+    assert not found, "import cycles:\n" + "\n".join(found)
 
 
 @pytest.mark.parametrize(("src", "dst", "ok"), [

@@ -3,6 +3,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from dynslip.physics.linalg import extract_blocks, to_dense
 from dynslip.app.forming import build_core
@@ -14,18 +15,20 @@ from conftest import SCENARIOS
 N = 12
 
 
-def _setup():
-    sc = load(SCENARIOS / "method2_let_go.yaml", [f"numerics.nodes={N}"])
+def _setup(name="method2_let_go"):
+    sc = load(SCENARIOS / f"{name}.yaml", [f"numerics.nodes={N}"])
     model, protocol, kw = build_core(sc)
-    layout = Layout(N, kw["friction"].n_internal())  # slip weakening, one state per node; stage 0 holds the ball (a force-controlled ball couples every node to the clamp: not this pattern)
-    stage = protocol.stages[0]
-    args = _stage_args(stage, 0.0, float(protocol.ball_z0), 0.0, 0.0, kw["friction"], kw["eps"], kw["drag"],
-                       kw["ball_drag"], kw["weight"])
+    layout = Layout(N, kw["friction"].n_internal())  # slip weakening, one state per node
+    stage_args = [_stage_args(st, 0.0, float(protocol.ball_z0), 0.0, 0.0, kw["friction"], kw["eps"], kw["drag"],
+                              kw["ball_drag"], kw["weight"]) for st in protocol.stages]
     y0 = initial_state(model, layout, kw["pre_stretch"], kw["z_sheet"], protocol.ball_z0)
-    return model, layout, args, y0, kw["settings"]
+    return model, layout, stage_args, y0, kw["settings"]
 
 
-MODEL, LAYOUT, ARGS, Y0, SETTINGS = _setup()
+MODEL, LAYOUT, STAGE_ARGS, Y0, SETTINGS = _setup()
+ARGS = STAGE_ARGS[0]  # push-down: ball held
+# the tube path's raise: the ball force-controlled (on the support), the clamp moved
+FREE_ARGS = _setup("method2")[2][2]
 
 
 def _solve(linear_solver, y, t1):
@@ -39,13 +42,19 @@ def _solve(linear_solver, y, t1):
     return y1, int(steps)
 
 
-def test_structured_jacobian_equals_jacfwd_on_sampled_states():
+@pytest.mark.parametrize("stage", ["held", "force_controlled"])
+def test_structured_jacobian_equals_jacfwd_on_sampled_states(stage):
+    """The declared pattern holds the whole Jacobian, with the ball held and with it
+    force-controlled (every node then moves with a ball whose velocity depends on the
+    clamp's force: the edge nodes are in the border)."""
     s = sheet_structure(LAYOUT)
     vf = vector_field(MODEL, LAYOUT)
+    args = ARGS if stage == "held" else FREE_ARGS
+    assert int(args.clamp_mode) == 0 and (int(args.ball_mode) == 0) == (stage == "held")
 
     @jax.jit
     def both(y):
-        f = lambda yy: vf(1.0, yy, ARGS)  # noqa: E731
+        f = lambda yy: vf(1.0, yy, args)  # noqa: E731
         mv = lambda v: jax.jvp(f, (y,), (v,))[1]  # noqa: E731
         mvT = lambda w: jax.vjp(f, y)[1](w)[0]  # noqa: E731
         return jax.jacfwd(f)(y), to_dense(*extract_blocks(mv, mvT, s), s)

@@ -2,7 +2,7 @@ r"""Quasi-static load stepping: implicit Euler increments controlled by Newton's
 
 The forming path is slow loading of a rate-independent problem (stages of 10-90 s
 against a drag time $\tau = \eta R^2/(G h_0) = 0.1$ s). Implicit Euler on the overdamped law
-of :func:`dynslip.physics.simulate.evaluate`,
+of :func:`dynslip.physics.field.evaluate`,
 
 $$x_1 = x_0 + \Delta t\, f(t_1, x_1),\qquad
   \eta A\,(\dot x - \dot z_b e_z) = F_n n + S(F_t, \mu N)\, t ,$$
@@ -67,6 +67,7 @@ import optimistix as optx
 from diffrax._solver.implicit_euler import _implicit_relation
 from equinox.internal import ω
 
+from dynslip.physics.field import sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
@@ -125,8 +126,6 @@ class LoadStepEuler(ImplicitEuler):
 
 def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 16):
     """The implicit Euler solver of a load increment: Newton with explicit tolerances."""
-    from dynslip.physics.simulate import sheet_structure
-
     lin = (BorderedBlockTridiagonal(sheet_structure(layout)) if linear_solver == "structured"
            else lx.AutoLinearSolver(well_posed=None))
     newton = optx.Newton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True)
@@ -145,8 +144,6 @@ def run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, *, max_steps: 
     """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
     newton_iterations)``. Not jitted (see :func:`segment_solver`). ``dt0`` is the first increment tried.
     """
-    from dynslip.physics.simulate import vector_field
-
     term = diffrax.ODETerm(vector_field(model, layout))
     solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter)
     cap = increment_cap(args, max_increment, max_increment_free)

@@ -41,150 +41,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, sheet_structure, vector_field
 from dynslip.physics.friction import AbstractFriction, Coulomb
-from dynslip.physics.linalg import BorderedBlockTridiagonal, Structure
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION, Protocol
-from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
+from dynslip.physics.linalg import BorderedBlockTridiagonal
+from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
+from dynslip.physics.protocols import Protocol
+from dynslip.physics.sheet import SheetModel
 from dynslip.physics.upstream import VeryChord
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
            "vector_field", "frame_record", "N_ACC"]
-
-N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
-
-
-class Layout(eqx.Module):
-    """Slices of the flat state vector for a sheet of ``n`` nodes.
-
-    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4), internal(n_int * n)]``: node
-    ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
-    clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
-    of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
-    """
-
-    n: int = eqx.field(static=True)
-    n_int: int = eqx.field(static=True, default=0)
-
-    @property
-    def size(self) -> int:
-        return (self.n - 1) + self.n + 1 + N_ACC + self.n_int * self.n
-
-    @property
-    def internal_start(self) -> int:
-        return 2 * self.n + N_ACC
-
-    def internal(self, y):
-        """The friction law's per-node state, (n,), or None for a memoryless law."""
-        if self.n_int == 0:
-            return None
-        return y[self.internal_start : self.internal_start + self.n]
-
-    def with_internal(self, y, internal):
-        if self.n_int == 0:
-            return y
-        return y.at[self.internal_start : self.internal_start + self.n].set(internal)
-
-    def unpack(self, y):
-        n = self.n
-        rho = jnp.concatenate([jnp.zeros(1), y[: n - 1]])
-        z = y[n - 1 : 2 * n - 1]
-        zb = y[2 * n - 1]
-        acc = y[2 * n : 2 * n + N_ACC]
-        return rho, z, zb, acc
-
-    def pack(self, rho, z, zb, acc, internal=None):
-        parts = [rho[1:], z, jnp.reshape(zb, (1,)), acc]
-        if self.n_int:
-            parts.append(jnp.zeros(self.n) if internal is None else internal)
-        return jnp.concatenate(parts)
-
-
-class StageArgs(eqx.Module):
-    """Everything the vector field needs besides the state: all arrays (one compile)."""
-
-    t0: jnp.ndarray
-    clamp_mode: jnp.ndarray  # CLAMP_POSITION or CLAMP_FORCE
-    vzc: jnp.ndarray
-    vrhoc: jnp.ndarray
-    fc0: jnp.ndarray  # (2,) clamp force on the sheet (rho, z) at the ramp's start (force mode)
-    fc1: jnp.ndarray  # (2,) ... at its end
-    ball_mode: jnp.ndarray
-    vzb: jnp.ndarray
-    f0: jnp.ndarray
-    f1: jnp.ndarray
-    ramp: jnp.ndarray
-    friction: AbstractFriction
-    eps: jnp.ndarray  # friction smoothing, force density (G h0 / R)
-    drag: jnp.ndarray  # eta per reference area: seconds (time unit tau = eta R^2/(G h0))
-    ball_drag: jnp.ndarray  # eta_b (G h0 R s / R)
-    weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
-    support: jnp.ndarray = 0.0  # 1 where the ball rests on the rigid support (bottle neck), else 0
-    support_z: jnp.ndarray = 0.0  # ball-centre height at which the support's contact begins (R)
-    support_k: jnp.ndarray = 1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
-
-    def frac(self, t):
-        return jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
-
-    def ball_force(self, t):
-        return self.f0 + (self.f1 - self.f0) * self.frac(t)
-
-    def clamp_force(self, t):
-        return self.fc0 + (self.fc1 - self.fc0) * self.frac(t)
-
-    def support_force(self, zb):
-        r"""Upward force of the support on the ball: $k\,\phi'(z_s - z_b)$ with the C^1 penalty
-        of :func:`dynslip.physics.sheet.penalty_pressure` (width 1e-3 R); zero off the support
-        (unilateral: the pocket may lift the ball off) and where ``support`` is 0."""
-        return self.support * penalty_pressure(Penalty(self.support_k, 1e-3), self.support_z - zb)
-
-
-def _f(x):
-    return jnp.asarray(x, dtype=jnp.float64)
-
-
-def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
-    """Rates and the quantities derived on the way (shared by the vector field and frames)."""
-    rho, z, zb, _ = layout.unpack(y)
-    internal = layout.internal(y)
-    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
-    g_rho, g_z, _ = k["grads"]
-    eta_a = k["eta_a"]
-    u = k["u"]
-    pinned = args.clamp_mode == CLAMP_POSITION
-    # Clamp: prescribed velocity (its force on the sheet is dE/dx_c), or a ramped force
-    # with the edge node moving like any free node (drag relative to the ball).
-    f_app = args.clamp_force(t)
-    u_c_free = (f_app - jnp.stack([g_rho[-1], g_z[-1]])) / eta_a[-1]
-    crho = jnp.where(pinned, g_rho[-1], f_app[0])
-    cz = jnp.where(pinned, g_z[-1], f_app[1])
-    held = args.ball_mode == BALL_HOLD
-    fb = args.ball_force(t) + args.support_force(zb)
-    vb = jnp.where(held, args.vzb, (fb + cz + args.weight) / args.ball_drag)
-    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, fb)
-    u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
-    u = u.at[:, -1].set(u_c)
-    v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
-    moving = (jnp.arange(layout.n) < layout.n - 1) | ~pinned  # nodes with constitutive drag
-    d_drag = jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
-    last = jnp.arange(layout.n) == layout.n - 1
-    d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
-    w_clamp = cz * v[1, -1] + crho * v[0, -1]
-    w_ball = (f_hold + args.weight) * vb
-    dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
-    dint = None
-    if internal is not None:
-        dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
-    dy = layout.pack(v[0], v[1], vb, dacc, dint)
-    return dy, {"clamp_force": cz, "clamp_force_rho": crho, "ball_reaction": f_hold, "ball_v": vb,
-                "zc": z[-1], "rhoc": rho[-1], "rho": rho, "z": z, "zb": zb, "kin": k}
-
-
-def vector_field(model: SheetModel, layout: Layout):
-    def vf(t, y, args):
-        return evaluate(model, layout, t, y, args)[0]
-
-    return vf
-
 
 @dataclasses.dataclass(frozen=True)
 class Settings:
@@ -207,25 +73,6 @@ class Settings:
     max_increment_free: float = 5.0
 
 
-def sheet_structure(layout: Layout) -> Structure:
-    """Sparsity of the state for :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`.
-
-    Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
-    depends only on its neighbours (element energies, the hoop stretch at element
-    midpoints, the node's own contact frame), so the node blocks are tridiagonal. The
-    ball height and the accumulators form the dense border. A friction law's per-node
-    state (slip distance) joins its node's block (``b = 3``): its rate depends on the
-    node's slip, i.e. on the node and its neighbours.
-    """
-    n = layout.n
-    core = []
-    for i in range(n):
-        core += [-1 if i == 0 else i - 1, n - 1 + i]
-        core += [layout.internal_start + i] if layout.n_int else []
-    border = tuple(range(2 * n - 1, 2 * n + N_ACC))
-    return Structure(n=n, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border)
-
-
 def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
     cls = {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
            "implicit_euler": diffrax.ImplicitEuler}[name]
@@ -246,8 +93,6 @@ def segment_solver(settings: Settings):
     """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for a solver name and
     step limit; shared by every run (compiled once per mesh size and material class)."""
     if settings.solver == "load_step":  # implicit Euler load increments (returns Newton iterations too)
-        from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
-
         return load_step_segment_solver(settings)
     key = (settings.solver, settings.max_steps, settings.linear_solver)
     if key in _SOLVE_CACHE:

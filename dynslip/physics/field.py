@@ -1,0 +1,190 @@
+r"""The whole sheet's state vector and vector field (the physics the solvers integrate).
+
+:class:`Layout` names the slices of the flat state, :class:`StageArgs` carries a stage's
+loads, :func:`evaluate` is the overdamped law with the clamp and the ball (see
+:mod:`dynslip.physics.simulate` for the state's contents and the energy accumulators),
+:func:`vector_field` its diffrax form, and :func:`sheet_structure` the sparsity that
+:class:`dynslip.physics.linalg.BorderedBlockTridiagonal` exploits. Both solvers
+(:mod:`dynslip.physics.simulate`'s time stepping and :mod:`dynslip.physics.loadstep`)
+import from here, and nothing here imports a solver.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.linalg import Structure
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
+
+EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see sheet_structure)
+
+__all__ = ["N_ACC", "EDGE_NODES", "Layout", "StageArgs", "evaluate", "vector_field", "sheet_structure"]
+
+N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
+
+
+class Layout(eqx.Module):
+    """Slices of the flat state vector for a sheet of ``n`` nodes.
+
+    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4), internal(n_int * n)]``: node
+    ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
+    clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
+    of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
+    """
+
+    n: int = eqx.field(static=True)
+    n_int: int = eqx.field(static=True, default=0)
+
+    @property
+    def size(self) -> int:
+        return (self.n - 1) + self.n + 1 + N_ACC + self.n_int * self.n
+
+    @property
+    def internal_start(self) -> int:
+        return 2 * self.n + N_ACC
+
+    def internal(self, y):
+        """The friction law's per-node state, (n,), or None for a memoryless law."""
+        if self.n_int == 0:
+            return None
+        return y[self.internal_start : self.internal_start + self.n]
+
+    def with_internal(self, y, internal):
+        if self.n_int == 0:
+            return y
+        return y.at[self.internal_start : self.internal_start + self.n].set(internal)
+
+    def unpack(self, y):
+        n = self.n
+        rho = jnp.concatenate([jnp.zeros(1), y[: n - 1]])
+        z = y[n - 1 : 2 * n - 1]
+        zb = y[2 * n - 1]
+        acc = y[2 * n : 2 * n + N_ACC]
+        return rho, z, zb, acc
+
+    def pack(self, rho, z, zb, acc, internal=None):
+        parts = [rho[1:], z, jnp.reshape(zb, (1,)), acc]
+        if self.n_int:
+            parts.append(jnp.zeros(self.n) if internal is None else internal)
+        return jnp.concatenate(parts)
+
+
+class StageArgs(eqx.Module):
+    """Everything the vector field needs besides the state: all arrays (one compile)."""
+
+    t0: jnp.ndarray
+    clamp_mode: jnp.ndarray  # CLAMP_POSITION or CLAMP_FORCE
+    vzc: jnp.ndarray
+    vrhoc: jnp.ndarray
+    fc0: jnp.ndarray  # (2,) clamp force on the sheet (rho, z) at the ramp's start (force mode)
+    fc1: jnp.ndarray  # (2,) ... at its end
+    ball_mode: jnp.ndarray
+    vzb: jnp.ndarray
+    f0: jnp.ndarray
+    f1: jnp.ndarray
+    ramp: jnp.ndarray
+    friction: AbstractFriction
+    eps: jnp.ndarray  # friction smoothing, force density (G h0 / R)
+    drag: jnp.ndarray  # eta per reference area: seconds (time unit tau = eta R^2/(G h0))
+    ball_drag: jnp.ndarray  # eta_b (G h0 R s / R)
+    weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
+    support: jnp.ndarray = 0.0  # 1 where the ball rests on the rigid support (bottle neck), else 0
+    support_z: jnp.ndarray = 0.0  # ball-centre height at which the support's contact begins (R)
+    support_k: jnp.ndarray = 1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
+
+    def frac(self, t):
+        return jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
+
+    def ball_force(self, t):
+        return self.f0 + (self.f1 - self.f0) * self.frac(t)
+
+    def clamp_force(self, t):
+        return self.fc0 + (self.fc1 - self.fc0) * self.frac(t)
+
+    def support_force(self, zb):
+        r"""Upward force of the support on the ball: $k\,\phi'(z_s - z_b)$ with the C^1 penalty
+        of :func:`dynslip.physics.sheet.penalty_pressure` (width 1e-3 R); zero off the support
+        (unilateral: the pocket may lift the ball off) and where ``support`` is 0."""
+        return self.support * penalty_pressure(Penalty(self.support_k, 1e-3), self.support_z - zb)
+
+
+def _f(x):
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
+    """Rates and the quantities derived on the way (shared by the vector field and frames)."""
+    rho, z, zb, _ = layout.unpack(y)
+    internal = layout.internal(y)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
+    g_rho, g_z, _ = k["grads"]
+    eta_a = k["eta_a"]
+    u = k["u"]
+    pinned = args.clamp_mode == CLAMP_POSITION
+    # Clamp: prescribed velocity (its force on the sheet is dE/dx_c), or a ramped force
+    # with the edge node moving like any free node (drag relative to the ball).
+    f_app = args.clamp_force(t)
+    u_c_free = (f_app - jnp.stack([g_rho[-1], g_z[-1]])) / eta_a[-1]
+    crho = jnp.where(pinned, g_rho[-1], f_app[0])
+    cz = jnp.where(pinned, g_z[-1], f_app[1])
+    held = args.ball_mode == BALL_HOLD
+    fb = args.ball_force(t) + args.support_force(zb)
+    vb = jnp.where(held, args.vzb, (fb + cz + args.weight) / args.ball_drag)
+    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, fb)
+    u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
+    u = u.at[:, -1].set(u_c)
+    v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
+    moving = (jnp.arange(layout.n) < layout.n - 1) | ~pinned  # nodes with constitutive drag
+    d_drag = jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
+    last = jnp.arange(layout.n) == layout.n - 1
+    d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
+    w_clamp = cz * v[1, -1] + crho * v[0, -1]
+    w_ball = (f_hold + args.weight) * vb
+    dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
+    dint = None
+    if internal is not None:
+        dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
+    dy = layout.pack(v[0], v[1], vb, dacc, dint)
+    return dy, {"clamp_force": cz, "clamp_force_rho": crho, "ball_reaction": f_hold, "ball_v": vb,
+                "zc": z[-1], "rhoc": rho[-1], "rho": rho, "z": z, "zb": zb, "kin": k}
+
+
+def vector_field(model: SheetModel, layout: Layout):
+    def vf(t, y, args):
+        return evaluate(model, layout, t, y, args)[0]
+
+    return vf
+
+
+
+def sheet_structure(layout: Layout) -> Structure:
+    r"""Sparsity of the state for :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`.
+
+    Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
+    relative to the ball depends only on its neighbours (element energies, the hoop
+    stretch at element midpoints, the node's own contact frame), so those blocks are
+    tridiagonal. A friction law's per-node state (slip distance) joins its node's block
+    (``b = 3``): its rate depends on the node's slip, i.e. on the node and its neighbours.
+
+    The dense border holds the ball height, the accumulators, and the last
+    :data:`EDGE_NODES` nodes (the clamped edge and its neighbour). Every node moves with the
+    ball (``v = u + v_b e_z``), and a force-controlled ball's velocity
+    $v_b = (F_b + C_z + F_g)/\eta_b$ depends on the clamp's force $C_z = \partial E/\partial z_{n-1}$,
+    i.e. on the last element's two nodes: every row depends on them, so they belong in the
+    border (with a held ball the coupling vanishes and the border simply holds a few zeros).
+    ``tests/test_structured.py`` checks the pattern against ``jax.jacfwd`` with the ball
+    held and force-controlled.
+    """
+    n = layout.n
+    n_core = n - EDGE_NODES
+
+    def node(i):
+        return [-1 if i == 0 else i - 1, n - 1 + i] + ([layout.internal_start + i] if layout.n_int else [])
+
+    core = [j for i in range(n_core) for j in node(i)]
+    edge = [j for i in range(n_core, n) for j in node(i)]
+    border = tuple(edge + list(range(2 * n - 1, 2 * n + N_ACC)))
+    return Structure(n=n_core, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border)
