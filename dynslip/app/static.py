@@ -235,7 +235,7 @@ def _fail(res_list, out: Path):
 
 def run_static(sc, out: Path, console) -> dict:
     """``kind: static``: one material, Fig. 4 row."""
-    from dynslip.plot.static import figure4_row
+    from dynslip.plot.static import save_figure4_row
     from dynslip.schema.static import material_of
 
     p = sc.physics
@@ -248,8 +248,7 @@ def run_static(sc, out: Path, console) -> dict:
     summary = _summary(res)
     io.write_json(out / "summary.json", summary)
     if "lambda_theta" in res:
-        fig = figure4_row(ds)
-        io.save_figure(fig, out / "figure4_row.png", dpi=110)
+        save_figure4_row(ds, out / "figure4_row.png")
     _table(console, f"static: {LABEL.get(res['model'], res['model'])}", [summary])
     _fail([res], out)
     return summary
@@ -258,7 +257,7 @@ def run_static(sc, out: Path, console) -> dict:
 def run_figure4(sc, out: Path, console) -> dict:
     """``kind: figure4``: Hookean, neo-Hookean, Gent in one 3x3 figure."""
     from dynslip.physics.materials import make_material
-    from dynslip.plot.static import figure4
+    from dynslip.plot.static import save_figure4
 
     p = sc.physics
     results, sums, dss = [], [], []
@@ -281,7 +280,7 @@ def run_figure4(sc, out: Path, console) -> dict:
                "mu": {s["model"]: s.get("mu") for s in sums}, "selection_rule": sums[0]["selection_rule"]}
     io.write_json(out / "summary.json", summary)
     if all("lambda_theta" in r for r in results):
-        io.save_figure(figure4(ds), out / "figure4.png", dpi=100)
+        save_figure4(ds, out / "figure4.png")
     _table(console, "Fig. 4: the three models", sums)
     _fail(results, out)
     return summary
@@ -291,7 +290,7 @@ def run_family(sc, out: Path, console) -> dict:
     """``kind: family``: mu along the fully mobilised family of the three models."""
     from dynslip.physics import sphere as S
     from dynslip.physics.materials import make_material
-    from dynslip.plot.static import family_plot
+    from dynslip.plot.static import save_family
 
     p, num = sc.physics, sc.numerics
     values = np.linspace(p.switch_from, p.switch_to, num.n_members)
@@ -350,7 +349,7 @@ def run_family(sc, out: Path, console) -> dict:
                "mu_range": {m: [float(np.nanmin(cols["mu"][i])), float(np.nanmax(cols["mu"][i]))]
                             for i, m in enumerate(models)}}
     io.write_json(out / "summary.json", summary)
-    io.save_figure(family_plot(ds), out / "family.png", dpi=110)
+    save_family(ds, out / "family.png")
     _table(console, "fully mobilised family: selected members", rows)
     return summary
 
@@ -362,7 +361,7 @@ def run_cylinder(sc, out: Path, console) -> dict:
     from rich.table import Table
 
     from dynslip.physics import cylinder as C
-    from dynslip.plot.static import cylinder_plot
+    from dynslip.plot.static import save_cylinder
 
     p, num = sc.physics, sc.numerics
     angles = np.linspace(p.theta_max_from, p.theta_max_to, num.n_angles)
@@ -415,7 +414,7 @@ def run_cylinder(sc, out: Path, console) -> dict:
         else "some admissible state has F_v <= 0",
     }
     io.write_json(out / "summary.json", summary)
-    io.save_figure(cylinder_plot(ds), out / "cylinder.png", dpi=110)
+    save_cylinder(ds, out / "cylinder.png")
     tab = Table(title="2D cylinder (paper Section 5)")
     tab.add_column("quantity")
     tab.add_column("value", justify="right")

@@ -4,7 +4,10 @@
   stretches, F_m, with the background coloured by the direction of friction;
 - :func:`figure4`: the whole 3x3 Fig. 4 (Hookean, neo-Hookean, Gent);
 - :func:`family_plot`: mu across the fully mobilised family;
-- :func:`cylinder_plot`: the 2D capstan bounds and vertical force.
+- :func:`cylinder_plot`: the 2D capstan bounds and vertical force;
+- :func:`save_figure4_row`, :func:`save_figure4`, :func:`save_family`,
+  :func:`save_cylinder`: draw one of them and save it to the path given (the runners
+  name the path; nothing else is written).
 """
 
 from __future__ import annotations
@@ -16,9 +19,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
+from dynslip.data.files import save_figure  # noqa: E402
 from dynslip.plot.style import MODEL_LABELS as LABEL  # noqa: E402
 
-__all__ = ["figure4_row", "figure4", "family_plot", "cylinder_plot"]
+__all__ = ["figure4_row", "figure4", "family_plot", "cylinder_plot", "save_figure4_row", "save_figure4",
+           "save_family", "save_cylinder"]
 
 C_EQ, C_POLE = "#fde0c5", "#cfe3f5"  # friction toward the equator / toward the pole
 
@@ -146,3 +151,23 @@ def cylinder_plot(ds):
     b.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+def save_figure4_row(ds, path):
+    """:func:`figure4_row` of a ``static`` result saved to ``path``; returns the path."""
+    return save_figure(figure4_row(ds), path, dpi=110)
+
+
+def save_figure4(ds, path):
+    """:func:`figure4` of a ``figure4`` result saved to ``path``; returns the path."""
+    return save_figure(figure4(ds), path, dpi=100)
+
+
+def save_family(ds, path):
+    """:func:`family_plot` of a ``family`` result saved to ``path``; returns the path."""
+    return save_figure(family_plot(ds), path, dpi=110)
+
+
+def save_cylinder(ds, path):
+    """:func:`cylinder_plot` of a ``cylinder`` result saved to ``path``; returns the path."""
+    return save_figure(cylinder_plot(ds), path, dpi=110)
