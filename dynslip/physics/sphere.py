@@ -48,6 +48,7 @@ import numpy as np
 import optimistix as optx
 
 from dynslip.errors import ComputationError
+from dynslip.physics.friction import soft_threshold  # eps = 0: the paper's march rule S(f, c)
 from dynslip.physics.materials import AbstractMaterial, MaterialRangeError, tensions
 
 __all__ = [
@@ -164,11 +165,6 @@ def vertical_force_identity(material: AbstractMaterial, theta, h):
 
 
 # --------------------------------------------------------------------------- the march
-
-
-def soft_threshold(f, c):
-    """$S(f, c) = \\mathrm{sign}(f)\\max(|f| - c, 0)$ (the paper's march rule)."""
-    return jnp.sign(f) * jnp.maximum(jnp.abs(f) - c, 0.0)
 
 
 def velocity(material: AbstractMaterial, theta, h, mu):
