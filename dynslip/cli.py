@@ -173,7 +173,7 @@ def cmd_window(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from dynslip.analysis.compare import run_compare
+    from dynslip.app.compare import run_compare
 
     _check_dir_out(args.out)
     run_compare([Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console())

@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from dynslip.analysis.compare import run_compare
+from dynslip.app.compare import run_compare
 from dynslip.data.files import write_netcdf
 from helpers import synthetic_trajectory
 

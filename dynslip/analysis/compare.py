@@ -1,25 +1,18 @@
 """Compare the end states of forming runs (e.g. method 1 against method 2).
 
-``dynslip compare RUN_A RUN_B ...`` reads each run's ``trajectory.nc`` (a run folder
-or the file itself), takes the last saved frame as the end state, and reports
-theta(rbar) of each on the contact region, the largest |delta theta| on the region
-common to all, and each run's theta_max, rbar_max and mu_mobilised_max (largest mobilised
-|F_f|/F_N on the end state's contact region). Writes ``compare.json`` and
-``compare.png`` into ``--out`` (default ``outputs/compare/``).
+The last saved frame of each trajectory is its end state (:func:`end_state`): theta(rbar)
+on the contact region, theta_max, rbar_max and mu_mobilised_max (largest mobilised
+|F_f|/F_N on the end state's contact region); :func:`difference` is the largest
+|delta theta| on the region common to two; :func:`compare` gathers both for two or more
+runs. The command ``dynslip compare`` (:mod:`dynslip.app.compare`) reads the runs, writes
+``compare.json`` and ``compare.png`` and prints the table.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from dynslip.errors import InputError
-
-
-def _traj_path(p: Path) -> Path:
-    p = Path(p)
-    return p / "trajectory.nc" if p.is_dir() else p
+__all__ = ["end_state", "difference", "compare"]
 
 
 def end_state(ds) -> dict:
@@ -59,24 +52,10 @@ def difference(a: dict, b: dict) -> dict:
     }
 
 
-def run_compare(runs: list[Path], out: Path | None = None, console=None) -> dict:
-    """Compare the end states of two or more saved forming runs."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from dynslip.data.files import save_figure, write_json
-    from dynslip.data.trajectory import open_trajectory
-
-    if len(runs) < 2:
-        raise InputError(f"runs: {len(runs)} given; compare needs at least two run folders")
-    out = Path(out) if out else Path("outputs") / "compare"
-    states = {}
-    for r in runs:
-        ds = open_trajectory(_traj_path(r))
-        states[str(r)] = end_state(ds)
-        ds.close()
+def compare(states: dict) -> dict:
+    """``{"runs": ..., "differences": ...}`` of end states (name -> :func:`end_state`, the
+    first the reference): each run's theta_max, rbar_max, mu_mobilised_max, and the
+    difference of the reference to each other run (``"A - B"``)."""
     names = list(states)
     ref = states[names[0]]
     result = {"runs": {}, "differences": {}}
@@ -89,35 +68,4 @@ def run_compare(runs: list[Path], out: Path | None = None, console=None) -> dict
             "max_abs_dtheta": d["max_abs_dtheta"],
             "common_rbar_max": d["common_rbar_max"],
         }
-
-    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    for n in names:
-        s = states[n]
-        ax0.plot(s["rbar"][s["contact"]], s["theta"][s["contact"]], label=f"{n} (mu_mobilised_max {s['mu_mobilised_max']:.3g})")
-    ax0.set_xlabel(r"$\bar r$ (material radius / R)")
-    ax0.set_ylabel(r"$\theta$ (rad)")
-    ax0.set_title("end states on the contact region")
-    ax0.legend(fontsize=8)
-    for n in names[1:]:
-        d = difference(ref, states[n])
-        ax1.plot(d["rbar"], d["dtheta"], label=f"{names[0]} - {n}")
-    ax1.axhline(0, color="0.6", lw=0.8)
-    ax1.set_xlabel(r"$\bar r$")
-    ax1.set_ylabel(r"$\Delta\theta$ (rad)")
-    ax1.set_title("difference on the common contact region")
-    ax1.legend(fontsize=8)
-    save_figure(fig, out / "compare.png", dpi=120)
-    plt.close(fig)
-    write_json(out / "compare.json", result)
-    if console is not None:
-        from rich.table import Table
-
-        t = Table(title="end states")
-        for c in ("run", "theta_max", "rbar_max", "mu_mobilised_max"):
-            t.add_column(c)
-        for n, v in result["runs"].items():
-            t.add_row(n, f"{v['theta_max']:.4f}", f"{v['rbar_max']:.4f}", f"{v['mu_mobilised_max']:.4f}")
-        console.print(t)
-        for k, v in result["differences"].items():
-            console.print(f"max |delta theta| ({k}) = {v['max_abs_dtheta']:.4g} rad on rbar <= {v['common_rbar_max']:.3f}")
     return result
