@@ -193,44 +193,38 @@ def _switched(dom: tuple[int, int], cat_other: np.ndarray, reach: int) -> bool:
     return dom[1] - dom[0] + 1 > reach + 1 and bool(np.all(cat_other[dom[0] : dom[1] + 1] != 0))
 
 
-def _birth_event(f: _Front, cat_prev: np.ndarray, reach: int = 1) -> str:
-    if cat_prev[f.node] == 0 or cat_prev[f.node + 1] == 0:
-        return "contact_gained"
+def _event(f: _Front, cat_other: np.ndarray, reach: int, names: tuple[str, str, str, str]) -> str:
+    """What happened to a front's domains between its frame and ``cat_other`` (the frame
+    before for a birth, after for a death); ``names`` are the event's names for (contact
+    changed, at the contact edge, at the pole, inside) in that direction."""
+    contact, at_edge, at_pole, inside = names
+    if cat_other[f.node] == 0 or cat_other[f.node + 1] == 0:
+        return contact
     lcat = STUCK if f.stuck_side == 1 else _MOVING
     rcat = _MOVING if f.stuck_side == 1 else STUCK
-    new_left = _vanished(f.left, lcat, cat_prev)
-    new_right = _vanished(f.right, rcat, cat_prev)
-    if (new_left and _switched(f.left, cat_prev, reach)) or (
-        new_right and _switched(f.right, cat_prev, reach)
+    left = _vanished(f.left, lcat, cat_other)
+    right = _vanished(f.right, rcat, cat_other)
+    if (left and _switched(f.left, cat_other, reach)) or (
+        right and _switched(f.right, cat_other, reach)
     ):
         return "domain_switched"
-    if new_right and f.right_at_edge:
-        return "nucleated_at_contact_edge"
-    if new_left and f.left_at_pole:
-        return "nucleated_at_pole"
-    if new_left or new_right:
-        return "nucleated"
+    if right and f.right_at_edge:
+        return at_edge
+    if left and f.left_at_pole:
+        return at_pole
+    if left or right:
+        return inside
     return "unresolved"
+
+
+def _birth_event(f: _Front, cat_prev: np.ndarray, reach: int = 1) -> str:
+    names = ("contact_gained", "nucleated_at_contact_edge", "nucleated_at_pole", "nucleated")
+    return _event(f, cat_prev, reach, names)
 
 
 def _death_event(f: _Front, cat_next: np.ndarray, reach: int = 1) -> str:
-    if cat_next[f.node] == 0 or cat_next[f.node + 1] == 0:
-        return "contact_lost"
-    lcat = STUCK if f.stuck_side == 1 else _MOVING
-    rcat = _MOVING if f.stuck_side == 1 else STUCK
-    gone_left = _vanished(f.left, lcat, cat_next)
-    gone_right = _vanished(f.right, rcat, cat_next)
-    if (gone_left and _switched(f.left, cat_next, reach)) or (
-        gone_right and _switched(f.right, cat_next, reach)
-    ):
-        return "domain_switched"
-    if gone_right and f.right_at_edge:
-        return "reached_contact_edge"
-    if gone_left and f.left_at_pole:
-        return "reached_pole"
-    if gone_left or gone_right:
-        return "merged"
-    return "unresolved"
+    names = ("contact_lost", "reached_contact_edge", "reached_pole", "merged")
+    return _event(f, cat_next, reach, names)
 
 
 @dataclass
