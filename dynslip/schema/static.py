@@ -58,11 +58,16 @@ class MooneyRivlin(Strict):
         return self
 
 
+def _jm(description: str):
+    """Gent's locking parameter J_m: one default and one range wherever a section has it."""
+    return F(50.0, gt=0, le=1e4, description=description)
+
+
 class Gent(Strict):
     """Gent -(J_m/2) ln(1 - (I1 - 3)/J_m)."""
 
     model: Literal["gent"] = "gent"
-    jm: float = F(50.0, gt=0, le=1e4, description="locking parameter J_m (I1 < J_m + 3), in (0, 1e4]")
+    jm: float = _jm("locking parameter J_m (I1 < J_m + 3), in (0, 1e4]")
 
 
 Material = Annotated[Union[Hookean, NeoHookean, MooneyRivlin, Gent], Field(discriminator="model")]  # noqa: UP007
@@ -71,6 +76,18 @@ Material = Annotated[Union[Hookean, NeoHookean, MooneyRivlin, Gent], Field(discr
 MuValue = Annotated[float, Field(ge=0, le=100)]
 StretchValue = Annotated[float, Field(ge=1, le=10)]
 SwitchValue = Annotated[float, Field(gt=0, lt=math.pi)]
+
+
+def _switch_guess(at: str):
+    """The shooting's Newton start: one default and one set of bounds wherever it is asked for."""
+    return F((2.2, 1.0, 0.25), description="Newton start (pole stretch in [1, 10], mu in [0, 100], switch radius in "
+             f"(0, pi)) {at}")
+
+
+def _increasing(section, lo: str, hi: str) -> None:
+    """Refuse a range of a section (its fields ``lo`` and ``hi``) that is empty or reversed."""
+    if getattr(section, hi) <= getattr(section, lo):
+        raise ValueError(f"{hi} must exceed {lo}")
 
 
 def material_of(spec):
@@ -146,9 +163,7 @@ class StaticNumerics(Strict):
                              description="F_v counts as vanished at or below this (units G*h0*R); null: "
                              "1e-3 (99/(n_nodes-1))^2, the O(h^2) discretisation error of F_v scaled from N=100")
     ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the fully mobilised shooting ODE")
-    switch_guess: tuple[StretchValue, MuValue, SwitchValue] = F(
-        (2.2, 1.0, 0.25), description="Newton start (pole stretch in [1, 10], mu in [0, 100], switch radius in "
-        "(0, pi)) of the shooting")
+    switch_guess: tuple[StretchValue, MuValue, SwitchValue] = _switch_guess("of the shooting")
 
     def fv_tolerance(self) -> float:
         """The F_v tolerance of the search (``fv_tol``, or its O(h^2) default)."""
@@ -170,10 +185,11 @@ class StaticScenario(ScenarioBase):
     physics: StaticPhysics = F(StaticPhysics(), description="physics")
     numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
 
+
 class Figure4Physics(Geometry):
     """The three models of the paper's Fig. 4 (Hookean, neo-Hookean, Gent)."""
 
-    jm: float = F(50.0, gt=0, le=1e4, description="Gent J_m (paper: 50), in (0, 1e4]")
+    jm: float = _jm("Gent J_m (paper: 50), in (0, 1e4]")
     initial_shape: Literal["fully_mobilised", "linear"] = F("fully_mobilised", description="as in kind static")
     selection: Selection = F(Selection(), description="one selection rule for all three models")
 
@@ -185,10 +201,11 @@ class Figure4Scenario(ScenarioBase):
     physics: Figure4Physics = F(Figure4Physics(), description="physics")
     numerics: StaticNumerics = F(StaticNumerics(), description="numerics")
 
+
 class FamilyPhysics(Geometry):
     """The fully mobilised family of the three models, swept along its switch point."""
 
-    jm: float = F(50.0, gt=0, le=1e4, description="Gent J_m, in (0, 1e4]")
+    jm: float = _jm("Gent J_m, in (0, 1e4]")
     switch_by: Literal["switch_radius", "switch_angle"] = F(
         "switch_radius", description="parameter of the family")
     switch_from: float = F(0.15, gt=0, lt=math.pi, description="first switch value (units R, or rad), in (0, pi)")
@@ -197,8 +214,7 @@ class FamilyPhysics(Geometry):
 
     @model_validator(mode="after")
     def _range(self):
-        if self.switch_to <= self.switch_from:
-            raise ValueError("switch_to must exceed switch_from")
+        _increasing(self, "switch_from", "switch_to")
         if self.switch_by == "switch_radius" and self.switch_to >= self.rbar_max:
             raise ValueError("switch_to must lie inside the contact region (< rbar_max)")
         return self
@@ -209,9 +225,7 @@ class FamilyNumerics(Strict):
 
     n_members: int = F(18, ge=2, le=400, description="members along the switch range")
     ode_rtol: float = F(1e-10, gt=0, lt=1e-3, description="tolerance of the shooting ODE")
-    switch_guess: tuple[StretchValue, MuValue, SwitchValue] = F(
-        (2.2, 1.0, 0.25), description="Newton start (pole stretch in [1, 10], mu in [0, 100], switch radius in "
-        "(0, pi)) at the middle member")
+    switch_guess: tuple[StretchValue, MuValue, SwitchValue] = _switch_guess("at the middle member")
 
 
 class FamilyScenario(ScenarioBase):
@@ -220,6 +234,7 @@ class FamilyScenario(ScenarioBase):
     kind: Literal["family"] = "family"
     physics: FamilyPhysics = F(FamilyPhysics(), description="physics")
     numerics: FamilyNumerics = F(FamilyNumerics(), description="numerics")
+
 
 class CylinderPhysics(Strict):
     """A membrane on a rigid cylinder (paper Section 5)."""
@@ -230,8 +245,7 @@ class CylinderPhysics(Strict):
 
     @model_validator(mode="after")
     def _range(self):
-        if self.theta_max_to <= self.theta_max_from:
-            raise ValueError("theta_max_to must exceed theta_max_from")
+        _increasing(self, "theta_max_from", "theta_max_to")
         return self
 
 
