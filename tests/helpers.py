@@ -1,6 +1,6 @@
 """Helpers shared by the tests: a small contract-conforming trajectory whose ``state``
 field is prescribed (fronts, animations, comparisons and the command line are tested on it
-without running the simulator)."""
+without running the simulator); :func:`one_line`, the check of a one-line error message."""
 
 from __future__ import annotations
 
@@ -112,3 +112,11 @@ def synthetic_trajectory(
     )
     ds.attrs.update(attrs or {})
     return ds
+
+
+def one_line(err: str) -> str:
+    """The one non-blank line of ``err`` (asserted: exactly one, and no traceback)."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]

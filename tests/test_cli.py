@@ -8,6 +8,7 @@ import pytest
 
 from dynslip.cli import main
 from dynslip.schema.base import parse_override, schema_reference
+from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -18,18 +19,11 @@ def _run(argv, capsys):
     return rc, err
 
 
-def _one_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
-    return lines[0]
-
-
 def test_missing_file(tmp_path, capsys):
     out = tmp_path / "out"
     rc, err = _run(["run", str(tmp_path / "nope.yaml"), "--out", str(out)], capsys)
     assert rc == 2
-    assert "not found" in _one_line(err)
+    assert "not found" in one_line(err)
     assert not out.exists() and not Path(str(out) + ".staging").exists()
 
 
@@ -39,7 +33,7 @@ def test_malformed_yaml(tmp_path, capsys):
     out = tmp_path / "out"
     rc, err = _run(["run", str(f), "--out", str(out)], capsys)
     assert rc == 2
-    assert "malformed YAML" in _one_line(err)
+    assert "malformed YAML" in one_line(err)
     assert not out.exists() and not Path(str(out) + ".staging").exists()
 
 
@@ -48,7 +42,7 @@ def test_unknown_kind(tmp_path, capsys):
     f.write_text("kind: teleport\n")
     rc, err = _run(["validate", str(f)], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert "kind" in line and "teleport" in line
 
 
@@ -57,7 +51,7 @@ def test_bad_override_syntax(tmp_path, capsys):
     f.write_text("kind: static\n")
     rc, err = _run(["validate", str(f), "--set", "novalue"], capsys)
     assert rc == 2
-    assert "section.key=value" in _one_line(err)
+    assert "section.key=value" in one_line(err)
 
 
 def test_parse_override_types():
@@ -79,7 +73,7 @@ def test_subprocess_no_traceback(tmp_path):
         [sys.executable, "-m", "dynslip.cli", "validate", str(f)], capture_output=True, text=True
     )
     assert proc.returncode == 2
-    _one_line(proc.stderr)
+    one_line(proc.stderr)
 
 
 @pytest.mark.parametrize("scenario, override, field", [
@@ -99,7 +93,7 @@ def test_bad_field_exits_2_one_line_naming_it_and_writes_nothing(tmp_path, capsy
     out = tmp_path / "out"
     rc, err = _run(["run", str(ROOT / "scenarios" / scenario), "--out", str(out), "--set", override], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert field in line, line
     assert not out.exists() and not Path(str(out) + ".staging").exists()
 
@@ -133,6 +127,6 @@ def test_trajectory_readers_bad_input_exit_2(tmp_path, capsys, command, case):
     out = tmp_path / "out"
     rc, err = _run([command, str(path), "--out", str(out), *extra], capsys)
     assert rc == 2, err
-    line = _one_line(err)
+    line = one_line(err)
     assert ("t_start" in line) if case == "time_range" else ("trajectory" in line)
     assert not out.exists()

@@ -26,6 +26,7 @@ from dynslip.cli import main
 from dynslip.errors import ComputationError
 from dynslip.data.files import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
 from dynslip.app import kinds
+from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -40,13 +41,6 @@ def _cli(argv, capsys):
     rc = main([str(a) for a in argv])
     cap = capsys.readouterr()
     return rc, cap.err
-
-
-def _one_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
-    return lines[0]
 
 
 def _tree(root: Path) -> dict[str, bytes | None]:
@@ -114,7 +108,7 @@ def test_user_folder_refused_with_files_intact(tmp_path, capsys, monkeypatch):
     before = _tree(tmp_path)
     rc, err = _cli(["run", CYL, "--out", out], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert "--out" in line and str(out) in line and "--force" in line and "dynslip result" in line
     assert _tree(tmp_path) == before and not calls  # refused before anything ran or was made
 
@@ -129,7 +123,7 @@ def test_user_folder_refused_by_sweep_and_window(tmp_path, capsys, monkeypatch, 
     before = _tree(tmp_path)
     rc, err = _cli([command, src, "--out", out], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert "--out" in line and str(out) in line and "--force" in line
     assert _tree(tmp_path) == before
 
@@ -153,7 +147,7 @@ def test_existing_file_never_replaced(tmp_path, capsys, monkeypatch, force):
     out.write_text("precious")
     rc, err = _cli(["run", CYL, "--out", out, *(["--force"] if force else [])], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert "--out" in line and str(out) in line and "file" in line
     assert out.read_text() == "precious" and not calls
     assert sorted(p.name for p in tmp_path.iterdir()) == ["precious.txt"]
@@ -208,7 +202,7 @@ def test_earlier_result_without_marker_recognised(tmp_path, capsys, monkeypatch)
     (other / "summary.json").write_text("{}")
     before = _tree(other)
     rc, err = _cli(["run", CYL, "--out", other], capsys)
-    assert rc == 2 and "not a dynslip result" in _one_line(err)
+    assert rc == 2 and "not a dynslip result" in one_line(err)
     assert _tree(other) == before
 
 
@@ -299,7 +293,7 @@ def test_scenario_inside_out_refused(tmp_path, capsys, monkeypatch):
     scen.write_text(Path(CYL).read_text())
     calls = _stub_run(monkeypatch, _good("second"))
     rc, err = _cli(["run", scen, "--out", out], capsys)
-    assert rc == 2 and "scenario" in _one_line(err)
+    assert rc == 2 and "scenario" in one_line(err)
     assert scen.is_file() and _tag(out) == "first" and not calls
 
 
@@ -321,7 +315,7 @@ def test_start_from_run_folder_follows_the_same_rule(tmp_path, capsys, monkeypat
     before = _tree(tmp_path)
     rc, err = _cli(["run", rel, "--out", tmp_path / "res"], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert "start_from" in line and "outputs/start" in line and "not a dynslip result" in line
     assert _tree(tmp_path) == before
 
@@ -338,7 +332,7 @@ def test_out_dot_refused(tmp_path, capsys, monkeypatch):
         before = _tree(tmp_path)
         rc, err = _cli(["run", CYL, "--out", out], capsys)
         assert rc == 2
-        assert "--out" in _one_line(err)
+        assert "--out" in one_line(err)
         assert _tree(tmp_path) == before
     assert not calls
 
@@ -348,7 +342,7 @@ def test_parent_is_a_file_refused(tmp_path, capsys, monkeypatch):
     (tmp_path / "f").write_text("x")
     rc, err = _cli(["run", CYL, "--out", tmp_path / "f" / "sub" / "out"], capsys)
     assert rc == 2
-    line = _one_line(err)
+    line = one_line(err)
     assert "--out" in line and "is a file" in line
     assert (tmp_path / "f").read_text() == "x" and not calls
 
@@ -362,7 +356,7 @@ def test_read_only_parent_refused(tmp_path, capsys, monkeypatch):
     try:
         rc, err = _cli(["run", CYL, "--out", ro / "out"], capsys)
         assert rc == 2
-        line = _one_line(err)
+        line = one_line(err)
         assert "--out" in line and "not writable" in line
         assert list(ro.iterdir()) == [] and not calls
     finally:
@@ -402,7 +396,7 @@ def test_sweep_out_file_fronts_out_file_animate_out_dir(tmp_path, capsys, monkey
     ):
         rc, err = _cli(argv, capsys)
         assert rc == 2, (argv, err)
-        line = _one_line(err)
+        line = one_line(err)
         assert "--out" in line and str(argv[3]) in line, line
     after = _tree(tmp_path)
     after.pop("study.yaml", None)
@@ -438,7 +432,7 @@ def test_unreachable_scheduler_creates_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
     out = tmp_path / "sw"
     rc, err = _cli(["sweep", _sweep_file(tmp_path), "--out", out, "--scheduler", "tcp://127.0.0.1:9"], capsys)
-    assert rc == 2 and "cannot reach" in _one_line(err)
+    assert rc == 2 and "cannot reach" in one_line(err)
     assert not out.exists()
 
 

@@ -19,6 +19,7 @@ import yaml
 
 from dynslip.cli import main
 from dynslip.schema.base import _classes, parse_override, schema_reference, validate_data
+from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -36,17 +37,10 @@ def _cli(argv, capsys) -> tuple[int, str]:
     return rc, err
 
 
-def _one_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
-    return lines[0]
-
-
 def _bad(argv, capsys, *words) -> str:
     rc, err = _cli(argv, capsys)
     assert rc == 2, err
-    line = _one_line(err)
+    line = one_line(err)
     for w in words:
         assert w in line, line
     return line
@@ -355,7 +349,7 @@ def test_exponent_without_a_dot_is_a_number_in_files(tmp_path, capsys):
     assert sc.numerics.rtol == 1e-5 and sc.numerics.atol == 1e-7
 
 
-def test_a_newline_in_a_value_stays_one_line(tmp_path, capsys):
+def test_a_newline_in_a_value_staysone_line(tmp_path, capsys):
     stages = [{"name": "a\nb\nc", "clamp_to_z_mm": 20.4, "clamp_speed_mm_s": 2.0}]  # empty stage: named
     _bad(["validate", _scenario(tmp_path, "method2.yaml", _put("physics.stages", stages))], capsys, "empty stage")
     _bad(["validate", SCENARIOS / "method2.yaml", "--set", 'name=[1, "x\\ny"]'], capsys, "name")
