@@ -116,3 +116,31 @@ def test_gent_limit_is_a_clear_error():
     with pytest.raises(MaterialRangeError, match="J_m"):
         check_static_range(gent, [5.2, 1.0], [5.2, 1.0])
     check_static_range(gent, [5.1, 1.0], [5.1, 1.0])  # just inside
+
+
+def _subclasses(cls):
+    for sub in cls.__subclasses__():
+        yield sub
+        yield from _subclasses(sub)
+
+
+def test_methods_are_abstract_or_final():
+    """The equinox pattern: no material overrides a concrete method of a class above it."""
+    import inspect
+
+    from dynslip.physics.materials import AbstractMaterial
+
+    bad = []
+    for cls in _subclasses(AbstractMaterial):
+        if not cls.__module__.startswith("dynslip."):
+            continue
+        for name, member in vars(cls).items():
+            if name.startswith("__") or not callable(member):
+                continue
+            for base in cls.__mro__[1:]:
+                inherited = vars(base).get(name)
+                if inherited is not None and not getattr(inherited, "__isabstractmethod__", False):
+                    bad.append(f"{cls.__name__}.{name} overrides {base.__name__}.{name}")
+                    break
+        assert not inspect.isabstract(cls) or cls.__name__.startswith("Abstract"), cls
+    assert not bad, bad

@@ -37,6 +37,7 @@ import numpy as np
 
 __all__ = [
     "AbstractMaterial",
+    "AbstractIncompressible",
     "Hookean",
     "NeoHookean",
     "MooneyRivlin",
@@ -65,21 +66,24 @@ def invariants(lt, lp):
 class AbstractMaterial(eqx.Module):
     """A membrane strain energy $W(\\lambda_\\theta, \\lambda_\\phi)$ in units of $G$.
 
-    Subclasses implement :meth:`energy` (elementwise, jit- and grad-safe) and may
-    override :meth:`natural_width` and :meth:`max_uniaxial_stretch`.
+    The equinox pattern: every method is abstract or final (no concrete method is
+    overridden). Each final material implements :meth:`energy` (elementwise, jit- and
+    grad-safe), :meth:`max_uniaxial_stretch` and, unless an abstract class between
+    implements it (:class:`AbstractIncompressible`), :meth:`natural_width`;
+    :meth:`in_range` and :attr:`name` are final.
     """
 
     @abc.abstractmethod
     def energy(self, lt, lp):
         """Strain energy per reference volume, units of G; NaN or inf outside range."""
 
+    @abc.abstractmethod
     def natural_width(self, l):
-        """Width under uniaxial stretch ``l`` with zero transverse stress: ``l**-0.5``."""
-        return l**-0.5
+        """Width under uniaxial stretch ``l`` with zero transverse stress."""
 
+    @abc.abstractmethod
     def max_uniaxial_stretch(self) -> float:
         """Largest uniaxial stretch where the (relaxed) energy is defined."""
-        return float("inf")
 
     def in_range(self, lt, lp):
         """Boolean array: True where the relaxed energy is defined and finite."""
@@ -92,6 +96,15 @@ class AbstractMaterial(eqx.Module):
     @property
     def name(self) -> str:
         return type(self).__name__
+
+
+class AbstractIncompressible(AbstractMaterial):
+    """A material whose natural width under uniaxial stretch is that of exact
+    incompressibility (the Mooney-Rivlin family and Gent)."""
+
+    def natural_width(self, l):
+        """Width under uniaxial stretch ``l`` with zero transverse stress: ``l**-0.5``."""
+        return l**-0.5
 
 
 class Hookean(AbstractMaterial):
@@ -108,7 +121,7 @@ class Hookean(AbstractMaterial):
         return 3.0
 
 
-class MooneyRivlin(AbstractMaterial):
+class MooneyRivlin(AbstractIncompressible):
     r"""Mooney-Rivlin, $C_1(I_1-3)+C_2(I_2-3)$ with $2C_1+2C_2 = 1$ (units of $G$)."""
 
     c1: float = 0.5
@@ -118,16 +131,22 @@ class MooneyRivlin(AbstractMaterial):
         i1, i2 = invariants(lt, lp)
         return self.c1 * (i1 - 3.0) + self.c2 * (i2 - 3.0)
 
+    def max_uniaxial_stretch(self) -> float:
+        return float("inf")
 
-class NeoHookean(AbstractMaterial):
+
+class NeoHookean(AbstractIncompressible):
     r"""neo-Hookean, $(I_1 - 3)/2$ (Mooney-Rivlin with $C_2 = 0$)."""
 
     def energy(self, lt, lp):
         i1, _ = invariants(lt, lp)
         return 0.5 * (i1 - 3.0)
 
+    def max_uniaxial_stretch(self) -> float:
+        return float("inf")
 
-class Gent(AbstractMaterial):
+
+class Gent(AbstractIncompressible):
     r"""Gent, $-(J_m/2)\ln(1-(I_1-3)/J_m)$; infinite at $I_1 \ge J_m + 3$."""
 
     jm: float = 50.0
