@@ -150,7 +150,7 @@ MU_S, MU_K, D_C = 0.99, 0.82, 0.02
 
 
 @eqx.filter_jit
-def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta):
+def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta, heal_rate=None):
     """The one-node ramp of test_weakening under load stepping: eta x' = S(K (X(t) - x), mu(delta) N),
     delta' = |x'|, in increments of at most 0.01 s (the node's drag time eta / K)."""
 
@@ -162,7 +162,12 @@ def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta):
 
     newton = optx.Newton(rtol=1e-10, atol=1e-12, norm=optx.max_norm, linear_solver=lx.LU(), cauchy_termination=True)
     solver = LoadStepEuler(root_finder=newton, root_find_max_steps=16)
-    y1, ok, *_ = increments(diffrax.ODETerm(vf), solver, y0, t0, t1, jnp.asarray(1e-3), None, jnp.asarray(0.01), 10000)
+    # heal_rate: the friction law's reset inside the increment loop (after every accepted increment)
+    def after(t, y):  # the slip rate x' at the increment's end
+        return y.at[1].set(fr.reset(y[1], vf(t, y, None)[0], normal, heal_rate))
+
+    y1, ok, *_ = increments(diffrax.ODETerm(vf), solver, y0, t0, t1, jnp.asarray(1e-3), None, jnp.asarray(0.01), 10000,
+                            after=None if heal_rate is None else after)
     f1 = stiff * (x_drive0 + v_drive * (t1 - t0) - y1[0])
     return y1, ok, f1, fr.slip_force(f1, normal, y1[1])
 
@@ -201,3 +206,31 @@ def test_one_node_ramp_under_load_stepping():
     assert abs(peak2 - MU_S) / MU_S < 1e-2, peak2
     print(f"one-node ramp, load stepping: peaks {peak1:.5f}, {peak2:.5f} (mu_s N = {MU_S}); sliding force "
           f"{force[late].mean():.5f} (mu_k N + eta V = {MU_K + eta * v:.5f})")
+
+
+def test_settling_node_heals_inside_the_increments():
+    """The healing reset happens in the load step, not at save-segment ends: drive the node
+    past d_c, stop the drive for 1 s, reload, with no reset between segments. With the reset
+    in every increment (slip rate at most 1e-3 R/s) the settled node's slip distance is 0
+    and reloading needs mu_s N again; without it the node stays weakened and slides at mu_k."""
+    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    stiff, normal, eta, v, seg = 10.0, 1.0, 0.1, 0.01, 0.05
+    out = {}
+    for heal_rate in (None, 1e-3):
+        y, t, xd = jnp.zeros(2), 0.0, 0.0
+        rows = []
+        for dur, vel in [(20.0, v), (1.0, 0.0), (4.0, v)]:
+            for _ in range(int(round(dur / seg))):
+                y, ok, f, s = _node_segment(fr, y, jnp.asarray(t), jnp.asarray(t + seg), jnp.asarray(xd),
+                                            jnp.asarray(vel), stiff, normal, eta, heal_rate)
+                assert bool(ok)
+                t, xd = t + seg, xd + vel * seg
+                rows.append((t, float(y[1]), float(f)))
+        t_, delta, force = (np.array(c) for c in zip(*rows, strict=True))
+        settle_end = np.flatnonzero(t_ <= 21.0 + 1e-9)[-1]
+        out[heal_rate] = (delta[settle_end], force[t_ > 21.0].max())
+    (d_bare, peak_bare), (d_heal, peak_heal) = out[None], out[1e-3]
+    assert d_bare > D_C and abs(peak_bare - (MU_K + eta * v)) / MU_K < 2e-2, (d_bare, peak_bare)
+    assert d_heal == 0.0 and abs(peak_heal - MU_S) / MU_S < 1e-2, (d_heal, peak_heal)
+    print(f"load stepping, heal in the increment: delta after settling {d_heal:g} (bare {d_bare:.4g}); "
+          f"reload peak {peak_heal:.4f} (bare {peak_bare:.4f}; mu_s N = {MU_S})")

@@ -34,7 +34,7 @@ FREE_ARGS = _setup("method2")[2][2]
 def _solve(linear_solver, y, t1):
     import dataclasses
 
-    settings = dataclasses.replace(SETTINGS, linear_solver=linear_solver)
+    settings = dataclasses.replace(SETTINGS, solver="kvaerno5", linear_solver=linear_solver)
     solve = segment_solver(settings)
     f = jnp.asarray
     y1, ok, steps, _, _ = solve(MODEL, LAYOUT, y, f(0.0), f(t1), f(1e-3), ARGS, f(1e-7), f(1e-9))

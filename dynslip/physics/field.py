@@ -21,7 +21,7 @@ from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 
 EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see sheet_structure)
 
-__all__ = ["N_ACC", "EDGE_NODES", "Layout", "StageArgs", "evaluate", "vector_field", "sheet_structure"]
+__all__ = ["N_ACC", "EDGE_NODES", "Layout", "StageArgs", "evaluate", "vector_field", "sheet_structure", "heal"]
 
 N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
 
@@ -188,3 +188,16 @@ def sheet_structure(layout: Layout) -> Structure:
     edge = [j for i in range(n_core, n) for j in node(i)]
     border = tuple(edge + list(range(2 * n - 1, 2 * n + N_ACC)))
     return Structure(n=n_core, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border)
+
+
+def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate):
+    """The friction law's reset of the per-node state where a node is stuck again: slip rate
+    $|S|/(\\eta A) \\le$ ``heal_rate`` (R/s) or out of contact
+    (:func:`dynslip.physics.friction.heals`, the one criterion of both solvers). Unchanged for
+    memoryless laws."""
+    if layout.n_int == 0:
+        return y
+    rho, z, zb, _ = layout.unpack(y)
+    internal = layout.internal(y)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
+    return layout.with_internal(y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate))

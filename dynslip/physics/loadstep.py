@@ -14,8 +14,11 @@ generalised Jacobian, so Newton on it is a semi-smooth Newton method. The whole 
 advanced by the same rule, so
 
 - the slip distance gains the increment's slip, $\delta_1 = \delta_0 + |\Delta u_t|$ (its
-  rate $|u_t|$ at $x_1$ times $\Delta t$); the friction law's reset (healing) is applied
-  by the driver at the end of each save segment, as for the time-stepped solvers;
+  rate $|u_t|$ at $x_1$ times $\Delta t$), and after every accepted increment the friction
+  law's reset (healing) is applied where the increment's slip rate $|\Delta u_t|/\Delta t$ at
+  $x_1$ is at most ``heal_rate`` (:func:`dynslip.physics.field.heal`: the criterion the
+  time-stepped solvers apply at the end of each save segment, since a reset inside their
+  steps would be a discontinuity in an adaptive error-controlled step);
 - the energy accumulators gain the increment's backward-Euler work and dissipation
   ($C(x_1)\cdot\Delta x_c$, $\eta A|\Delta x|^2/\Delta t$, $(F_t - S)\,\Delta u_t$ at $x_1$);
   the energy balance's residual is then implicit Euler's own numerical dissipation,
@@ -67,7 +70,7 @@ import optimistix as optx
 from diffrax._solver.implicit_euler import _implicit_relation
 from equinox.internal import ω
 
-from dynslip.physics.field import sheet_structure, vector_field
+from dynslip.physics.field import heal, sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
@@ -140,19 +143,22 @@ def increment_cap(args, max_increment, max_increment_free):
 
 
 def run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, *, max_steps: int, max_iter: int,
-                max_increment: float, max_increment_free: float, linear_solver: str = "structured"):
+                max_increment: float, max_increment_free: float, linear_solver: str = "structured",
+                heal_rate: float = 0.0):
     """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
     newton_iterations)``. Not jitted (see :func:`segment_solver`). ``dt0`` is the first increment tried.
     """
     term = diffrax.ODETerm(vector_field(model, layout))
     solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter)
     cap = increment_cap(args, max_increment, max_increment_free)
-    return increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps)
+    return increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps,
+                      after=lambda t, y: heal(model, layout, y, args, heal_rate))
 
 
-def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int):
+def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=None):
     """The increment loop over ``solver.step`` (a :class:`LoadStepEuler`) for any diffrax term:
-    ``(y1, ok, steps, accepted, rejected, newton_iterations)``; increments at most ``cap``."""
+    ``(y1, ok, steps, accepted, rejected, newton_iterations)``; increments at most ``cap``.
+    ``after(t, y)`` (e.g. the friction law's healing) maps each increment's end state."""
     dt_min = MIN_FRACTION * (t1 - t0)
     zero = jnp.array(0, dtype=jnp.int32)
 
@@ -167,6 +173,8 @@ def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int):
         h = jnp.where(last, left, dt)
         t_next = jnp.where(last, t1, t + h)
         y1, y_err, _, new_state, result = solver.step(term, t, t_next, y, args, state, False)
+        if after is not None:
+            y1 = after(t_next, y1)
         iters = new_state.iterations
         ok = diffrax.is_okay(result) & jnp.all(jnp.isfinite(y_err)) & jnp.all(jnp.isfinite(y1))
         factor = jnp.where(iters <= GROW_BELOW, GROW, jnp.where(iters >= SHRINK_ABOVE, SHRINK, 1.0))
@@ -192,7 +200,7 @@ def segment_solver(settings):
     load_step``, the signature of :func:`dynslip.physics.simulate.segment_solver` with the
     Newton iteration count as a sixth output; one per setting of the increment control."""
     key = (settings.max_steps, settings.linear_solver, settings.newton_max_iter, settings.max_increment,
-           settings.max_increment_free)
+           settings.max_increment_free, settings.heal_rate)
     if key in _CACHE:
         return _CACHE[key]
 
@@ -200,7 +208,8 @@ def segment_solver(settings):
     def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
         return run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=settings.max_steps,
                            max_iter=settings.newton_max_iter, max_increment=settings.max_increment,
-                           max_increment_free=settings.max_increment_free, linear_solver=settings.linear_solver)
+                           max_increment_free=settings.max_increment_free, linear_solver=settings.linear_solver,
+                           heal_rate=settings.heal_rate)
 
     _CACHE[key] = solve
     return solve

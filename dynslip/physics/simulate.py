@@ -41,7 +41,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, sheet_structure, vector_field
+from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, sheet_structure, vector_field
 from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
@@ -160,12 +160,9 @@ def state_from(layout: Layout, start: dict):
 
 @eqx.filter_jit
 def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate=0.0):
-    """The friction law's restart: per-node state reset where healed (slip rate at most
-    ``heal_rate``, R/s: :func:`dynslip.physics.friction.heals`) or out of contact."""
-    rho, z, zb, _ = layout.unpack(y)
-    internal = layout.internal(y)
-    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
-    return layout.with_internal(y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate))
+    """The friction law's restart at a save-segment end (time-stepped solvers):
+    :func:`dynslip.physics.field.heal`. Load stepping applies the same reset after every increment."""
+    return heal(model, layout, y, args, heal_rate)
 
 
 class SolverFailure(RuntimeError):
@@ -266,7 +263,7 @@ def simulate(
         for t1 in seg_ts[1:]:
             dt0 = _f(min(dt_guess, 0.5 * (t1 - t)))
             key = (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
-                   settings.newton_max_iter, settings.max_increment, settings.max_increment_free,
+                   settings.newton_max_iter, settings.max_increment, settings.max_increment_free, settings.heal_rate,
                    repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
             if key not in _COMPILED:
                 c0 = _time.perf_counter()
@@ -293,7 +290,7 @@ def simulate(
                 break
             dt_guess = (float(t1) - t) / max(nacc, 1)
             y, t = y1, float(t1)
-            if layout.n_int:
+            if layout.n_int and settings.solver != "load_step":  # load stepping heals in every increment
                 y = reset_internal(model, layout, y, args, _f(settings.heal_rate))
             rec = record(t, y, args, si)
             if not np.all(np.isfinite(rec["energy_elastic"])):

@@ -229,9 +229,10 @@ class FormingNumerics(Strict):
                            "slow when a stage lasts >> tau (docs/forming.md)")
     ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet drag over the ball's "
                          "area 4 pi R^2, in (0, 1e6]")
-    solver: Literal["kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler", "load_step"] = F(
-        "kvaerno5", description="stiff solver; load_step: quasi-static implicit Euler load increments controlled "
-        "by Newton's iteration count (first order in time: for slow paths; rtol, atol are Newton's tolerances)")
+    solver: Literal["load_step", "kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F(
+        "load_step", description="load_step (default): quasi-static implicit Euler load increments controlled by "
+        "Newton's iteration count (first order in time: for slow paths; rtol, atol are Newton's tolerances); "
+        "kvaerno5: the adaptive 5th-order reference (docs/speed.md says when each is right)")
     max_increment: float = F(20.0, gt=0, le=1e4, description="load_step: largest increment in drag times, driven "
                              "stages, in (0, 1e4] (the drag eta A / dt keeps Newton's matrix regular on slack sheet)")
     max_increment_free: float = F(5.0, gt=0, le=1e4, description="load_step: largest increment in drag times where "
