@@ -22,10 +22,14 @@ the step-size controller). A stage prescribes
 
 from __future__ import annotations
 
+import abc
 import dataclasses
-from typing import Literal
+from typing import Any, ClassVar
 
-__all__ = ["Stage", "Protocol", "StopRule", "BALL_HOLD", "BALL_FORCE", "CLAMP_POSITION", "CLAMP_FORCE"]
+import equinox as eqx
+
+__all__ = ["Stage", "Protocol", "AbstractStop", "Duration", "ClampForceBelow", "ThetaMaxBelow", "BallSpeedAbove",
+           "Rest", "STOPS", "StopRule", "BALL_HOLD", "BALL_FORCE", "CLAMP_POSITION", "CLAMP_FORCE"]
 
 BALL_HOLD = 0
 BALL_FORCE = 1
@@ -33,38 +37,187 @@ CLAMP_POSITION = 0
 CLAMP_FORCE = 1
 
 
-@dataclasses.dataclass(frozen=True)
-class StopRule:
-    """When a stage ends.
+class AbstractStop(eqx.Module):
+    """When a stage ends: decided on the host from each saved frame.
 
-    ``kind``: ``"duration"`` (after ``duration``), ``"clamp_force_below"`` (when the
-    magnitude of the clamp's axial force falls below ``force``, units of $G h_0 R$),
-    or ``"rest"`` (when the largest slip speed and the ball speed stay below ``rate``
-    (R/s) for ``hold`` seconds), or ``"theta_max_below"`` (when the contact edge's polar
-    angle falls below ``angle``, radians, or contact is lost), or ``"ball_speed_above"`` (when the
-    ball's speed exceeds ``rate``, R/s: a ramped pull has torn it out). Condition rules end at
-    ``duration`` at the latest:
-    reaching it without the condition holding is reported, not hidden.
+    A stage runs in save segments up to ``duration`` (s, its maximum length). After every
+    segment the driver calls :meth:`check` with the frame just recorded (the dict of
+    :func:`dynslip.physics.simulate.frame_record`, numpy values), the time and the rule's
+    carried state (from :meth:`init` at the stage's start); it returns whether the stage
+    ends now and the new state. Reaching ``duration`` ends the stage in any case; whether
+    that meets the rule is :attr:`met_at_duration` (a duration rule: yes; a condition
+    rule: no, and the run reports it rather than hide it).
+
+    Final classes: :class:`Duration`, :class:`ClampForceBelow`, :class:`ThetaMaxBelow`,
+    :class:`BallSpeedAbove`, :class:`Rest`. ``kind`` names each (the schema's ``until``).
     """
 
-    kind: Literal["duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above"] = "duration"
-    duration: float = 1.0
-    force: float = 0.0
-    rate: float = 0.0
-    hold: float = 0.0
-    angle: float = 0.0
+    duration: eqx.AbstractVar[float]
+    kind: eqx.AbstractClassVar[str]
+    met_at_duration: eqx.AbstractClassVar[bool]
 
-    def __post_init__(self):
-        if not self.duration > 0:
-            raise ValueError(f"stop rule: duration must be > 0, got {self.duration}")
-        if self.kind == "clamp_force_below" and not self.force > 0:
+    @abc.abstractmethod
+    def init(self) -> Any:
+        """The carried state at the stage's start."""
+
+    @abc.abstractmethod
+    def check(self, frame: dict, t: float, state: Any) -> tuple[bool, Any]:
+        """(the stage ends now, the new state) from the frame saved at time ``t``."""
+
+    @abc.abstractmethod
+    def scaled(self, factor: float) -> AbstractStop:
+        """The rule of the same path run ``factor`` times slower (times x factor, rates / factor)."""
+
+
+def _positive_duration(duration):
+    if not duration > 0:
+        raise ValueError(f"stop rule: duration must be > 0, got {duration}")
+
+
+class Duration(AbstractStop):
+    """The stage lasts ``duration`` seconds."""
+
+    duration: float
+    kind: ClassVar[str] = "duration"
+    met_at_duration: ClassVar[bool] = True
+
+    def __check_init__(self):
+        _positive_duration(self.duration)
+
+    def init(self):
+        return None
+
+    def check(self, frame, t, state):
+        return False, state
+
+    def scaled(self, factor):
+        return Duration(duration=self.duration * factor)
+
+
+class ClampForceBelow(AbstractStop):
+    """Ends when the magnitude of the clamp's axial force falls below ``force`` (G h0 R)."""
+
+    duration: float
+
+    force: float
+    kind: ClassVar[str] = "clamp_force_below"
+    met_at_duration: ClassVar[bool] = False
+
+    def __check_init__(self):
+        _positive_duration(self.duration)
+        if not self.force > 0:
             raise ValueError("stop rule clamp_force_below: the threshold must be > 0 (|force| < 0 never holds)")
-        if self.kind == "theta_max_below" and not 0 < self.angle < 3.14159265:
+
+    def init(self):
+        return None
+
+    def check(self, frame, t, state):
+        return bool(abs(float(frame["clamp_force"])) < self.force), state
+
+    def scaled(self, factor):
+        return ClampForceBelow(force=self.force, duration=self.duration * factor)
+
+
+class ThetaMaxBelow(AbstractStop):
+    """Ends when the contact edge's polar angle falls below ``angle`` (rad) or contact is lost."""
+
+    duration: float
+
+    angle: float
+    kind: ClassVar[str] = "theta_max_below"
+    met_at_duration: ClassVar[bool] = False
+
+    def __check_init__(self):
+        _positive_duration(self.duration)
+        if not 0 < self.angle < 3.14159265:
             raise ValueError(f"stop rule theta_max_below: the angle must be in (0, pi), got {self.angle}")
-        if self.kind == "ball_speed_above" and not self.rate > 0:
+
+    def init(self):
+        return None
+
+    def check(self, frame, t, state):
+        return bool(not float(frame["theta_max"]) >= self.angle), state  # NaN (no contact) ends it
+
+    def scaled(self, factor):
+        return ThetaMaxBelow(angle=self.angle, duration=self.duration * factor)
+
+
+class BallSpeedAbove(AbstractStop):
+    """Ends when the ball's speed exceeds ``rate`` (R/s): a ramped pull has torn it out."""
+
+    duration: float
+
+    rate: float
+    kind: ClassVar[str] = "ball_speed_above"
+    met_at_duration: ClassVar[bool] = False
+
+    def __check_init__(self):
+        _positive_duration(self.duration)
+        if not self.rate > 0:
             raise ValueError("stop rule ball_speed_above: the speed threshold must be > 0")
-        if self.kind == "rest" and not (self.rate > 0 and 0 < self.hold < self.duration):
+
+    def init(self):
+        return None
+
+    def check(self, frame, t, state):
+        return bool(abs(float(frame["ball_velocity"])) > self.rate), state
+
+    def scaled(self, factor):
+        return BallSpeedAbove(rate=self.rate / factor, duration=self.duration * factor)
+
+
+class Rest(AbstractStop):
+    """Ends when the largest slip speed and the ball speed have stayed below ``rate`` (R/s)
+    for ``hold`` seconds. The carried state is the time rest began (None while moving)."""
+
+    duration: float
+
+    rate: float
+    hold: float
+    kind: ClassVar[str] = "rest"
+    met_at_duration: ClassVar[bool] = False
+
+    def __check_init__(self):
+        _positive_duration(self.duration)
+        if not (self.rate > 0 and 0 < self.hold < self.duration):
             raise ValueError("stop rule rest: need rate > 0 and 0 < hold < duration")
+
+    def init(self):
+        return None
+
+    def check(self, frame, t, state):
+        moving = max(float(frame["slip_max"]), abs(float(frame["ball_velocity"])))
+        if not moving < self.rate:
+            return False, None
+        since = t if state is None else state
+        return bool(t - since >= self.hold - 1e-9), since
+
+    def scaled(self, factor):
+        return Rest(rate=self.rate / factor, hold=self.hold * factor, duration=self.duration * factor)
+
+
+STOPS: dict[str, type[AbstractStop]] = {c.kind: c for c in (Duration, ClampForceBelow, ThetaMaxBelow,
+                                                              BallSpeedAbove, Rest)}
+
+
+def StopRule(kind: str = "duration", duration: float = 1.0, force: float = 0.0, rate: float = 0.0,
+             hold: float = 0.0, angle: float = 0.0) -> AbstractStop:  # noqa: N802 - the old class's name
+    """The stop rule of a ``kind`` (the schema's ``until``), from the old flat constructor:
+    the fields the kind does not use are ignored. ``"duration"`` (after ``duration``),
+    ``"clamp_force_below"`` (``force``, G h0 R), ``"theta_max_below"`` (``angle``, rad),
+    ``"ball_speed_above"`` (``rate``, R/s) or ``"rest"`` (``rate``, R/s, for ``hold`` s);
+    condition rules end at ``duration`` at the latest."""
+    if kind == "duration":
+        return Duration(duration=duration)
+    if kind == "clamp_force_below":
+        return ClampForceBelow(force=force, duration=duration)
+    if kind == "theta_max_below":
+        return ThetaMaxBelow(angle=angle, duration=duration)
+    if kind == "ball_speed_above":
+        return BallSpeedAbove(rate=rate, duration=duration)
+    if kind == "rest":
+        return Rest(rate=rate, hold=hold, duration=duration)
+    raise ValueError(f"stop rule: unknown kind {kind!r}; allowed: {', '.join(STOPS)}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,7 +236,7 @@ class Stage:
     """
 
     name: str
-    stop: StopRule
+    stop: AbstractStop
     clamp_vz: float = 0.0
     clamp_vrho: float = 0.0
     ball_mode: int = BALL_HOLD
@@ -124,9 +277,7 @@ class Protocol:
         """The same path run ``factor`` times slower (velocities / factor, times x factor)."""
         out = []
         for s in self.stages:
-            stop = dataclasses.replace(s.stop, duration=s.stop.duration * factor, hold=s.stop.hold * factor,
-                                       rate=s.stop.rate / factor)
-            out.append(dataclasses.replace(s, stop=stop, clamp_vz=s.clamp_vz / factor,
+            out.append(dataclasses.replace(s, stop=s.stop.scaled(factor), clamp_vz=s.clamp_vz / factor,
                                            clamp_vrho=s.clamp_vrho / factor, ball_vz=s.ball_vz / factor))
         return dataclasses.replace(self, stages=tuple(out))
 

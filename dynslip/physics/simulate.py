@@ -49,7 +49,8 @@ from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
 from dynslip.physics.upstream import VeryChord
 
-__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "initial_state",
+__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "MemberRun", "Segment",
+           "static_key", "initial_state",
            "vector_field", "frame_record", "N_ACC"]
 
 @dataclasses.dataclass(frozen=True)
@@ -197,6 +198,186 @@ def _to_numpy(rec):
     return {k: np.asarray(v) for k, v in rec.items()}
 
 
+def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
+    """Everything a compiled segment solve is specialised on: the solver's settings other than
+    the tolerances, the mesh size and the non-array parts of the model and stage loads."""
+    return (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
+            settings.newton_max_iter, settings.max_increment, settings.max_increment_free, settings.heal_rate,
+            repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
+
+
+@dataclasses.dataclass
+class Segment:
+    """One save segment a member asks for: ``solve(model, layout, y, t0, t1, dt0, args, rtol, atol)``."""
+
+    y: jax.Array
+    t0: float
+    t1: float
+    dt0: float
+    args: StageArgs
+
+
+class MemberRun:
+    """One member's run through its protocol, on the host: the state between save segments.
+
+    The driver (:func:`simulate` for one member, :func:`dynslip.physics.batch.simulate_batch`
+    for many in lockstep) asks :meth:`segment` for the next save segment, solves it (alone
+    or vmapped with the others), hands the output to :meth:`advance`, and records the
+    frame with :meth:`record` (:func:`frame_record` evaluated by the driver), which checks
+    the stage's stop rule and sets up the next stage. Split by concern: stage set-up
+    (:meth:`_begin_stage`), one segment (:meth:`segment`, :meth:`advance`), recording and
+    the stop check (:meth:`record`, :meth:`_end_stage`).
+    """
+
+    def __init__(self, model: SheetModel, protocol: Protocol, *, friction: AbstractFriction, eps: float,
+                 drag: float, ball_drag: float, pre_stretch: float, z_sheet: float, weight: float = 0.0,
+                 settings: Settings = Settings(), on_frame: Callable[[dict], None] | None = None,
+                 start: dict | None = None, support_stiffness: float = 1e3):
+        self.model, self.protocol, self.settings, self.on_frame = model, protocol, settings, on_frame
+        self.loads = dict(friction=friction, eps=eps, drag=drag, ball_drag=ball_drag, weight=weight,
+                          support_z=protocol.ball_z0, support_k=support_stiffness)
+        self.layout = Layout(model.mesh.n, friction.n_internal())
+        if start is None:
+            self.y = initial_state(model, self.layout, pre_stretch, z_sheet, protocol.ball_z0)
+        else:
+            self.y = state_from(self.layout, start)
+        self.rtol, self.atol = _f(settings.rtol), _f(settings.atol)
+        self.t = 0.0
+        self.frames: list = []
+        self.stage_end: list = []
+        self.stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0,
+                      "method": settings.solver,
+                      "newton_iterations": 0 if settings.solver == "load_step" else None}
+        self.dt_guess = 1e-3 * settings.save_interval
+        self.reaction = 0.0
+        self.clamp_reaction = (0.0, 0.0)
+        self.t_wall0 = _time.perf_counter()
+        self.failed: str | None = None
+        self.e0: float | None = None
+        self.si = -1
+        self.done = False
+        self._begin_stage(0)
+
+    # -- stage set-up
+    def _begin_stage(self, si: int) -> None:
+        """Loads, save times and the stop rule's state of stage ``si`` (the run is done past the last)."""
+        if si >= len(self.protocol.stages):
+            self._finish()
+            return
+        self.si = si
+        stage = self.protocol.stages[si]
+        zb_now = float(self.y[2 * self.layout.n - 1])
+        self.args = _stage_args(stage, self.t, zb_now, self.reaction, self.clamp_reaction, **self.loads)
+        self.t_start = self.t
+        n_seg = max(1, math.ceil(stage.max_duration / self.settings.save_interval - 1e-9))
+        self.seg_ts = np.linspace(self.t, self.t + stage.max_duration, n_seg + 1)
+        self.seg = 1
+        self.met = stage.stop.met_at_duration
+        self.stop_state = stage.stop.init()
+
+    @property
+    def needs_first_frame(self) -> bool:
+        return not self.frames
+
+    # -- one segment
+    def segment(self) -> Segment:
+        """The next save segment; a finished run asks for a zero-length one (masked by the batch)."""
+        if self.done:
+            return Segment(self.y, self.t, self.t, self.dt_guess, self.args)
+        t1 = float(self.seg_ts[self.seg])
+        return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args)
+
+    def advance(self, seg: Segment, out, run_s: float) -> bool:
+        """Take a segment's solve output ``(y1, ok, steps, accepted, rejected[, newton])``; False
+        (and the run done, with ``failed`` set) where the solver did not reach the segment's end."""
+        y1, ok, nst, nacc, nrej = out[:5]
+        if len(out) > 5:  # load_step: Newton iterations
+            self.stats["newton_iterations"] += int(out[5])
+        ok = bool(ok)
+        self.stats["run_s"] += run_s
+        nst, nacc, nrej = int(nst), int(nacc), int(nrej)
+        self.stats["steps"] += nst
+        self.stats["accepted"] += nacc
+        self.stats["rejected"] += nrej
+        self.stats["segments"] += 1
+        if not ok:
+            s = self.settings
+            why = ("step limit reached" if nst >= s.max_steps else
+                   "non-finite state (NaN/inf: a stretch outside the material's range, or divergence)")
+            self.failed = (f"solver failed in stage '{self.stage.name}' between t = {self.t:.6g} s and "
+                           f"{seg.t1:.6g} s: {why} (max_steps per segment = {s.max_steps})")
+            self._end_stage()
+            return False
+        self.dt_guess = (seg.t1 - self.t) / max(nacc, 1)
+        self.y, self.t = y1, seg.t1
+        self.seg += 1
+        return True
+
+    @property
+    def stage(self):
+        return self.protocol.stages[self.si]
+
+    @property
+    def heals_between_segments(self) -> bool:
+        """Time-stepped solvers reset the friction law's state at segment ends (load stepping
+        heals inside every increment)."""
+        return bool(self.layout.n_int) and self.settings.solver != "load_step"
+
+    # -- recording and the stop check
+    def record(self, rec: dict) -> None:
+        """Keep the frame of the current state (``frame_record``'s values), then check the
+        stop rule: the stage ends when the rule is met or its last segment is done."""
+        rec = _to_numpy(rec)
+        rec["time"] = float(self.t)
+        rec["stage"] = self.si
+        self.frames.append(rec)
+        if self.on_frame is not None:
+            self.on_frame(rec)
+        if len(self.frames) == 1:
+            self.e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
+            return  # the initial frame
+        if not np.all(np.isfinite(rec["energy_elastic"])):
+            self.failed = (f"stage '{self.stage.name}' at t = {self.t:.6g} s: elastic energy not finite "
+                           "(a stretch outside the material's range)")
+            self._end_stage()
+            return
+        met, self.stop_state = self.stage.stop.check(rec, self.t, self.stop_state)
+        if met:
+            self.met = True
+        if met or self.seg >= len(self.seg_ts):
+            self._end_stage()
+
+    def _end_stage(self) -> None:
+        last = self.frames[-1]
+        self.reaction = float(last["ball_reaction"])
+        self.clamp_reaction = (float(last["clamp_force_rho"]), float(last["clamp_force"]))
+        self.stage_end.append({"name": self.stage.name, "t_start": self.t_start, "t_end": self.t,
+                               "condition_met": bool(self.met), "clamp_z": float(last["clamp_z"])})
+        if self.failed:
+            self._finish()
+        else:
+            self._begin_stage(self.si + 1)
+
+    def _finish(self) -> None:
+        self.done = True
+        self.stats["wall_s"] = _time.perf_counter() - self.t_wall0
+        self.stats["time_per_step_ms"] = 1e3 * self.stats["run_s"] / max(self.stats["steps"], 1)
+
+    def result(self) -> Result:
+        return Result(frames=self.frames, stage_end=self.stage_end, stats=self.stats, failed=self.failed,
+                      e0=self.e0 or 0.0)
+
+
+def _compiled(key, compile_fn, stats_list):
+    """The ahead-of-time compiled solve of ``key`` (compiled now, its time added to each stats' compile_s)."""
+    if key not in _COMPILED:
+        c0 = _time.perf_counter()
+        _COMPILED[key] = compile_fn()
+        for st in stats_list:
+            st["compile_s"] += _time.perf_counter() - c0
+    return _COMPILED[key]
+
+
 def simulate(
     model: SheetModel,
     protocol: Protocol,
@@ -217,110 +398,27 @@ def simulate(
     state, see :func:`state_from`); return the saved frames.
 
     Raises nothing on solver failure: the result's ``failed`` holds the message and
-    ``frames`` what was computed before it (the runner turns it into exit 3).
+    ``frames`` what was computed before it (the runner turns it into exit 3). Many members
+    of the same shape run in lockstep with :func:`dynslip.physics.batch.simulate_batch`.
     """
-    layout = Layout(model.mesh.n, friction.n_internal())
+    run = MemberRun(model, protocol, friction=friction, eps=eps, drag=drag, ball_drag=ball_drag,
+                    pre_stretch=pre_stretch, z_sheet=z_sheet, weight=weight, settings=settings, on_frame=on_frame,
+                    start=start, support_stiffness=support_stiffness)
     solve = segment_solver(settings)
-    if start is None:
-        y = initial_state(model, layout, pre_stretch, z_sheet, protocol.ball_z0)
-    else:
-        y = state_from(layout, start)
-    rtol, atol = _f(settings.rtol), _f(settings.atol)
-    t = 0.0
-    frames: list = []
-    stage_end: list = []
-    stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0,
-             "method": settings.solver, "newton_iterations": 0 if settings.solver == "load_step" else None}
-    dt_guess = 1e-3 * settings.save_interval
-    reaction = 0.0
-    clamp_reaction = (0.0, 0.0)
-    t_wall0 = _time.perf_counter()
-    failed = None
-    e0 = None
-
-    def record(ti, yi, args, stage_index):
-        rec = _to_numpy(frame_record(model, layout, _f(ti), yi, args, settings.contact_threshold))
-        rec["time"] = float(ti)
-        rec["stage"] = stage_index
-        frames.append(rec)
-        if on_frame is not None:
-            on_frame(rec)
-        return rec
-
-    for si, stage in enumerate(protocol.stages):
-        zb_now = float(y[2 * layout.n - 1])
-        args = _stage_args(stage, t, zb_now, reaction, clamp_reaction, friction, eps, drag, ball_drag, weight,
-                           support_z=protocol.ball_z0, support_k=support_stiffness)
-        if si == 0:
-            rec = record(t, y, args, 0)
-            e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
-        t_start = t
-        t_max = t + stage.max_duration
-        n_seg = max(1, math.ceil(stage.max_duration / settings.save_interval - 1e-9))
-        seg_ts = np.linspace(t, t_max, n_seg + 1)
-        met = stage.stop.kind == "duration"
-        rest_since = None
-        for t1 in seg_ts[1:]:
-            dt0 = _f(min(dt_guess, 0.5 * (t1 - t)))
-            key = (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
-                   settings.newton_max_iter, settings.max_increment, settings.max_increment_free, settings.heal_rate,
-                   repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
-            if key not in _COMPILED:
-                c0 = _time.perf_counter()
-                _COMPILED[key] = solve.lower(model, layout, y, _f(t), _f(t1), dt0, args, rtol, atol).compile()
-                stats["compile_s"] += _time.perf_counter() - c0
-            compiled_solve = _COMPILED[key]
-            r0 = _time.perf_counter()
-            out = compiled_solve(model, layout, y, _f(t), _f(t1), dt0, args, rtol, atol)
-            y1, ok, nst, nacc, nrej = out[:5]
-            if len(out) > 5:  # load_step: Newton iterations
-                stats["newton_iterations"] += int(out[5])
-            ok = bool(ok)
-            stats["run_s"] += _time.perf_counter() - r0
-            nst, nacc, nrej = int(nst), int(nacc), int(nrej)
-            stats["steps"] += nst
-            stats["accepted"] += nacc
-            stats["rejected"] += nrej
-            stats["segments"] += 1
-            if not ok:
-                why = ("step limit reached" if nst >= settings.max_steps else
-                       "non-finite state (NaN/inf: a stretch outside the material's range, or divergence)")
-                failed = (f"solver failed in stage '{stage.name}' between t = {t:.6g} s and {float(t1):.6g} s: "
-                          f"{why} (max_steps per segment = {settings.max_steps})")
-                break
-            dt_guess = (float(t1) - t) / max(nacc, 1)
-            y, t = y1, float(t1)
-            if layout.n_int and settings.solver != "load_step":  # load stepping heals in every increment
-                y = reset_internal(model, layout, y, args, _f(settings.heal_rate))
-            rec = record(t, y, args, si)
-            if not np.all(np.isfinite(rec["energy_elastic"])):
-                failed = (f"stage '{stage.name}' at t = {t:.6g} s: elastic energy not finite "
-                          "(a stretch outside the material's range)")
-                break
-            if stage.stop.kind == "clamp_force_below" and abs(float(rec["clamp_force"])) < stage.stop.force:
-                met = True
-                break
-            if stage.stop.kind == "theta_max_below" and not float(rec["theta_max"]) >= stage.stop.angle:
-                met = True
-                break
-            if stage.stop.kind == "ball_speed_above" and abs(float(rec["ball_velocity"])) > stage.stop.rate:
-                met = True
-                break
-            if stage.stop.kind == "rest":
-                moving = max(float(rec["slip_max"]), abs(float(rec["ball_velocity"])))
-                if moving < stage.stop.rate:
-                    rest_since = t if rest_since is None else rest_since
-                    if t - rest_since >= stage.stop.hold - 1e-9:
-                        met = True
-                        break
-                else:
-                    rest_since = None
-        reaction = float(frames[-1]["ball_reaction"])
-        clamp_reaction = (float(frames[-1]["clamp_force_rho"]), float(frames[-1]["clamp_force"]))
-        stage_end.append({"name": stage.name, "t_start": t_start, "t_end": t, "condition_met": bool(met),
-                          "clamp_z": float(frames[-1]["clamp_z"])})
-        if failed:
+    layout, thr = run.layout, settings.contact_threshold
+    run.record(frame_record(model, layout, _f(run.t), run.y, run.args, thr))
+    while not run.done:
+        seg = run.segment()
+        inputs = (model, layout, seg.y, _f(seg.t0), _f(seg.t1), _f(seg.dt0), seg.args, run.rtol, run.atol)
+        compiled = _compiled(static_key(settings, layout, model, seg.args),
+                             lambda inputs=inputs: solve.lower(*inputs).compile(), [run.stats])
+        r0 = _time.perf_counter()
+        out = compiled(*inputs)
+        out = jax.block_until_ready(out)
+        run_s = _time.perf_counter() - r0
+        if not run.advance(seg, out, run_s):
             break
-    stats["wall_s"] = _time.perf_counter() - t_wall0
-    stats["time_per_step_ms"] = 1e3 * stats["run_s"] / max(stats["steps"], 1)
-    return Result(frames=frames, stage_end=stage_end, stats=stats, failed=failed, e0=e0 or 0.0)
+        if run.heals_between_segments:
+            run.y = reset_internal(model, layout, run.y, seg.args, _f(settings.heal_rate))
+        run.record(frame_record(model, layout, _f(run.t), run.y, seg.args, thr))
+    return run.result()
