@@ -27,7 +27,6 @@ FLUSH_FRAMES = 25
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
     from dynslip.physics.friction import make_friction
-    from dynslip.physics.materials import make_material
     from dynslip.schema.forming import ball_drag_coefficient, build_protocol
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import Settings
@@ -35,7 +34,7 @@ def build_core(sc):
     p, nu = sc.physics, sc.numerics
     r = p.ball_radius_mm
     m = p.material
-    material = make_material(m.model, jm=m.jm, c1=m.c1, c2=0.5 - m.c1)
+    material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge)
     model = SheetModel(mesh, material, Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width)))

@@ -13,6 +13,7 @@ from typing import Literal
 
 from pydantic import PrivateAttr, model_validator
 
+from dynslip.schema.materials import MaterialSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec", "FrictionSpec"]
@@ -21,15 +22,6 @@ __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", 
 MAX_TIME_S = 1e6
 MAX_STAGES = 100
 MAX_FRAMES = 1_000_000
-
-
-class MaterialSpec(Strict):
-    """The sheet's strain energy (physics.md Section 2)."""
-
-    model: Literal["gent", "neo_hookean", "mooney_rivlin", "hookean"] = F(
-        "gent", description="strain energy; hookean is refused beyond stretch 3")
-    jm: float = F(50.0, gt=0, le=1e4, description="Gent locking parameter J_m, in (0, 1e4]")
-    c1: float = F(0.5, ge=0, le=0.5, description="Mooney-Rivlin C1 (C2 = 1/2 - C1)")
 
 
 class FrictionSpec(Strict):

@@ -12,65 +12,27 @@ and the march's integrator.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from dynslip.schema.base import F, ScenarioBase, Strict
+from dynslip.schema.materials import MaterialSpec
 
 __all__ = [
     "StaticScenario",
     "Figure4Scenario",
     "FamilyScenario",
     "CylinderScenario",
-    "Hookean",
-    "NeoHookean",
-    "MooneyRivlin",
-    "Gent",
     "Selection",
     "StaticNumerics",
 ]
-
-
-class Hookean(Strict):
-    """Small-strain energy 2((lt-1)^2 + (lp-1)^2 + (lt-1)(lp-1)) (unrelaxed, as in the paper)."""
-
-    model: Literal["hookean"] = "hookean"
-
-
-class NeoHookean(Strict):
-    """neo-Hookean (I1 - 3)/2."""
-
-    model: Literal["neo_hookean"] = "neo_hookean"
-
-
-class MooneyRivlin(Strict):
-    """Mooney-Rivlin C1 (I1 - 3) + C2 (I2 - 3), with 2 C1 + 2 C2 = 1 (units of G)."""
-
-    model: Literal["mooney_rivlin"] = "mooney_rivlin"
-    c1: float = F(0.4, ge=0, le=0.5, description="C1 / G")
-    c2: float = F(0.1, ge=0, le=0.5, description="C2 / G; 2 C1 + 2 C2 must be 1")
-
-    @model_validator(mode="after")
-    def _sum(self):
-        if abs(2 * self.c1 + 2 * self.c2 - 1.0) > 1e-9:
-            raise ValueError(f"2 c1 + 2 c2 must be 1 (shear modulus G), got {2 * self.c1 + 2 * self.c2:g}")
-        return self
 
 
 def _jm(description: str):
     """Gent's locking parameter J_m: one default and one range wherever a section has it."""
     return F(50.0, gt=0, le=1e4, description=description)
 
-
-class Gent(Strict):
-    """Gent -(J_m/2) ln(1 - (I1 - 3)/J_m)."""
-
-    model: Literal["gent"] = "gent"
-    jm: float = _jm("locking parameter J_m (I1 < J_m + 3), in (0, 1e4]")
-
-
-Material = Annotated[Union[Hookean, NeoHookean, MooneyRivlin, Gent], Field(discriminator="model")]  # noqa: UP007
 
 #: bounds of the numbers in tuples (the mu bracket, the shooting's Newton start)
 MuValue = Annotated[float, Field(ge=0, le=100)]
@@ -90,12 +52,9 @@ def _increasing(section, lo: str, hi: str) -> None:
         raise ValueError(f"{hi} must exceed {lo}")
 
 
-def material_of(spec):
+def material_of(spec: MaterialSpec):
     """The core material (:mod:`dynslip.physics.materials`) of a material section."""
-    from dynslip.physics.materials import make_material
-
-    return make_material(spec.model, jm=getattr(spec, "jm", 50.0), c1=getattr(spec, "c1", 0.5),
-                         c2=getattr(spec, "c2", 0.0))
+    return spec.core()
 
 
 class Selection(Strict):
@@ -134,7 +93,7 @@ class Geometry(Strict):
 class StaticPhysics(Geometry):
     """Physics of one static solve."""
 
-    material: Material = F(NeoHookean(), description="strain energy (discriminated on `model`)")
+    material: MaterialSpec = F(MaterialSpec(model="neo_hookean"), description="strain energy (schema/materials.py)")
     initial_shape: Literal["fully_mobilised", "linear"] = F(
         "fully_mobilised",
         description="initial shape of the march: the selected fully mobilised member, or "
