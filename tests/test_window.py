@@ -118,3 +118,29 @@ def test_mu_s_is_searched_with_mu_k_over_mu_s_fixed():
     assert friction_field(ideal) == ("physics.friction.mu", [])
     with pytest.raises(InputError, match="physics.friction.nope"):
         friction_field(ideal, "physics.friction.nope")
+
+
+def test_critical_mu_of_a_weakening_law_reports_the_tied_mu_k(tmp_path):
+    """The slip-weakening law's window is searched in mu_s with mu_k / mu_s fixed; window.json
+    gives the critical mu_s and the tied mu_k at it (mu_c = 1.25 here, mu_k/mu_s = 0.8)."""
+    import io
+
+    import yaml
+    from rich.console import Console
+
+    from dynslip.app.window import run_window
+
+    def member(data, out_dir, console=None):
+        fr = data["physics"]["friction"]
+        assert fr["mu_k"] == pytest.approx(0.8 * fr["mu_s"])
+        return {"trapped": fr["mu_s"] > 1.25}
+
+    s = tmp_path / "s.yaml"
+    s.write_text(yaml.safe_dump({"kind": "forming", "physics": {"friction": {
+        "law": "slip_weakening", "mu_s": 1.5, "mu_k": 1.2, "d_c_mm": 0.4}}}))
+    res = run_window(s, lo=1.0, hi=2.0, coarse=5, tol=1e-3, out=tmp_path / "w", member_fn=member,
+                     console=Console(file=io.StringIO()))
+    mu_c = res["critical_mu"]["value"]
+    assert abs(mu_c - 1.25) <= 1e-3
+    assert res["critical_mu_tied"] == {"physics.friction.mu_k": pytest.approx(0.8 * mu_c)}
+    assert json.loads((tmp_path / "w" / "window.json").read_text())["critical_mu_tied"] == res["critical_mu_tied"]

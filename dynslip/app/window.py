@@ -409,8 +409,9 @@ def run_window(
     # unless they survive mesh refinement (run with --nodes).
     result["critical_mu"] = critical_edge(result["windows_detail"])
     if tied:
-        result["critical_mu_tied"] = ({k: v * result["critical_mu"]["value"] for k, v in tied.items()}
-                                      if result["critical_mu"] else None)
+        base = float(get_path(resolved, field_name))
+        result["critical_mu_tied"] = ({t: float(get_path(resolved, t)) / base * result["critical_mu"]["value"]
+                                       for t in tied} if result["critical_mu"] and base else None)
     write_json(out / "window.json", result)
     if res.evaluations and all(v is None for v in res.evaluations.values()):
         raise ComputationError(
