@@ -1,135 +1,278 @@
-"""Speed at scale: dynslip's structured solver against the dense diffrax path and scipy BDF.
+"""Speed of the whole let-go path: load stepping against Kvaerno5 and scipy BDF.
 
-Same vector field (method 2's push-down stage, the sheet stretching and slipping over
-the held ball), same tolerances (rtol 1e-5, atol 1e-7), same simulated interval, at
-N = 100, 200, 400, 800 nodes:
+The path is ``benchmarks/method2_let_go.yaml`` (a frozen copy of
+``scenarios/method2_let_go.yaml``: push-down past the held ball, hold, let go, release,
+rest), run whole at N = 50, 100, 200, 400 nodes (``DYNSLIP_BENCH_SPEED_NODES=50,100``
+picks sizes) by:
 
-- ``structured``: diffrax Kvaerno5, VeryChord with :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`
-  (Jacobian from 6 coloured jvps + border, block Thomas + Schur complement);
-- ``dense``: diffrax Kvaerno5 with its default dense Jacobian and LU; above
-  ``DENSE_FULL_MAX`` nodes only the first ``DENSE_STEPS`` steps are timed (time per step);
-- ``scipy_bdf``: ``scipy.integrate.solve_ivp(method="BDF")`` with ``jac_sparsity`` (the
-  same block pattern), calling the jitted vector field.
+- ``load_step``: the default solver, implicit Euler load increments
+  (:mod:`dynslip.physics.loadstep`);
+- ``kvaerno5``: the reference, diffrax Kvaerno5 with the structured linear solver;
+- ``scipy_bdf``: ``scipy.integrate.solve_ivp(method="BDF", jac_sparsity=...)`` on the same
+  jitted vector field (:func:`dynslip.physics.field.vector_field`) with the same sparsity
+  pattern, stage by stage over the *same* stage intervals the load_step run took
+  (``Result.stage_end``), in the same save segments as :func:`dynslip.physics.simulate.simulate`
+  (a restart and the friction law's healing at every segment end, the ball's and clamp's
+  force start values carried between stages), so no stop rule is evaluated. Capped at
+  ``DYNSLIP_BENCH_SPEED_SCIPY_CAP`` s of wall time per N (default 300): past it the rhs
+  callback raises and the row says "not finished, reached t = ...". scipy counts only
+  accepted steps.
 
-``DYNSLIP_BENCH_SPEED_NODES=100,200`` picks sizes, ``DYNSLIP_BENCH_SPEED_T=2`` the
-simulated seconds. Reported: steps, rejected steps, time per step, wall time, compile
-time, and ratios against scipy in the same process.
+Reported per solver: steps (accepted + rejected), rejected, Newton iterations (load_step),
+run_s, compile_s, ms per step, trapped, theta_max; the end-state agreement of load_step
+(and scipy) with kvaerno5 (same trapped outcome, |theta_max difference|, max |dtheta| on the
+common contact region, :mod:`dynslip.analysis.compare`); ratios in the same process
+(kvaerno5 / load_step and scipy / load_step run time, load_step's run-time growth from
+100 to 400 nodes) and the issue's targets, met or not.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import math
 import os
 import time
+import warnings
 from pathlib import Path
 
-DENSE_FULL_MAX = 200
-DENSE_STEPS = 500
+SCENARIO = Path(__file__).resolve().parent / "method2_let_go.yaml"
+SCIPY_CAP_S = float(os.environ.get("DYNSLIP_BENCH_SPEED_SCIPY_CAP", "300"))
+
+# the issue's targets
+MAX_STEPS = 1000  # whole path, every N
+SPEEDUP_200 = 15.0  # load_step vs kvaerno5 at N = 200 (run time)
+GROWTH_100_400 = 5.0  # load_step run time, N = 400 over N = 100
+THETA_TOL = 0.01  # rad: |theta_max difference| and max |dtheta| vs kvaerno5
 
 
-def _setup(nodes: int):
-    from dynslip.app.forming import build_core
+def _scenario(nodes: int, solver: str):
     from dynslip.schema.base import load
-    from dynslip.physics.simulate import Layout, _stage_args, initial_state
 
-    # the ideal law: the vector field the speed issue was posed on (the shipped static/kinetic
-    # law adds one state per node to the same block structure)
-    law = os.environ.get("DYNSLIP_BENCH_SPEED_LAW", "coulomb")
-    sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "method2_let_go.yaml",
-              [f"numerics.nodes={nodes}", f"physics.friction.law={law}"])
+    return load(SCENARIO, [f"numerics.nodes={nodes}", f"numerics.solver={solver}"])
+
+
+def _end(sc, model, protocol, result):
+    """(trajectory dataset, summary) of a result, as ``dynslip run`` makes them."""
+    import numpy as np
+
+    from dynslip.app.forming import summarize, to_dataset
+
+    ds = to_dataset(sc, result.frames, np.asarray(model.mesh.rbar), result.e0, result.failed is None,
+                    protocol.names)
+    return ds, summarize(sc, ds, result)
+
+
+def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
+    from dynslip.app.forming import build_core
+    from dynslip.physics.simulate import simulate
+
+    sc = _scenario(nodes, solver)
     model, protocol, kw = build_core(sc)
-    layout = Layout(nodes, kw["friction"].n_internal())
-    stage = protocol.stages[0]
-    args = _stage_args(stage, 0.0, float(protocol.ball_z0), 0.0, 0.0, kw["friction"], kw["eps"], kw["drag"],
-                       kw["ball_drag"], kw["weight"])
-    y0 = initial_state(model, layout, kw["pre_stretch"], kw["z_sheet"], protocol.ball_z0)
-    return model, layout, args, y0, kw["settings"]
+    w0 = time.perf_counter()
+    res = simulate(model, protocol, **kw)
+    wall = time.perf_counter() - w0
+    ds, summ = _end(sc, model, protocol, res)
+    st = res.stats
+    row = {
+        "ok": res.failed is None, "failed": res.failed or "",
+        "steps": st["steps"], "accepted": st["accepted"], "rejected": st["rejected"],
+        "newton_iterations": st["newton_iterations"],
+        "run_s": st["run_s"], "compile_s": st["compile_s"], "wall_s": wall,
+        "ms_per_step": st["time_per_step_ms"],
+        "simulated_s": float(res.frames[-1]["time"]),
+        "trapped": summ["trapped"], "theta_max": summ["theta_max"],
+    }
+    return row, res, ds, (sc, model, protocol, kw)
 
 
-def _diffrax(nodes: int, linear_solver: str, t1: float, max_steps: int) -> dict:
-    import jax.numpy as jnp
-
-    from dynslip.physics.simulate import segment_solver
-
-    model, layout, args, y0, settings = _setup(nodes)
-    settings = dataclasses.replace(settings, linear_solver=linear_solver, max_steps=max_steps)
-    solve = segment_solver(settings)
-    f = jnp.asarray
-    call = (model, layout, y0, f(0.0), f(t1), f(1e-3), args, f(settings.rtol), f(settings.atol))
-    c0 = time.perf_counter()
-    compiled = solve.lower(*call).compile()
-    compile_s = time.perf_counter() - c0
-    r0 = time.perf_counter()
-    y1, ok, steps, acc, rej = compiled(*call)
-    y1.block_until_ready()
-    run_s = time.perf_counter() - r0
-    steps = int(steps)
-    return {"ok": bool(ok), "steps": steps, "rejected": int(rej), "compile_s": compile_s, "run_s": run_s,
-            "time_per_step_ms": 1e3 * run_s / max(steps, 1), "complete": steps < max_steps}
+class _Cap(Exception):
+    """The wall-clock cap of the scipy baseline was passed."""
 
 
-def _scipy(nodes: int, t1: float) -> dict:
+def _scipy(ref, core) -> tuple[dict, object]:
+    """scipy BDF over the stage intervals of ``ref`` (the load_step Result).
+
+    scipy's own failures (its LU "exactly singular" after its finite-difference Jacobian
+    overflowed) are reported with the time reached, as the cap is.
+    """
     import jax
     import numpy as np
     import scipy.sparse as sp
     from scipy.integrate import solve_ivp
 
+    from dynslip.physics.field import Layout, _f, sheet_structure, vector_field
     from dynslip.physics.linalg import to_dense
-    from dynslip.physics.simulate import sheet_structure, vector_field
+    from dynslip.physics.simulate import Result, _stage_args, frame_record, initial_state, reset_internal
 
-    model, layout, args, y0, settings = _setup(nodes)
+    sc, model, protocol, kw = core
+    settings = kw["settings"]
+    layout = Layout(model.mesh.n, kw["friction"].n_internal())
     vf = jax.jit(vector_field(model, layout))
     s = sheet_structure(layout)
     n, b, m = s.n, s.b, s.m
     ones = np.ones((n, b, b))
     pattern = np.asarray(to_dense(ones, ones, ones, np.ones((n * b, m)), np.ones((m, n * b)), np.ones((m, m)), s))
+    sparsity = sp.csr_matrix(pattern != 0)
+
+    def args_of(stage, t0, y, reaction, clamp_reaction):
+        return _stage_args(stage, t0, float(y[2 * layout.n - 1]), reaction, clamp_reaction, kw["friction"],
+                           kw["eps"], kw["drag"], kw["ball_drag"], kw["weight"], support_z=protocol.ball_z0,
+                           support_k=kw["support_stiffness"])
+
+    y = initial_state(model, layout, kw["pre_stretch"], kw["z_sheet"], protocol.ball_z0)
+    args0 = args_of(protocol.stages[0], 0.0, y, 0.0, (0.0, 0.0))
     c0 = time.perf_counter()
-    vf(0.0, y0, args).block_until_ready()
+    vf(_f(0.0), y, args0).block_until_ready()
+    rec_fn = lambda t, yy, a: {k: np.asarray(v) for k, v in  # noqa: E731
+                               frame_record(model, layout, _f(t), yy, a, settings.contact_threshold).items()}
+    rec_fn(0.0, y, args0)
+    reset_internal(model, layout, y, args0, _f(settings.heal_rate)).block_until_ready()
     compile_s = time.perf_counter() - c0
-    calls = [0]
 
-    def fun(t, y):
-        calls[0] += 1
-        return np.asarray(vf(t, y, args))
+    frames = []
 
-    r0 = time.perf_counter()
-    sol = solve_ivp(fun, (0.0, t1), np.asarray(y0), method="BDF", rtol=settings.rtol, atol=settings.atol,
-                    jac_sparsity=sp.csr_matrix(pattern != 0))
-    run_s = time.perf_counter() - r0
-    steps = int(sol.t.size - 1)
-    return {"ok": bool(sol.success), "steps": steps, "rhs_calls": calls[0], "jacobians": int(sol.njev),
-            "lu": int(sol.nlu), "compile_s": compile_s, "run_s": run_s,
-            "time_per_step_ms": 1e3 * run_s / max(steps, 1)}
+    def record(t, yy, a, si):
+        rec = rec_fn(t, yy, a)
+        rec["time"], rec["stage"] = float(t), si
+        frames.append(rec)
+        return rec
+
+    record(0.0, y, args0, 0)
+    e0 = float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
+    counts = {"steps": 0, "nfev": 0, "njev": 0, "nlu": 0}
+    t_now = [0.0]
+    w0 = time.perf_counter()
+    deadline = w0 + SCIPY_CAP_S
+    reaction, clamp_reaction = 0.0, (0.0, 0.0)
+    stage_end, failed = [], None
+    caught = warnings.catch_warnings(record=True)
+    seen = caught.__enter__()
+    try:
+        for si, (stage, end) in enumerate(zip(protocol.stages, ref.stage_end)):
+            t = end["t_start"]
+            args = args_of(stage, t, y, reaction, clamp_reaction)
+            n_seg = max(1, math.ceil(stage.max_duration / settings.save_interval - 1e-9))
+            seg_ts = [float(v) for v in np.linspace(t, t + stage.max_duration, n_seg + 1)[1:]
+                      if v <= end["t_end"] + 1e-9]
+
+            def fun(tt, yy, args=args):
+                if time.perf_counter() > deadline:
+                    raise _Cap()
+                t_now[0] = tt
+                return np.asarray(vf(tt, yy, args))
+
+            for t1 in seg_ts:
+                sol = solve_ivp(fun, (t, t1), np.asarray(y), method="BDF", rtol=settings.rtol, atol=settings.atol,
+                                jac_sparsity=sparsity)
+                counts["steps"] += int(sol.t.size - 1)
+                counts["nfev"] += int(sol.nfev)
+                counts["njev"] += int(sol.njev)
+                counts["nlu"] += int(sol.nlu)
+                if not sol.success:
+                    failed = f"stage {stage.name!r}, t = {t:.6g} s: {sol.message}"
+                    break
+                y = jax.numpy.asarray(sol.y[:, -1])
+                if layout.n_int:
+                    y = reset_internal(model, layout, y, args, _f(settings.heal_rate))
+                t = t1
+                record(t, y, args, si)
+            reaction = float(frames[-1]["ball_reaction"])
+            clamp_reaction = (float(frames[-1]["clamp_force_rho"]), float(frames[-1]["clamp_force"]))
+            stage_end.append(dict(end, t_end=t))
+            if failed:
+                break
+    except _Cap:
+        failed = f"not finished, reached t = {t_now[0]:.4g} s of {ref.stage_end[-1]['t_end']:.4g} s"
+    except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
+        failed = (f"{type(err).__name__}: {err}, at t = {t_now[0]:.4g} s of {ref.stage_end[-1]['t_end']:.4g} s "
+                  f"({time.perf_counter() - w0:.3g} s wall)")
+    finally:
+        caught.__exit__(None, None, None)
+    run_s = time.perf_counter() - w0
+    row = {"ok": failed is None, "failed": failed or "", **counts, "rejected": None,
+           "run_s": run_s, "compile_s": compile_s,
+           "ms_per_step": 1e3 * run_s / max(counts["steps"], 1), "simulated_s": float(frames[-1]["time"]),
+           "cap_s": SCIPY_CAP_S, "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in seen})}
+    ds = None
+    if failed is None:
+        # the rest stop rule is not evaluated: the run follows load_step's intervals, whose last
+        # stage met it (stage_end copies its condition_met)
+        stats = {"accepted": counts["steps"], "rejected": 0, "segments": len(frames) - 1, "compile_s": compile_s,
+                 "run_s": run_s, "time_per_step_ms": row["ms_per_step"], "method": "scipy_bdf", **counts}
+        res = Result(frames=frames, stage_end=stage_end, stats=stats, e0=e0)
+        ds, summ = _end(sc, model, protocol, res)
+        row.update(trapped=summ["trapped"], theta_max=summ["theta_max"])
+    else:
+        row.update(trapped=None, theta_max=float(frames[-1]["theta_max"]))
+    return row, ds
+
+
+def _agreement(ds, ref_ds, row, ref_row) -> dict:
+    from dynslip.analysis.compare import difference, end_state
+
+    a, b = end_state(ref_ds), end_state(ds)
+    d = difference(a, b)
+    return {"same_trapped": row["trapped"] == ref_row["trapped"],
+            "abs_dtheta_max": abs(row["theta_max"] - ref_row["theta_max"]),
+            "max_abs_dtheta_contact": d["max_abs_dtheta"], "common_rbar_max": d["common_rbar_max"]}
+
+
+def _one(nodes: int) -> dict:
+    import numpy as np
+
+    ls, ls_res, ls_ds, core = _simulate(nodes, "load_step")
+    print(f"speed N={nodes} load_step: {ls}", flush=True)
+    kv, _, kv_ds, _ = _simulate(nodes, "kvaerno5")
+    print(f"speed N={nodes} kvaerno5: {kv}", flush=True)
+    try:
+        sc_row, sc_ds = _scipy(ls_res, core)
+    except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as err:  # a failed baseline is reported
+        sc_row, sc_ds = {"ok": False, "failed": f"{type(err).__name__}: {err}", "run_s": float("nan")}, None
+    print(f"speed N={nodes} scipy_bdf: {sc_row}", flush=True)
+    row = {"load_step": ls, "kvaerno5": kv, "scipy_bdf": sc_row,
+           "load_step_vs_kvaerno5": _agreement(ls_ds, kv_ds, ls, kv)}
+    if sc_ds is not None:
+        row["scipy_bdf_vs_kvaerno5"] = _agreement(sc_ds, kv_ds, sc_row, kv)
+    row["speedup_vs_kvaerno5"] = kv["run_s"] / ls["run_s"]
+    row["speedup_vs_scipy"] = sc_row["run_s"] / ls["run_s"]
+    row["speedup_vs_scipy_means"] = ("lower bound (scipy not finished)" if not sc_row["ok"] else "whole path")
+    return row
+
+
+def _targets(out: dict, sizes: list[int]) -> dict:
+    t: dict = {}
+    worst = max(out[f"N{n}"]["load_step"]["steps"] for n in sizes)
+    t["steps_at_most_1000"] = {"met": worst <= MAX_STEPS, "worst": worst,
+                               "per_N": {f"N{n}": out[f"N{n}"]["load_step"]["steps"] for n in sizes}}
+    if 200 in sizes:
+        s = out["N200"]["speedup_vs_kvaerno5"]
+        t["speedup_vs_kvaerno5_N200_at_least_15x"] = {"met": s >= SPEEDUP_200, "value": s}
+    if "load_step_run_s_growth_100_400" in out:
+        g = out["load_step_run_s_growth_100_400"]
+        t["growth_100_400_at_most_5x"] = {"met": g <= GROWTH_100_400, "value": g}
+    ag = [out[f"N{n}"]["load_step_vs_kvaerno5"] for n in sizes]
+    wt = max(a["abs_dtheta_max"] for a in ag)
+    wd = max(a["max_abs_dtheta_contact"] for a in ag)
+    t["theta_max_within_0.01"] = {"met": wt <= THETA_TOL, "worst": wt}
+    t["max_dtheta_at_most_0.01"] = {"met": wd <= THETA_TOL, "worst": wd}
+    t["same_trapped"] = {"met": all(a["same_trapped"] for a in ag)}
+    return t
 
 
 def run() -> dict:
     import dynslip  # noqa: F401  (x64, compilation cache)
 
-    sizes = [int(v) for v in os.environ.get("DYNSLIP_BENCH_SPEED_NODES", "100,200,400,800").split(",") if v]
-    t1 = float(os.environ.get("DYNSLIP_BENCH_SPEED_T", "2.0"))
-    out: dict = {"segment": f"method 2 push-down, first {t1} s", "tolerances": "rtol 1e-5, atol 1e-7"}
+    sizes = [int(v) for v in os.environ.get("DYNSLIP_BENCH_SPEED_NODES", "50,100,200,400").split(",") if v]
+    out: dict = {"path": "benchmarks/method2_let_go.yaml, whole (frozen copy of scenarios/method2_let_go.yaml)",
+                 "tolerances": "the scenario's (rtol 1e-5, atol 1e-7)", "scipy_cap_s": SCIPY_CAP_S}
     for n in sizes:
-        row = {"structured": _diffrax(n, "structured", t1, 100000)}
-        dense_steps = 100000 if n <= DENSE_FULL_MAX else DENSE_STEPS
-        row["dense"] = _diffrax(n, "dense", t1, dense_steps)
-        try:
-            row["scipy_bdf"] = _scipy(n, t1)
-        except (RuntimeError, ValueError, FloatingPointError) as err:  # a baseline that fails is reported
-            row["scipy_bdf"] = {"ok": False, "error": f"{type(err).__name__}: {err}", "run_s": float("nan")}
-        st, de, sc = row["structured"], row["dense"], row["scipy_bdf"]
-        row["speedup_vs_scipy_wall"] = sc["run_s"] / st["run_s"]
-        row["speedup_vs_dense_per_step"] = de["time_per_step_ms"] / st["time_per_step_ms"]
-        out[f"N{n}"] = row
-        print(f"speed N={n}: {row}", flush=True)
-    if len(sizes) > 1:
-        a, b = out[f"N{sizes[0]}"], out[f"N{sizes[-1]}"]
-        out["structured_per_step_growth"] = (b["structured"]["time_per_step_ms"]
-                                             / a["structured"]["time_per_step_ms"])
-        out["nodes_growth"] = sizes[-1] / sizes[0]
+        out[f"N{n}"] = _one(n)
+    if 100 in sizes and 400 in sizes:
+        out["load_step_run_s_growth_100_400"] = out["N400"]["load_step"]["run_s"] / out["N100"]["load_step"]["run_s"]
+    out["targets"] = _targets(out, sizes)
     return out
 
 
 if __name__ == "__main__":
     import json
 
-    print(json.dumps(run(), indent=2))
+    print(json.dumps(run(), indent=2, default=str))
