@@ -416,13 +416,16 @@ def _run_members(
         groups: dict[str, list[Member]] = {}
         for m in pending:
             groups.setdefault(json.dumps(_shape_key(m.resolved), sort_keys=True), []).append(m)
-        for group in groups.values():
-            for m in group:
-                done(m, execute_member(member_fn, m.data, m.resolved, window, run_dir(m)))
-        return (
-            "grouped sequential: the forming simulator exposes no batched entry point, so each "
-            f"of the {len(groups)} shape groups ran member after member"
-        )
+        if member_fn is not default_member_fn or window is not None:
+            for group in groups.values():
+                for m in group:
+                    done(m, execute_member(member_fn, m.data, m.resolved, window, run_dir(m)))
+            why = "a window search" if window is not None else "a runner other than the simulator"
+            return (
+                f"grouped sequential: {why} runs member after member, so each of the "
+                f"{len(groups)} shape groups ran member after member"
+            )
+        return _run_batched(groups, run_dir, done)
     if mode == "dask":
         from distributed import as_completed
 
@@ -455,6 +458,145 @@ def _run_members(
             )
         return ""
     raise InputError(f"mode = {mode!r}: allowed: {', '.join(MODES)}")
+
+
+# ---------------------------------------------------------------------------------------
+# The batched runner: forming members in lockstep (dynslip.physics.batch.simulate_batch)
+
+#: worker processes of the batched runner (each runs part of every batch; "spawn": JAX and fork
+#: do not mix). 1 runs every batch in this process.
+BATCH_WORKERS = 1
+#: the fewest members a worker process is given (below it, a batch runs in this process)
+MIN_MEMBERS_PER_WORKER = 2
+
+
+def _batchable(m: Member) -> bool:
+    """A forming member that runs alone from the flat sheet (a ``start_from`` member first
+    runs or reads another scenario: it runs as in ``sequential``)."""
+    return m.resolved.get("kind") == "forming" and not m.resolved.get("start_from")
+
+
+def _forming_outputs(sc, model, result, out: Path | None) -> dict:
+    """What :func:`dynslip.app.forming.run_forming` makes of a driver result: the summary
+    (raises :class:`ComputationError` for a failed run), with its files in ``out`` when given
+    (``keep_runs``; the figures too)."""
+    from dynslip.app.forming import summarize, to_dataset
+    from dynslip.data import files as io
+
+    names = [s.name for s in sc.physics.stages]
+    rbar = np.asarray(model.mesh.rbar)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    if result.failed:
+        where = out / "trajectory.nc" if out is not None else "<not kept: keep_runs is off>"
+        if result.frames and out is not None:
+            ds = to_dataset(sc, result.frames, rbar, result.e0, False, names)
+            io.write_netcdf(ds, out / "trajectory.nc")
+            io.write_json(out / "summary.json", summarize(sc, ds, result))
+        raise ComputationError(f"{result.failed}; partial trajectory kept in {where}")
+    ds = to_dataset(sc, result.frames, rbar, result.e0, True, names)
+    io.check_units(ds)
+    summary = summarize(sc, ds, result)
+    if out is not None:
+        from dynslip.plot.forming import make_figures
+
+        io.write_netcdf(ds, out / "trajectory.nc")
+        io.write_json(out / "summary.json", summary)
+        make_figures(ds, out)
+    return summary
+
+
+def run_forming_batch(datas: list[dict], run_dirs: list[str | None]) -> list[dict]:
+    """Forming members (scenario data) of one shape run in lockstep: one member record each,
+    as :func:`execute_member` writes it (module level: it travels to worker processes).
+    Members whose compiled solves differ (a float setting of the increment control, say)
+    form separate batches."""
+    from dynslip.app.forming import build_core
+    from dynslip.physics.batch import batch_key, simulate_batch
+    from dynslip.schema.base import validate_data
+
+    t0 = time.perf_counter()
+    recs: list[dict | None] = [None] * len(datas)
+    batches: dict[str, list] = {}
+    for i, data in enumerate(datas):
+        try:
+            sc = validate_data(data, "<member>")
+            core = build_core(sc)
+            batches.setdefault(batch_key(*core), []).append((i, sc, core))
+        except ComputationError as err:
+            recs[i] = {"status": "failed", "error": f"ComputationError: {err}", "summary": {}}
+        except Exception as err:  # noqa: BLE001 - a member's failure is data
+            recs[i] = {"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}
+    for batch in batches.values():
+        b0 = time.perf_counter()
+        try:
+            results = simulate_batch([c[0] for _, _, c in batch], [c[1] for _, _, c in batch],
+                                     [c[2] for _, _, c in batch])
+        except Exception as err:  # noqa: BLE001 - the whole batch failed (e.g. out of memory)
+            for i, _, _ in batch:
+                recs[i] = {"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}
+            continue
+        for (i, sc, core), result in zip(batch, results, strict=True):
+            rec: dict[str, Any] = {"status": "ok", "error": "", "summary": {}}
+            out = Path(run_dirs[i]) / "run" if run_dirs[i] else None
+            try:
+                rec["summary"] = _jsonable_summary(_forming_outputs(sc, core[0], result, out))
+            except ComputationError as err:
+                rec.update(status="failed", error=f"ComputationError: {err}")
+            except Exception as err:  # noqa: BLE001
+                rec.update(status="error", error=f"{type(err).__name__}: {err}")
+            rec["wall_s"] = (time.perf_counter() - b0) / len(batch)  # the batch's time, shared
+            recs[i] = rec
+    for rec in recs:
+        rec.setdefault("wall_s", (time.perf_counter() - t0) / len(datas))
+    return recs
+
+
+def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
+    """``mode: batched``: each shape group of forming members through
+    :func:`run_forming_batch`, split over :data:`BATCH_WORKERS` spawned processes when the
+    group is large enough; other members run as in ``sequential``."""
+    notes = []
+    other = 0
+    sizes = []
+    for group in groups.values():
+        forming = [m for m in group if _batchable(m)]
+        for m in group:
+            if not _batchable(m):
+                other += 1
+                done(m, execute_member(default_member_fn, m.data, m.resolved, None, run_dir(m)))
+        if not forming:
+            continue
+        n_work = max(1, min(BATCH_WORKERS, len(forming) // MIN_MEMBERS_PER_WORKER))
+        parts = [forming[k::n_work] for k in range(n_work)]
+        sizes.append("+".join(str(len(p)) for p in parts))
+        dirs = {m.fingerprint: run_dir(m) for m in forming}
+        if n_work == 1:
+            for m, rec in zip(forming, run_forming_batch([m.data for m in forming],
+                                                         [dirs[m.fingerprint] for m in forming]), strict=True):
+                done(m, rec)
+            continue
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(max_workers=n_work, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = {pool.submit(run_forming_batch, [m.data for m in part],
+                                   [dirs[m.fingerprint] for m in part]): part for part in parts}
+            for fut in as_completed(futures):
+                part = futures[fut]
+                try:
+                    recs = fut.result()
+                except Exception as err:  # noqa: BLE001 - a lost worker: its members are errors
+                    recs = [{"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}] * len(part)
+                for m, rec in zip(part, recs, strict=True):
+                    done(m, rec)
+    if sizes:
+        notes.append(f"lockstep batches (simulate_batch, one vmapped segment solve per save segment) of "
+                     f"{', '.join(sizes)} forming members in {len(sizes)} shape groups"
+                     + (f" on up to {BATCH_WORKERS} worker processes" if BATCH_WORKERS > 1 else ""))
+    if other:
+        notes.append(f"{other} members (not forming, or with start_from) ran member after member")
+    return "batched: " + "; ".join(notes) if notes else "batched: nothing to run"
 
 
 # ---------------------------------------------------------------------------------------
