@@ -1,25 +1,31 @@
-"""The paper's numbers that results are compared with, written once.
+"""The paper's numbers that results are compared with (written once, in
+:mod:`dynslip.physics.reference`, where the schema's descriptions quote them too).
 
 - :data:`PAPER_MU`: the friction coefficient the paper's static model returns (Fig. 4),
-  per material model; Gent at $J_m = 50$ only (:func:`paper_mu`);
+  per material model; Gent at $J_m$ = :data:`PAPER_JM` only (:func:`paper_mu`);
 - :data:`ROUGH_END_STATE`: the formed pocket the paper reports, roughly: contact edge at
   $\\theta_{max} \\approx 1.8$ rad, material radius $\\bar r_{max} \\approx 0.9$ R;
-- :data:`MEASURED_RELEASE_FORCE_N`: the measured force that pulls the ball out (2.3 N).
+- :data:`MEASURED_RELEASE_FORCE_N`: the measured force that pulls the ball out (2.3 N);
+- :data:`MEASURED_MU_S`, :data:`MEASURED_MU_K`: the measured static and kinetic friction.
 """
 
 from __future__ import annotations
 
-__all__ = ["PAPER_MU", "paper_mu", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S", "MEASURED_MU_K"]
+from dynslip.physics.reference import (
+    MEASURED_MU_K,
+    MEASURED_MU_S,
+    MEASURED_RELEASE_FORCE_N,
+    PAPER_JM,
+    PAPER_MU,
+    ROUGH_END_STATE,
+)
 
-PAPER_MU = {"hookean": 1.47, "neo_hookean": 0.99, "gent": 1.1}  # paper Fig. 4 (Gent at J_m = 50)
-ROUGH_END_STATE = {"theta_max": 1.8, "rbar_max": 0.9}
-MEASURED_RELEASE_FORCE_N = 2.3
-MEASURED_MU_S = 0.99  # latex on the ball, static (paper Section 2)
-MEASURED_MU_K = 0.82  # kinetic
+__all__ = ["PAPER_MU", "PAPER_JM", "paper_mu", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S",
+           "MEASURED_MU_K"]
 
 
 def paper_mu(model: str, jm: float | None = None) -> float | None:
-    """The paper's mu for a model (Gent only at J_m = 50), else None."""
-    if model == "gent" and (jm is None or abs(jm - 50.0) > 1e-12):
+    """The paper's mu for a model (Gent only at J_m = PAPER_JM), else None."""
+    if model == "gent" and (jm is None or abs(jm - PAPER_JM) > 1e-12):
         return None
     return PAPER_MU.get(model)

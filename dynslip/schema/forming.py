@@ -13,6 +13,7 @@ from typing import Literal
 
 from pydantic import PrivateAttr, model_validator
 
+from dynslip.physics.reference import MEASURED_MU_K, MEASURED_MU_S
 from dynslip.schema.materials import MaterialSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
 
@@ -32,8 +33,10 @@ class FrictionSpec(Strict):
         "coulomb", description="coulomb: ideal Coulomb (mu), overdamped soft threshold; slip_weakening: "
         "static/kinetic, mu falls from mu_s to mu_k over a slip distance d_c_mm, reset when the node sticks")
     mu: float = F(1.15, ge=0, le=10, description="friction coefficient of law: coulomb")
-    mu_s: float = F(0.99, ge=0, le=10, description="static coefficient of law: slip_weakening (paper: 0.99)")
-    mu_k: float = F(0.82, ge=0, le=10, description="kinetic coefficient of law: slip_weakening (paper: 0.82); <= mu_s")
+    mu_s: float = F(0.99, ge=0, le=10,
+                    description=f"static coefficient of law: slip_weakening (paper: {MEASURED_MU_S:g})")
+    mu_k: float = F(0.82, ge=0, le=10,
+                    description=f"kinetic coefficient of law: slip_weakening (paper: {MEASURED_MU_K:g}); <= mu_s")
     d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4, description="weakening slip distance of law: slip_weakening, "
                       "in (0, 1e4] mm; the mesh "
                       "must be much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
