@@ -16,6 +16,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from dynslip.physics.reference import MEASURED_MU_S, PAPER_JM, PAPER_N_NODES
 from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.materials import MaterialSpec
 
@@ -104,7 +105,7 @@ class StaticPhysics(Geometry):
 class StaticNumerics(Strict):
     """Grid, march and search settings."""
 
-    n_nodes: int = F(100, ge=8, le=2000, description="grid nodes from the pole to rbar_max (paper: 100)")
+    n_nodes: int = F(100, ge=8, le=2000, description=f"grid nodes from the pole to rbar_max (paper: {PAPER_N_NODES})")
     march: Literal["implicit", "explicit", "diffrax"] = F(
         "implicit", description="march integrator: implicit (backward Euler, semi-smooth Newton, growing steps), "
         "explicit (forward-Euler jitted loop at the stable step) or diffrax")
@@ -148,7 +149,7 @@ class StaticScenario(ScenarioBase):
 class Figure4Physics(Geometry):
     """The three models of the paper's Fig. 4 (Hookean, neo-Hookean, Gent)."""
 
-    jm: float = _jm("Gent J_m (paper: 50), in (0, 1e4]")
+    jm: float = _jm(f"Gent J_m (paper: {PAPER_JM:g}), in (0, 1e4]")
     initial_shape: Literal["fully_mobilised", "linear"] = F("fully_mobilised", description="as in kind static")
     selection: Selection = F(Selection(), description="one selection rule for all three models")
 
@@ -198,7 +199,7 @@ class FamilyScenario(ScenarioBase):
 class CylinderPhysics(Strict):
     """A membrane on a rigid cylinder (paper Section 5)."""
 
-    mu: float = F(0.99, ge=0, le=10, description="friction coefficient (paper: static 0.99)")
+    mu: float = F(0.99, ge=0, le=10, description=f"friction coefficient (paper: static {MEASURED_MU_S:g})")
     theta_max_from: float = F(0.1, unit="rad", gt=0, lt=math.pi, description="smallest lift-off angle")
     theta_max_to: float = F(3.0, unit="rad", gt=0, lt=math.pi, description="largest lift-off angle")
 
