@@ -84,7 +84,7 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame():
 
     import xarray as xr
 
-    from dynslip.app.release import force_ramp_metrics
+    from dynslip.analysis.release import force_ramp_metrics
     from dynslip.schema.forming import ball_drag_coefficient
 
     r_mm, fs = 20.0, 2.0

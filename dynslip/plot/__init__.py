@@ -4,7 +4,9 @@ and import matplotlib only when called (``import dynslip`` stays light and never
 backend).
 
 - :func:`meridian`, :func:`theta_rbar`, :func:`state_map`: a forming trajectory
-  (:mod:`dynslip.plot.forming`).
+  (:mod:`dynslip.plot.forming`);
+- :func:`release_force`: the release test's force against the ball's displacement
+  (:mod:`dynslip.plot.release`).
 """
 
 from importlib import import_module
@@ -13,6 +15,7 @@ _EXPORTS = {
     "meridian": "dynslip.plot.forming",
     "theta_rbar": "dynslip.plot.forming",
     "state_map": "dynslip.plot.forming",
+    "release_force": "dynslip.plot.release",
 }
 __all__ = list(_EXPORTS)
 

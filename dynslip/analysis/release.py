@@ -1,0 +1,146 @@
+r"""The release test's numbers, from a trajectory dataset (no drawing, no files).
+
+- :func:`release_metrics`: force-displacement of the release (``scenarios/release.yaml``;
+  physics.md Section 4, "Loads in time"): the peak force against the sheet until the opening
+  radius reaches R ($\theta_{max} = \pi/2$), against the measured release force
+  (:data:`dynslip.analysis.paper.MEASURED_RELEASE_FORCE_N`), and the free-span check;
+- :func:`force_ramp_metrics`: the release as measured, a force on the ball ramped until it
+  tears out (``scenarios/release_pull.yaml``);
+- :func:`sheet_force`: the force the hold supplies against the sheet (the hold's less the
+  ball's drag); :func:`free_span_check`: the axial force along the free span.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import xarray as xr
+
+from dynslip.analysis.paper import MEASURED_RELEASE_FORCE_N
+
+__all__ = ["release_metrics", "force_ramp_metrics", "sheet_force", "free_span_check"]
+
+
+def release_metrics(ds: xr.Dataset, model=None) -> dict:
+    """Force-displacement of the release: peak hold force (N) until theta_max < pi/2, and the
+    free-span check (axial force constant along the free span and equal to the hold force)."""
+    fs = float(ds.attrs["force_scale_N"])
+    r_mm = float(ds.attrs["R_m"]) * 1e3
+    zb = ds["ball_z"].values
+    disp_mm = (zb - zb[0]) * r_mm
+    hold_n = ds["ball_reaction"].values * fs
+    force_n = sheet_force(ds) * fs
+    th = ds["theta_max"].values
+    below = np.flatnonzero(~(th >= math.pi / 2))
+    first = int(below[0]) if below.size else len(th)
+    upto = slice(0, max(first, 1))
+    i_peak = int(np.argmax(np.abs(force_n[upto])))
+    out = {
+        "peak_force_N": float(force_n[i_peak]),
+        "hold_force_at_peak_N": float(hold_n[i_peak]),
+        "peak_displacement_mm": float(disp_mm[i_peak]),
+        "opening_reached_R": bool(below.size),
+        "displacement_at_opening_R_mm": float(disp_mm[first]) if below.size else None,
+        "measured_release_force_N": MEASURED_RELEASE_FORCE_N,
+        "force_scale_N": fs,
+    }
+    ramp = force_ramp_metrics(ds)
+    if ramp is not None:
+        out["force_ramp"] = ramp
+    if model is not None:
+        out["free_span"] = free_span_check(ds, model)
+    return out
+
+
+def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
+    """The release as measured: a force on the ball ramped (``ball: pull``) until the ball's
+    speed exceeds a threshold (``until: ball_speed_above``). The release force is the applied
+    force at the last saved frame of that stage where the ball's speed is below the threshold
+    (N); its resolution is the ramp rate times the save interval. The drag's share is the
+    ball's drag eta_b |z_b'| over the applied force there (the regularisation's part of the
+    measured force). None when the run has no such stage."""
+    sc = json.loads(ds.attrs["scenario"])
+    stages = sc["physics"]["stages"]
+    idx = next((i for i, st in enumerate(stages) if st.get("ball") == "pull" and st.get("until") == "ball_speed_above"),
+               None)
+    if idx is None:
+        return None
+    fs = float(ds.attrs["force_scale_N"])
+    r_mm = float(ds.attrs["R_m"]) * 1e3
+    t = ds["time"].values
+    speed_mm_s = np.abs(np.gradient(ds["ball_z"].values, t)) * r_mm if t.size > 1 else np.zeros(1)
+    in_stage = ds["stage"].values == idx
+    threshold = float(stages[idx]["ball_speed_mm_s"])
+    slow = np.flatnonzero(in_stage & (speed_mm_s < threshold))
+    # torn out: a saved frame past the threshold, or the stage's stop rule ended it early (the rule sees
+    # the instantaneous speed; the saved frames only their differences)
+    ts = t[in_stage]
+    ended_early = bool(ts.size and ts[-1] - t[max(int(np.flatnonzero(in_stage)[0]) - 1, 0)]
+                       < float(stages[idx]["duration_s"]) - 1e-9)
+    torn = bool(np.any(in_stage & (speed_mm_s >= threshold))) or ended_early
+    if slow.size == 0:
+        return {"release_force_N": None, "torn_out": torn, "threshold_mm_s": threshold}
+    i = int(slow[-1])
+    applied = float(ds["ball_reaction"].values[i])
+    drag = float(_ball_drag_force(ds)[i])
+    return {
+        "release_force_N": applied * fs,
+        "time_s": float(t[i]),
+        "ball_speed_mm_s": float(speed_mm_s[i]),
+        "threshold_mm_s": threshold,
+        "torn_out": torn,
+        "drag_share": abs(drag) / abs(applied) if applied else None,
+        "resolution_N": float(abs(stages[idx]["ball_force_N"]) / stages[idx]["duration_s"]
+                              * sc["numerics"]["save_interval_s"]),
+    }
+
+
+def _ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:
+    """eta_b of the ball (G h0 R s / R), from the resolved scenario's numerics: the formula of
+    :func:`dynslip.schema.forming.ball_drag_coefficient`, which the run used (analysis may not
+    import the schema; tests/test_reference.py holds the two equal)."""
+    return drag_time_s * 4 * math.pi * ball_drag
+
+
+def _ball_drag_force(ds: xr.Dataset):
+    """The ball's drag force eta_b z_b' per frame (G h0 R): a regularisation the hold also pays."""
+    nu = json.loads(ds.attrs["scenario"])["numerics"]
+    eta_b = _ball_drag_coefficient(nu["drag_time_s"], nu["ball_drag"])
+    t = ds["time"].values
+    v = np.gradient(ds["ball_z"].values, t) if t.size > 1 else np.zeros(1)
+    return eta_b * v
+
+
+def sheet_force(ds: xr.Dataset):
+    """The force the hold must supply against the sheet (G h0 R, + up): the hold's force less
+    the ball's drag; for a held ball it equals minus the clamp's axial force at rest."""
+    return ds["ball_reaction"].values - _ball_drag_force(ds)
+
+
+def free_span_check(ds: xr.Dataset, model) -> dict:
+    """Per frame, the axial force 2 pi rho T_theta sin(psi) on the free elements (both ends out
+    of contact): its spread relative to its mean, and its mean against the hold force less the
+    ball's small drag (a regularisation; the rest is what the sheet exerts on the ball). Frames where the hold force is
+    below 1% of its largest value (slack span) are skipped."""
+    import jax.numpy as jnp
+
+    spreads, mismatch = [], []
+    static = sheet_force(ds)
+    scale = float(np.max(np.abs(static)))
+    for i in range(ds.sizes["time"]):
+        f = ds.isel(time=i)
+        free_nodes = f["state"].values == 0
+        el = free_nodes[:-1] & free_nodes[1:]
+        if el.sum() < 2:
+            continue
+        p = np.asarray(model.free_span_axial_force(jnp.asarray(f["rho"].values), jnp.asarray(f["z"].values)))[el]
+        hold = float(static[i])
+        if scale == 0 or abs(hold) < 1e-2 * scale:  # a slack span: relative measures are meaningless
+            continue
+        mean = float(np.mean(p))
+        spreads.append(float(np.ptp(p) / abs(mean)))
+        mismatch.append(abs(abs(mean) - abs(hold)) / abs(hold))
+    return {"frames": len(spreads), "max_relative_spread": max(spreads) if spreads else None,
+            "max_relative_mismatch_to_hold": max(mismatch) if mismatch else None}

@@ -1,0 +1,46 @@
+"""The paper's numbers are written once (dynslip/physics/reference.py): the analysis compares
+with them and the schema's descriptions quote them, so no copy can drift."""
+
+import pytest
+
+from dynslip.physics import reference as ref
+
+
+def test_analysis_paper_is_the_reference():
+    from dynslip.analysis import paper
+
+    for name in ("PAPER_MU", "PAPER_JM", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S",
+                 "MEASURED_MU_K"):
+        assert getattr(paper, name) is getattr(ref, name)
+    assert paper.paper_mu("gent", ref.PAPER_JM) == ref.PAPER_MU["gent"]
+    assert paper.paper_mu("gent", 2 * ref.PAPER_JM) is None
+
+
+@pytest.mark.parametrize(("module", "cls", "field", "quoted"), [
+    ("forming", "FrictionSpec", "mu_s", f"(paper: {ref.MEASURED_MU_S:g})"),
+    ("forming", "FrictionSpec", "mu_k", f"(paper: {ref.MEASURED_MU_K:g})"),
+    ("static", "CylinderPhysics", "mu", f"(paper: static {ref.MEASURED_MU_S:g})"),
+    ("static", "Figure4Physics", "jm", f"(paper: {ref.PAPER_JM:g})"),
+    ("static", "StaticNumerics", "n_nodes", f"(paper: {ref.PAPER_N_NODES})"),
+])
+def test_schema_descriptions_quote_the_reference(module, cls, field, quoted):
+    from importlib import import_module
+
+    model = getattr(import_module(f"dynslip.schema.{module}"), cls)
+    assert quoted in model.model_fields[field].description
+
+
+def test_release_analysis_uses_the_runs_ball_drag():
+    """analysis/release.py may not import the schema: its eta_b is the schema's formula."""
+    from dynslip.analysis.release import _ball_drag_coefficient
+    from dynslip.schema.forming import ball_drag_coefficient
+
+    for drag_time_s, ball_drag in [(0.1, 1.0), (0.02, 3.5), (1.0, 0.0)]:
+        assert _ball_drag_coefficient(drag_time_s, ball_drag) == ball_drag_coefficient(drag_time_s, ball_drag)
+
+
+def test_release_figure_is_in_the_python_api():
+    import dynslip
+    from dynslip.plot.release import release_force
+
+    assert dynslip.plot.release_force is release_force
