@@ -28,12 +28,22 @@ Runners (``mode``):
 
 - ``sequential``: one member after another in this process.
 - ``batched``: members grouped by shape (same structure, integers and strings of the
-  resolved scenario; only floats differ); a group goes through the scenario class's
-  ``run_batch`` when it has one. The forming simulator exposes no batched entry point,
-  so a group then runs member after member ("grouped sequential"); the dataset's
-  ``batched`` attribute says which happened. (A prototype found ``jax.vmap`` over 6
-  values of mu 20 times slower than running them one after another: every member of
-  a vmapped adaptive integration takes the slowest member's steps.)
+  resolved scenario; only floats differ, so members differing in the mesh, the material
+  model or the friction law fall in different groups). A group of forming members runs
+  through :func:`dynslip.physics.batch.simulate_batch` (:func:`run_forming_batch`):
+  members in lockstep, one ``jax.vmap``-ed call of the load-stepping segment solve per save
+  segment for the whole batch, each member with its own stage, time and stop rule. A group
+  of at least 4 is split over :data:`BATCH_WORKERS` (2) spawned worker processes, one half
+  each. Members with ``start_from``, a window search or a stand-in runner run member after
+  member ("grouped sequential"). The summary's ``batched`` entry says what ran.
+  Under ``vmap`` each member's ``while_loop`` of load increments runs the batch's largest
+  count of increments in every segment (4 members of the let-go path at 40 nodes: 1255
+  lockstep increments against 689-800 of their own), and on the CPU a vmapped increment
+  costs about as much per member as one alone, so lockstep alone does not pay on the CPU;
+  the two processes do (docs/sweeps.md, "Throughput"). :data:`BATCH_SIZE` = 1 runs the
+  members of each worker one after another (the fastest on 2 CPU cores). Outputs of a
+  member's run (trajectory, figures) are written only with ``keep_runs``: the summary is
+  computed from the trajectory in memory, as the simulator's runner computes it.
 - ``dask``: members submitted to a ``dask.distributed`` scheduler (``scheduler``
   address, or a LocalCluster on loopback when none is given); results come back and
   are written as they finish.
@@ -47,6 +57,7 @@ import hashlib
 import itertools
 import json
 import math
+import os
 import shutil
 import tempfile
 import time
@@ -463,11 +474,13 @@ def _run_members(
 # ---------------------------------------------------------------------------------------
 # The batched runner: forming members in lockstep (dynslip.physics.batch.simulate_batch)
 
-#: worker processes of the batched runner (each runs part of every batch; "spawn": JAX and fork
-#: do not mix). 1 runs every batch in this process.
-BATCH_WORKERS = 1
+#: worker processes of the batched runner (each runs part of every group; "spawn": JAX and fork
+#: do not mix). 1 runs every batch in this process. docs/sweeps.md has the measurement.
+BATCH_WORKERS = min(2, os.cpu_count() or 1)
 #: the fewest members a worker process is given (below it, a batch runs in this process)
 MIN_MEMBERS_PER_WORKER = 2
+#: the most members of one lockstep batch (None: a worker's whole share; 1: one after another)
+BATCH_SIZE: int | None = None
 
 
 def _batchable(m: Member) -> bool:
@@ -506,11 +519,11 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
     return summary
 
 
-def run_forming_batch(datas: list[dict], run_dirs: list[str | None]) -> list[dict]:
+def run_forming_batch(datas: list[dict], run_dirs: list[str | None], batch_size: int | None = None) -> list[dict]:
     """Forming members (scenario data) of one shape run in lockstep: one member record each,
     as :func:`execute_member` writes it (module level: it travels to worker processes).
     Members whose compiled solves differ (a float setting of the increment control, say)
-    form separate batches."""
+    form separate batches, each of at most ``batch_size`` members (None: all)."""
     from dynslip.app.forming import build_core
     from dynslip.physics.batch import batch_key, simulate_batch
     from dynslip.schema.base import validate_data
@@ -527,7 +540,9 @@ def run_forming_batch(datas: list[dict], run_dirs: list[str | None]) -> list[dic
             recs[i] = {"status": "failed", "error": f"ComputationError: {err}", "summary": {}}
         except Exception as err:  # noqa: BLE001 - a member's failure is data
             recs[i] = {"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}
-    for batch in batches.values():
+    size = batch_size or len(datas)
+    chunks = [b[k : k + size] for b in batches.values() for k in range(0, len(b), size)]
+    for batch in chunks:
         b0 = time.perf_counter()
         try:
             results = simulate_batch([c[0] for _, _, c in batch], [c[1] for _, _, c in batch],
@@ -572,16 +587,16 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
         sizes.append("+".join(str(len(p)) for p in parts))
         dirs = {m.fingerprint: run_dir(m) for m in forming}
         if n_work == 1:
-            for m, rec in zip(forming, run_forming_batch([m.data for m in forming],
-                                                         [dirs[m.fingerprint] for m in forming]), strict=True):
+            recs = run_forming_batch([m.data for m in forming], [dirs[m.fingerprint] for m in forming], BATCH_SIZE)
+            for m, rec in zip(forming, recs, strict=True):
                 done(m, rec)
             continue
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
         with ProcessPoolExecutor(max_workers=n_work, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = {pool.submit(run_forming_batch, [m.data for m in part],
-                                   [dirs[m.fingerprint] for m in part]): part for part in parts}
+            futures = {pool.submit(run_forming_batch, [m.data for m in part], [dirs[m.fingerprint] for m in part],
+                                   BATCH_SIZE): part for part in parts}
             for fut in as_completed(futures):
                 part = futures[fut]
                 try:
