@@ -120,25 +120,21 @@ MEMBERS = [{"physics.friction.mu_s": 1.5, "physics.friction.mu_k": 1.25},
            {"physics.friction.mu_s": 0.8, "physics.friction.mu_k": 0.66}]
 
 
-def test_batched_sweep_equals_sequential(tmp_path):
-    """``--mode batched`` on forming members differing in mu_s, mu_k: the same outcome, end
-    state and solver counts as ``sequential``, member by member; the summary says what ran."""
-    from dynslip.app.sweep import run_sweep
-
-    sweep = tmp_path / "study.yaml"
+def _sweep_file(tmp: Path, members: list[dict]) -> Path:
+    sweep = tmp / "study.yaml"
     sweep.write_text(yaml.safe_dump({"base": str(ROOT / "scenarios" / "method2_let_go.yaml"),
-                                     "overrides": SHORT, "list": MEMBERS}))
-    seq = run_sweep(sweep, out=tmp_path / "seq", mode="sequential", plot=False)
-    bat = run_sweep(sweep, out=tmp_path / "bat", mode="batched", plot=False)
-    assert bat["batched"].startswith("batched: lockstep batches"), bat["batched"]
-    assert seq["n_ok"] == bat["n_ok"] == 2
+                                     "overrides": SHORT, "list": members}))
+    return sweep
 
-    def records(out):
-        recs = [json.loads(p.read_text()) for p in sorted((out / "members").glob("*.json"))]
-        return {r["fingerprint"]: r for r in recs}
 
-    rs, rb = records(tmp_path / "seq"), records(tmp_path / "bat")
-    assert rs.keys() == rb.keys()
+def _records(out: Path) -> dict:
+    recs = [json.loads(p.read_text()) for p in sorted((out / "members").glob("*.json"))]
+    return {r["fingerprint"]: r for r in recs}
+
+
+def _assert_same_records(rs: dict, rb: dict) -> list:
+    """Member records of ``rb`` equal those of ``rs`` (same fingerprints): outcome, end state,
+    solver counts and stages; returns the trapped outcomes."""
     outcomes = []
     for k, a in rs.items():
         b = rb[k]
@@ -152,4 +148,51 @@ def test_batched_sweep_equals_sequential(tmp_path):
         for name in ("steps", "accepted", "rejected", "segments", "newton_iterations"):
             assert sb["solver"][name] == sa["solver"][name], name
         assert [s["name"] for s in sb["stages"]] == [s["name"] for s in sa["stages"]]
-    print("trapped:", outcomes)
+    return outcomes
+
+
+@pytest.fixture(scope="module")
+def sequential(tmp_path_factory):
+    """The two members of ``MEMBERS`` run one after another: ``(summary, records)``."""
+    from dynslip.app.sweep import run_sweep
+
+    tmp = tmp_path_factory.mktemp("seq")
+    seq = run_sweep(_sweep_file(tmp, MEMBERS), out=tmp / "seq", mode="sequential", plot=False)
+    return seq, _records(tmp / "seq")
+
+
+def test_batched_sweep_equals_sequential(tmp_path, sequential, monkeypatch):
+    """``--mode batched`` on forming members differing in mu_s, mu_k, in this process: the same
+    outcome, end state and solver counts as ``sequential``, member by member; the summary
+    says what ran."""
+    from dynslip.app import sweep as sweep_app
+
+    monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 1)
+    seq, rs = sequential
+    bat = sweep_app.run_sweep(_sweep_file(tmp_path, MEMBERS), out=tmp_path / "bat", mode="batched", plot=False)
+    assert bat["batched"].startswith("batched: lockstep batches"), bat["batched"]
+    assert "worker processes" not in bat["batched"]
+    assert seq["n_ok"] == bat["n_ok"] == 2
+    rb = _records(tmp_path / "bat")
+    assert rs.keys() == rb.keys()
+    print("trapped:", _assert_same_records(rs, rb))
+
+
+@pytest.mark.slow
+def test_batched_sweep_in_two_worker_processes(tmp_path, sequential, monkeypatch):
+    """The default batched runner on 2 cores: 4 forming members split over two spawned worker
+    processes (2 each, one lockstep batch per worker); every member ok, and the two members
+    also run sequentially (in this process) have the same records."""
+    from dynslip.app import sweep as sweep_app
+
+    monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 2)
+    _, rs = sequential
+    more = MEMBERS + [{"physics.friction.mu_s": 1.2, "physics.friction.mu_k": 1.0},
+                      {"physics.friction.mu_s": 1.0, "physics.friction.mu_k": 0.83}]
+    bat = sweep_app.run_sweep(_sweep_file(tmp_path, more), out=tmp_path / "bat", mode="batched", plot=False)
+    assert "2+2 forming members" in bat["batched"] and "on up to 2 worker processes" in bat["batched"], \
+        bat["batched"]
+    assert bat["n_ok"] == 4
+    rb = _records(tmp_path / "bat")
+    assert set(rs) < set(rb) and len(rb) == 4
+    _assert_same_records(rs, {k: rb[k] for k in rs})
