@@ -1,6 +1,8 @@
 """The paper's numbers are written once (dynslip/physics/reference.py): the analysis compares
 with them and the schema's descriptions quote them, so no copy can drift."""
 
+import math
+
 import pytest
 
 from dynslip.physics import reference as ref
@@ -31,12 +33,15 @@ def test_schema_descriptions_quote_the_reference(module, cls, field, quoted):
 
 
 def test_release_analysis_uses_the_runs_ball_drag():
-    """analysis/release.py may not import the schema: its eta_b is the schema's formula."""
-    from dynslip.analysis.release import _ball_drag_coefficient
-    from dynslip.schema.forming import ball_drag_coefficient
+    """One eta_b formula (physics.protocols), used by the schema to build the run and by the
+    release analysis to read it back: eta_b = tau 4 pi ball_drag."""
+    from dynslip.analysis import release
+    from dynslip.schema import forming
 
+    assert release.ball_drag_coefficient is forming.ball_drag_coefficient
     for drag_time_s, ball_drag in [(0.1, 1.0), (0.02, 3.5), (1.0, 0.0)]:
-        assert _ball_drag_coefficient(drag_time_s, ball_drag) == ball_drag_coefficient(drag_time_s, ball_drag)
+        assert release.ball_drag_coefficient(drag_time_s, ball_drag) == \
+            forming.ball_drag_coefficient(drag_time_s, ball_drag) == drag_time_s * 4 * math.pi * ball_drag
 
 
 def test_release_figure_is_in_the_python_api():

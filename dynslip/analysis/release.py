@@ -19,6 +19,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.analysis.paper import MEASURED_RELEASE_FORCE_N
+from dynslip.physics.protocols import ball_drag_coefficient
 
 __all__ = ["release_metrics", "force_ramp_metrics", "sheet_force", "free_span_check"]
 
@@ -97,17 +98,10 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     }
 
 
-def _ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:
-    """eta_b of the ball (G h0 R s / R), from the resolved scenario's numerics: the formula of
-    :func:`dynslip.schema.forming.ball_drag_coefficient`, which the run used (analysis may not
-    import the schema; tests/test_reference.py holds the two equal)."""
-    return drag_time_s * 4 * math.pi * ball_drag
-
-
 def _ball_drag_force(ds: xr.Dataset):
     """The ball's drag force eta_b z_b' per frame (G h0 R): a regularisation the hold also pays."""
     nu = json.loads(ds.attrs["scenario"])["numerics"]
-    eta_b = _ball_drag_coefficient(nu["drag_time_s"], nu["ball_drag"])
+    eta_b = ball_drag_coefficient(nu["drag_time_s"], nu["ball_drag"])
     t = ds["time"].values
     v = np.gradient(ds["ball_z"].values, t) if t.size > 1 else np.zeros(1)
     return eta_b * v

@@ -238,7 +238,8 @@ def run_forming(sc, out: Path, console=None) -> dict:
     io.write_netcdf(ds, out / "trajectory.nc")
     summary = summarize(sc, ds, result)
     if start_info is not None:
-        from dynslip.app.release import plot_release, release_metrics
+        from dynslip.analysis.release import release_metrics
+        from dynslip.plot.release import plot_release
 
         summary["start"] = start_info
         summary["release"] = release_metrics(ds, model)

@@ -24,13 +24,10 @@ from pathlib import Path
 
 import xarray as xr
 
-from dynslip.analysis.release import release_metrics
 from dynslip.errors import InputError
-from dynslip.plot.release import plot_release
 from dynslip.schema.paths import get_path
 
-# release_metrics and plot_release are re-exported for the forming runner (dynslip.app.forming)
-__all__ = ["load_start", "release_metrics", "plot_release", "GEOMETRY_FIELDS"]
+__all__ = ["load_start", "GEOMETRY_FIELDS"]
 
 GEOMETRY_FIELDS = (
     "physics.ball_radius_mm", "physics.thickness_um", "physics.youngs_modulus_MPa", "physics.material.model",

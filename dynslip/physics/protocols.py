@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
+import math
 from typing import Any, ClassVar
 
 import equinox as eqx
@@ -309,3 +310,9 @@ class Protocol:
             s = 0.0 if dd == 0 else float(np.clip(-(a @ d) / dd, 0.0, 1.0))
             best = min(best, float(np.linalg.norm(a + s * d)))
         return best
+
+
+def ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:
+    """eta_b of the ball (G h0 R s / R): ``ball_drag`` times the sheet's drag over 4 pi R^2
+    (the schema builds the run's loads with it; the release analysis reads the run back with it)."""
+    return drag_time_s * 4 * math.pi * ball_drag

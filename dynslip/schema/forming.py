@@ -13,6 +13,7 @@ from typing import Literal
 
 from pydantic import PrivateAttr, model_validator
 
+from dynslip.physics.protocols import ball_drag_coefficient
 from dynslip.physics.reference import MEASURED_MU_K, MEASURED_MU_S
 from dynslip.schema.materials import MaterialSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
@@ -302,11 +303,6 @@ class FormingScenario(ScenarioBase):
 
     # the resolved start state of ``start_from`` (filled in by :func:`dynslip.app.forming.preflight`)
     _start: tuple | None = PrivateAttr(default=None)
-
-
-def ball_drag_coefficient(drag_time_s: float, ball_drag: float) -> float:
-    """eta_b of the ball (G h0 R s / R): ``ball_drag`` times the sheet's drag over 4 pi R^2."""
-    return drag_time_s * 4 * math.pi * ball_drag
 
 
 def build_protocol(sc: FormingScenario):
