@@ -34,9 +34,9 @@ class FrictionSpec(Strict):
         "coulomb", description="coulomb: ideal Coulomb (mu), overdamped soft threshold; slip_weakening: "
         "static/kinetic, mu falls from mu_s to mu_k over a slip distance d_c_mm, reset when the node sticks")
     mu: float = F(1.15, ge=0, le=10, description="friction coefficient of law: coulomb")
-    mu_s: float = F(0.99, ge=0, le=10,
+    mu_s: float = F(MEASURED_MU_S, ge=0, le=10,
                     description=f"static coefficient of law: slip_weakening (paper: {MEASURED_MU_S:g})")
-    mu_k: float = F(0.82, ge=0, le=10,
+    mu_k: float = F(MEASURED_MU_K, ge=0, le=10,
                     description=f"kinetic coefficient of law: slip_weakening (paper: {MEASURED_MU_K:g}); <= mu_s")
     d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4, description="weakening slip distance of law: slip_weakening, "
                       "in (0, 1e4] mm; the mesh "
@@ -305,9 +305,25 @@ class FormingScenario(ScenarioBase):
     _start: tuple | None = PrivateAttr(default=None)
 
 
+def _stop_rule(s, duration: float, r: float, fs: float):
+    """The stop rule object (:mod:`dynslip.physics.protocols`, one final class per ``until``)
+    of stage ``s``, its thresholds made nondimensional (lengths by ``r`` mm, forces by ``fs`` N);
+    a condition rule ends the stage at ``duration`` s at the latest."""
+    from dynslip.physics.protocols import BallSpeedAbove, ClampForceBelow, Duration, Rest, ThetaMaxBelow
+
+    build = {
+        "duration": lambda: Duration(duration=duration),
+        "clamp_force_below": lambda: ClampForceBelow(force=(s.force_threshold_N or 0.0) / fs, duration=duration),
+        "theta_max_below": lambda: ThetaMaxBelow(angle=s.theta_stop_rad or 0.0, duration=duration),
+        "ball_speed_above": lambda: BallSpeedAbove(rate=(s.ball_speed_mm_s or 0.0) / r, duration=duration),
+        "rest": lambda: Rest(rate=(s.rest_rate_mm_s or 0.0) / r, hold=s.rest_hold_s or 0.0, duration=duration),
+    }
+    return build[s.until]()
+
+
 def build_protocol(sc: FormingScenario):
     """The core :class:`dynslip.physics.protocols.Protocol` (nondimensional) of a scenario."""
-    from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage, StopRule
+    from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage
 
     p = sc.physics
     r = p.ball_radius_mm
@@ -323,13 +339,7 @@ def build_protocol(sc: FormingScenario):
             dur = s.duration_s
             vz = s.clamp_velocity_mm_s / r
         z += vz * dur
-        stop = StopRule(
-            kind=s.until, duration=dur,
-            force=(s.force_threshold_N or 0.0) / fs,
-            rate=((s.ball_speed_mm_s if s.until == "ball_speed_above" else s.rest_rate_mm_s) or 0.0) / r,
-            hold=s.rest_hold_s or 0.0,
-            angle=s.theta_stop_rad or 0.0,
-        )
+        stop = _stop_rule(s, dur, r, fs)
         ckw = {"clamp_vz": vz}
         if s.clamp == "let_go":
             ckw = {"clamp_mode": CLAMP_FORCE}

@@ -199,7 +199,7 @@ class FamilyScenario(ScenarioBase):
 class CylinderPhysics(Strict):
     """A membrane on a rigid cylinder (paper Section 5)."""
 
-    mu: float = F(0.99, ge=0, le=10, description=f"friction coefficient (paper: static {MEASURED_MU_S:g})")
+    mu: float = F(MEASURED_MU_S, ge=0, le=10, description=f"friction coefficient (paper: static {MEASURED_MU_S:g})")
     theta_max_from: float = F(0.1, unit="rad", gt=0, lt=math.pi, description="smallest lift-off angle")
     theta_max_to: float = F(3.0, unit="rad", gt=0, lt=math.pi, description="largest lift-off angle")
 
