@@ -54,9 +54,12 @@ def _value(v: str):
 
 
 def stages(n: int, sets: list[str]) -> None:
-    per = defaultdict(lambda: np.zeros(4, int))
-    _capture(lambda run, seg, out: per[run.stage.name].__iadd__(
-        np.array([int(out[2]), int(out[4]), int(out[5]) if len(out) > 5 else 0, 1])))
+    per = defaultdict(lambda: np.zeros(4, int))  # stage -> steps, rejected, Newton iterations, segments
+
+    def count(run, seg, out):
+        per[run.stage.name] += [int(out[2]), int(out[4]), int(out[5]) if len(out) > 5 else 0, 1]
+
+    _capture(count)
     values = {"numerics.nodes": n} | {k: _value(v) for k, v in (a.split("=", 1) for a in sets)}
     res = dynslip.run(dynslip.load(PATH, set=values))
     for name, (steps, rej, newton, segs) in per.items():
