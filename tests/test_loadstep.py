@@ -18,7 +18,7 @@ import optimistix as optx
 import pytest
 
 from dynslip.physics.friction import Coulomb, make_friction
-from dynslip.physics.loadstep import LoadStepEuler, increments, run_segment
+from dynslip.physics.loadstep import DampedNewton, LoadStepEuler, increments, run_segment
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Layout, Settings, _stage_args, initial_state, simulate
 from dynslip.physics.upstream import ImplicitEuler
@@ -66,6 +66,36 @@ def test_pinned_implicit_euler_still_accepts_a_failed_solve():
     assert np.all(np.isfinite(np.asarray(y_err)))
 
 
+# ----------------------------------------------------------------------------- DampedNewton
+
+
+def _root(solver, fn, x0):
+    sol = optx.root_find(lambda x, _: fn(x), solver, jnp.array([x0]), throw=False, max_steps=40)
+    return float(sol.value[0]), sol.result == optx.RESULTS.successful, int(sol.stats["num_steps"])
+
+
+def test_damped_newton_converges_where_newton_diverges():
+    """arctan x = 0 from x0 = 1.5: Newton's iterates grow in magnitude without bound
+    (|x0| > 1.3917, the 2-cycle's amplitude); the backtracking safeguard halves every
+    correction that raises |f| and converges to 0."""
+    kw = dict(rtol=1e-10, atol=1e-12, norm=optx.max_norm)
+    x, ok, _ = _root(optx.Newton(**kw), jnp.arctan, 1.5)
+    assert not (ok and abs(x) < 1e-8)
+    x, ok, _ = _root(DampedNewton(**kw, max_backtrack=4), jnp.arctan, 1.5)
+    assert ok and abs(x) < 1e-10
+
+
+def test_damped_newton_is_newton_where_the_residual_falls():
+    """x^2 = 2 from x0 = 1: every Newton correction lowers |f|, so no halving happens and the
+    iterates, their count and the root equal plain Newton's."""
+    kw = dict(rtol=1e-12, atol=1e-12, norm=optx.max_norm)
+    fn = lambda x: x**2 - 2.0  # noqa: E731
+    plain, damped = _root(optx.Newton(**kw), fn, 1.0), _root(DampedNewton(**kw, max_backtrack=4), fn, 1.0)
+    assert plain[1] and damped[1]
+    assert damped == plain
+    assert abs(damped[0] - math.sqrt(2.0)) < 1e-12
+
+
 # ----------------------------------------------------------------------------- against Kvaerno5
 
 
@@ -76,10 +106,12 @@ def reference():
     return res
 
 
-def test_load_step_matches_kvaerno5_on_a_short_push_down(reference):
-    """Same end state (after the hold) within 1e-5 R in rho and z; far fewer steps; the Newton
+@pytest.mark.parametrize("backtrack", [4, 0])
+def test_load_step_matches_kvaerno5_on_a_short_push_down(reference, backtrack):
+    """Same end state (after the hold) within 1e-5 R in rho and z, with and without Newton's
+    backtracking (the default 4 halvings, and plain Newton); far fewer steps; the Newton
     iterations and the method reported."""
-    res = _run("load_step")
+    res = _run("load_step", newton_backtrack=backtrack)
     assert res.failed is None, res.failed
     fa, fb = reference.frames[-1], res.frames[-1]
     d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))

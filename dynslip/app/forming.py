@@ -44,7 +44,7 @@ def build_core(sc):
                         max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
                         contact_threshold=nu.contact_threshold, heal_rate=nu.heal_rate_mm_s / r,
                         max_increment=nu.max_increment, max_increment_free=nu.max_increment_free,
-                        newton_max_iter=nu.newton_max_iter)
+                        newton_max_iter=nu.newton_max_iter, newton_backtrack=nu.newton_backtrack)
     kwargs = dict(
         friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
                                d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),

@@ -70,7 +70,7 @@ import optimistix as optx
 from diffrax._solver.implicit_euler import _implicit_relation
 from equinox.internal import ω
 
-from dynslip.physics.field import heal, sheet_structure, vector_field
+from dynslip.physics.field import N_ACC, heal, sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
@@ -79,9 +79,9 @@ __all__ = ["LoadStepEuler", "IncrementState", "load_step_solver", "increments", 
            "SHRINK_ABOVE"]
 
 GROW = 1.5  # increment growth after a fast Newton solve
-GROW_BELOW = 6  # ... of at most this many iterations
+GROW_BELOW = 8  # ... of at most this many iterations
 SHRINK = 0.7  # increment shrink after a slow Newton solve
-SHRINK_ABOVE = 12  # ... of at least this many iterations
+SHRINK_ABOVE = 14  # ... of at least this many iterations
 CUT = 0.5  # cut-back after a failed Newton solve
 MIN_FRACTION = 1e-10  # smallest increment, as a fraction of the segment
 
@@ -127,11 +127,54 @@ class LoadStepEuler(ImplicitEuler):
         return y1, y_error, dict(y0=y0, y1=y1), state, result
 
 
-def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 16):
-    """The implicit Euler solver of a load increment: Newton with explicit tolerances."""
+class DampedNewton(optx.Newton):
+    r"""optimistix's Newton with a backtracking safeguard on the residual.
+
+    The Newton correction $d$ is taken in full when the residual's max norm over the
+    ``weights``-selected components does not grow, $\|w F(y - d)\| \le \|w F(y)\|$, or is
+    already below ``atol``; otherwise it is halved, at most ``max_backtrack`` times. The
+    halvings are not Newton iterations (``num_steps`` counts corrections only).
+    """
+
+    weights: jax.Array | None = None
+    max_backtrack: int = 4
+
+    def step(self, fn, y, args, options, state, tags):
+        new_y, new_state, aux = super().step(fn, y, args, options, state, tags)
+        w = 1.0 if self.weights is None else self.weights
+        merit = lambda v: self.norm(w * fn(v, args)[0])  # noqa: E731
+        f0 = self.norm(w * new_state.f) if self.cauchy_termination else merit(y)
+        diff = new_state.diff
+
+        def cond(c):
+            alpha, f1, i = c
+            return (f1 > f0) & (f1 > self.atol) & (i < self.max_backtrack)
+
+        def body(c):
+            alpha, _, i = c
+            alpha = 0.5 * alpha
+            return alpha, merit(y - alpha * diff), i + 1
+
+        alpha, _, _ = jax.lax.while_loop(cond, body, (jnp.array(1.0), merit(new_y), jnp.array(0)))
+        diff = alpha * diff
+        scale = self.atol + self.rtol * jnp.abs(y - diff)
+        diffsize = self.norm(diff / scale)
+        new_state = eqx.tree_at(lambda s: (s.diff, s.diffsize), new_state, (diff, jnp.asarray(diffsize, new_state.diffsize.dtype)))
+        return y - diff, new_state, aux
+
+
+def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 16, backtrack: int = 4):
+    """The implicit Euler solver of a load increment: Newton with explicit tolerances, and
+    :class:`DampedNewton`'s backtracking (at most ``backtrack`` halvings; 0: plain Newton)."""
     lin = (BorderedBlockTridiagonal(sheet_structure(layout)) if linear_solver == "structured"
            else lx.AutoLinearSolver(well_posed=None))
-    newton = optx.Newton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True)
+    if backtrack:
+        # the energy accumulators do not feed back into the motion: left out of the merit
+        w = jnp.ones(layout.size).at[2 * layout.n:2 * layout.n + N_ACC].set(0.0)
+        newton = DampedNewton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True,
+                              weights=w, max_backtrack=backtrack)
+    else:
+        newton = optx.Newton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True)
     return LoadStepEuler(root_finder=newton, root_find_max_steps=max_iter)
 
 
@@ -144,12 +187,12 @@ def increment_cap(args, max_increment, max_increment_free):
 
 def run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, *, max_steps: int, max_iter: int,
                 max_increment: float, max_increment_free: float, linear_solver: str = "structured",
-                heal_rate: float = 0.0):
+                heal_rate: float = 0.0, backtrack: int = 4):
     """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
     newton_iterations)``. Not jitted (see :func:`segment_solver`). ``dt0`` is the first increment tried.
     """
     term = diffrax.ODETerm(vector_field(model, layout))
-    solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter)
+    solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter, backtrack)
     cap = increment_cap(args, max_increment, max_increment_free)
     return increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps,
                       after=lambda t, y: heal(model, layout, y, args, heal_rate))
@@ -200,7 +243,7 @@ def segment_solver(settings):
     load_step``, the signature of :func:`dynslip.physics.simulate.segment_solver` with the
     Newton iteration count as a sixth output; one per setting of the increment control."""
     key = (settings.max_steps, settings.linear_solver, settings.newton_max_iter, settings.max_increment,
-           settings.max_increment_free, settings.heal_rate)
+           settings.max_increment_free, settings.heal_rate, settings.newton_backtrack)
     if key in _CACHE:
         return _CACHE[key]
 
@@ -209,7 +252,7 @@ def segment_solver(settings):
         return run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=settings.max_steps,
                            max_iter=settings.newton_max_iter, max_increment=settings.max_increment,
                            max_increment_free=settings.max_increment_free, linear_solver=settings.linear_solver,
-                           heal_rate=settings.heal_rate)
+                           heal_rate=settings.heal_rate, backtrack=settings.newton_backtrack)
 
     _CACHE[key] = solve
     return solve

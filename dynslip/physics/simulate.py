@@ -70,6 +70,7 @@ class Settings:
     # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
     # increment bound in drag times, driven stages / stages with the ball or clamp under a force
     newton_max_iter: int = 16
+    newton_backtrack: int = 4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
     max_increment: float = 20.0
     max_increment_free: float = 5.0
 
@@ -202,7 +203,8 @@ def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
     """Everything a compiled segment solve is specialised on: the solver's settings other than
     the tolerances, the mesh size and the non-array parts of the model and stage loads."""
     return (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
-            settings.newton_max_iter, settings.max_increment, settings.max_increment_free, settings.heal_rate,
+            settings.newton_max_iter, settings.newton_backtrack, settings.max_increment, settings.max_increment_free,
+            settings.heal_rate,
             repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
 
 

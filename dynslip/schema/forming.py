@@ -235,6 +235,9 @@ class FormingNumerics(Strict):
                                   "the ball or the clamp moves under a force (let-go, release, rest), in (0, 1e4]")
     newton_max_iter: int = F(16, ge=2, le=100, description="load_step: Newton iterations before an increment is "
                              "cut, 2..100")
+    newton_backtrack: int = F(4, ge=0, le=20, description="load_step: at most this many halvings of a Newton "
+                              "correction that would raise the residual's max norm (a backtracking safeguard "
+                              "that breaks stick/slip cycles at the contact edge; 0: plain Newton), 0..20")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
         description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "
