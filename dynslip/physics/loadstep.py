@@ -30,7 +30,12 @@ advanced by the same rule, so
 :class:`optimistix.Newton` root finder (``rtol``, ``atol`` of the scenario's numerics,
 max norm, Cauchy termination: the last Newton correction below
 ``atol + rtol |dx|`` *and* the residual below ``atol``) whose linear solver is
-:class:`dynslip.physics.linalg.BorderedBlockTridiagonal`. Newton starts from
+:class:`dynslip.physics.linalg.BorderedBlockTridiagonal`, safeguarded by backtracking
+(:class:`DampedNewton`, ``numerics.newton_backtrack`` halvings, default 4): a correction
+that would raise the residual's max norm (over the motion, not the energy accumulators)
+is halved. Without it Newton falls into stick/slip cycles at the contact edge, where the
+soft threshold's band $e \approx \mu N$ is narrow (docs/speed.md, "Why the steps grew with
+N"), and each cycle costs a rejected, halved increment. Newton starts from
 the previous increment rescaled to the new $\Delta t$, and from zero at the start of a
 save segment (see :class:`LoadStepEuler` for why not diffrax's $\Delta t\,f(t_0, x_0)$).
 
@@ -79,9 +84,9 @@ __all__ = ["LoadStepEuler", "IncrementState", "load_step_solver", "increments", 
            "SHRINK_ABOVE"]
 
 GROW = 1.5  # increment growth after a fast Newton solve
-GROW_BELOW = 8  # ... of at most this many iterations
+GROW_BELOW = 12  # ... of at most this many iterations
 SHRINK = 0.7  # increment shrink after a slow Newton solve
-SHRINK_ABOVE = 14  # ... of at least this many iterations
+SHRINK_ABOVE = 18  # ... of at least this many iterations
 CUT = 0.5  # cut-back after a failed Newton solve
 MIN_FRACTION = 1e-10  # smallest increment, as a fraction of the segment
 
@@ -163,7 +168,7 @@ class DampedNewton(optx.Newton):
         return y - diff, new_state, aux
 
 
-def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 16, backtrack: int = 4):
+def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 20, backtrack: int = 4):
     """The implicit Euler solver of a load increment: Newton with explicit tolerances, and
     :class:`DampedNewton`'s backtracking (at most ``backtrack`` halvings; 0: plain Newton)."""
     lin = (BorderedBlockTridiagonal(sheet_structure(layout)) if linear_solver == "structured"

@@ -69,7 +69,7 @@ class Settings:
     linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
     # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
     # increment bound in drag times, driven stages / stages with the ball or clamp under a force
-    newton_max_iter: int = 16
+    newton_max_iter: int = 20
     newton_backtrack: int = 4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
     max_increment: float = 20.0
     max_increment_free: float = 5.0

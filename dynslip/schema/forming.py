@@ -233,7 +233,7 @@ class FormingNumerics(Strict):
                              "stages, in (0, 1e4] (the drag eta A / dt keeps Newton's matrix regular on slack sheet)")
     max_increment_free: float = F(5.0, gt=0, le=1e4, description="load_step: largest increment in drag times where "
                                   "the ball or the clamp moves under a force (let-go, release, rest), in (0, 1e4]")
-    newton_max_iter: int = F(16, ge=2, le=100, description="load_step: Newton iterations before an increment is "
+    newton_max_iter: int = F(20, ge=2, le=100, description="load_step: Newton iterations before an increment is "
                              "cut, 2..100")
     newton_backtrack: int = F(4, ge=0, le=20, description="load_step: at most this many halvings of a Newton "
                               "correction that would raise the residual's max norm (a backtracking safeguard "
