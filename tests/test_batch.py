@@ -168,10 +168,11 @@ def test_batched_sweep_equals_sequential(tmp_path, sequential, monkeypatch):
     from dynslip.app import sweep as sweep_app
 
     monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 1)
+    monkeypatch.setattr(sweep_app, "BATCH_SIZE", None)  # both members in one lockstep batch
     seq, rs = sequential
     bat = sweep_app.run_sweep(_sweep_file(tmp_path, MEMBERS), out=tmp_path / "bat", mode="batched", plot=False)
     assert bat["batched"].startswith("batched: lockstep batches"), bat["batched"]
-    assert "worker processes" not in bat["batched"]
+    assert "worker processes" not in bat["batched"] and "per batch" not in bat["batched"]
     assert seq["n_ok"] == bat["n_ok"] == 2
     rb = _records(tmp_path / "bat")
     assert rs.keys() == rb.keys()
@@ -181,8 +182,9 @@ def test_batched_sweep_equals_sequential(tmp_path, sequential, monkeypatch):
 @pytest.mark.slow
 def test_batched_sweep_in_two_worker_processes(tmp_path, sequential, monkeypatch):
     """The default batched runner on 2 cores: 4 forming members split over two spawned worker
-    processes (2 each, one lockstep batch per worker); every member ok, and the two members
-    also run sequentially (in this process) have the same records."""
+    processes (2 each, one after another in each worker: the CPU default BATCH_SIZE = 1);
+    every member ok, and the two members also run sequentially (in this process) have the
+    same records."""
     from dynslip.app import sweep as sweep_app
 
     monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 2)
@@ -192,6 +194,7 @@ def test_batched_sweep_in_two_worker_processes(tmp_path, sequential, monkeypatch
     bat = sweep_app.run_sweep(_sweep_file(tmp_path, more), out=tmp_path / "bat", mode="batched", plot=False)
     assert "2+2 forming members" in bat["batched"] and "on up to 2 worker processes" in bat["batched"], \
         bat["batched"]
+    assert "at most 1 per batch" in bat["batched"], bat["batched"]
     assert bat["n_ok"] == 4
     rb = _records(tmp_path / "bat")
     assert set(rs) < set(rb) and len(rb) == 4

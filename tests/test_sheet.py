@@ -59,6 +59,22 @@ def test_uniform_radial_stretch_is_a_discrete_equilibrium_with_the_closed_form_e
     assert float(g_rho[-1]) == pytest.approx(expected, rel=1e-12, abs=1e-14)
 
 
+def test_forces_past_the_gent_pole_are_nan_not_zero():
+    """Equibiaxial stretch lambda: I1 = 2 lambda^2 + lambda^-4 reaches J_m + 3 = 53 at
+    lambda = 5.14. Inside (5.0) the forces are finite and are the energy's gradient; past the
+    pole (5.3) the energy is infinite and the bare derivative reads zero force on every node
+    (a spurious equilibrium), so SheetModel.gradients returns NaN there instead."""
+    m = _model(n=15, r_edge=2.4)
+    z = jnp.full(m.mesh.rbar.shape, 5.0)
+    g_in = m.gradients(5.0 * m.mesh.rbar, z, 0.0)
+    assert all(bool(jnp.all(jnp.isfinite(g))) for g in g_in) and float(g_in[0][-1]) > 0
+    rho = 5.3 * m.mesh.rbar
+    assert not np.isfinite(float(m.energy(rho, z, 0.0)))
+    bare = jax.grad(m.energy, argnums=(0, 1))(rho, z, 0.0)
+    assert float(jnp.max(jnp.abs(bare[0]))) == 0.0  # what gradients() guards against
+    assert all(bool(jnp.all(jnp.isnan(g))) for g in m.gradients(rho, z, 0.0))
+
+
 def test_element_stretches_of_a_spherical_cap():
     """A sheet laid on the unit sphere at theta = a rbar: lambda_theta is the chord
     stretch exactly, and the midpoint hoop stretch converges to sin(theta)/rbar at second

@@ -40,8 +40,9 @@ Runners (``mode``):
   count of increments in every segment (4 members of the let-go path at 40 nodes: 1255
   lockstep increments against 689-800 of their own), and on the CPU a vmapped increment
   costs about as much per member as one alone, so lockstep alone does not pay on the CPU;
-  the two processes do (docs/sweeps.md, "Throughput"). :data:`BATCH_SIZE` = 1 runs the
-  members of each worker one after another (the fastest on 2 CPU cores). Outputs of a
+  the two processes do (docs/sweeps.md, "Throughput"). :data:`BATCH_SIZE` = 1, the default
+  on the CPU, runs the members of each worker one after another (the fastest on 2 CPU
+  cores); on an accelerator the default is a worker's whole share in one batch. Outputs of a
   member's run (trajectory, figures) are written only with ``keep_runs``: the summary is
   computed from the trajectory in memory, as the simulator's runner computes it.
 - ``dask``: members submitted to a ``dask.distributed`` scheduler (``scheduler``
@@ -479,8 +480,19 @@ def _run_members(
 BATCH_WORKERS = min(2, os.cpu_count() or 1)
 #: the fewest members a worker process is given (below it, a batch runs in this process)
 MIN_MEMBERS_PER_WORKER = 2
-#: the most members of one lockstep batch (None: a worker's whole share; 1: one after another)
-BATCH_SIZE: int | None = None
+#: the most members of one lockstep batch (None: a worker's whole share; 1: one after another;
+#: "auto": 1 on the CPU, where lockstep costs more than it saves, None on an accelerator).
+#: docs/sweeps.md has the measurement (64 members at 100 nodes: 3 min 51 s with 1 per batch;
+#: still running after 11 min with a worker's whole share of 32 in one batch).
+BATCH_SIZE: int | None | str = "auto"
+
+
+def _batch_size() -> int | None:
+    if BATCH_SIZE != "auto":
+        return BATCH_SIZE
+    import jax
+
+    return 1 if jax.default_backend() == "cpu" else None
 
 
 def _batchable(m: Member) -> bool:
@@ -583,11 +595,12 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
         if not forming:
             continue
         n_work = max(1, min(BATCH_WORKERS, len(forming) // MIN_MEMBERS_PER_WORKER))
+        batch_size = _batch_size()
         parts = [forming[k::n_work] for k in range(n_work)]
         sizes.append("+".join(str(len(p)) for p in parts))
         dirs = {m.fingerprint: run_dir(m) for m in forming}
         if n_work == 1:
-            recs = run_forming_batch([m.data for m in forming], [dirs[m.fingerprint] for m in forming], BATCH_SIZE)
+            recs = run_forming_batch([m.data for m in forming], [dirs[m.fingerprint] for m in forming], batch_size)
             for m, rec in zip(forming, recs, strict=True):
                 done(m, rec)
             continue
@@ -596,7 +609,7 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
 
         with ProcessPoolExecutor(max_workers=n_work, mp_context=multiprocessing.get_context("spawn")) as pool:
             futures = {pool.submit(run_forming_batch, [m.data for m in part], [dirs[m.fingerprint] for m in part],
-                                   BATCH_SIZE): part for part in parts}
+                                   batch_size): part for part in parts}
             for fut in as_completed(futures):
                 part = futures[fut]
                 try:
@@ -608,6 +621,7 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
     if sizes:
         notes.append(f"lockstep batches (simulate_batch, one vmapped segment solve per save segment) of "
                      f"{', '.join(sizes)} forming members in {len(sizes)} shape groups"
+                     + (f", at most {batch_size} per batch" if batch_size else "")
                      + (f" on up to {BATCH_WORKERS} worker processes" if BATCH_WORKERS > 1 else ""))
     if other:
         notes.append(f"{other} members (not forming, or with start_from) ran member after member")

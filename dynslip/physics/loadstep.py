@@ -153,7 +153,8 @@ class DampedNewton(optx.Newton):
 
         def cond(c):
             alpha, f1, i = c
-            return (f1 > f0) & (f1 > self.atol) & (i < self.max_backtrack)
+            # written so a non-finite residual (a stretch past the material's range) backtracks too
+            return ~((f1 <= f0) | (f1 <= self.atol)) & (i < self.max_backtrack)
 
         def body(c):
             alpha, _, i = c

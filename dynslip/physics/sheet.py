@@ -150,8 +150,14 @@ class SheetModel(eqx.Module):
         return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)
 
     def gradients(self, rho, z, zb):
-        """(dE/drho, dE/dz, dE/dzb) by automatic differentiation of the total energy."""
-        return jax.grad(self.energy, argnums=(0, 1, 2))(rho, z, zb)
+        """(dE/drho, dE/dz, dE/dzb) by automatic differentiation of the total energy; NaN where
+        the energy is not finite (a stretch past the material's range, e.g. Gent's pole, where
+        the energy's derivative would otherwise read 0: a spurious force-free state that a
+        Newton iterate can land on). A solver step that reaches such a state therefore fails
+        and is cut back rather than accepted."""
+        e, g = jax.value_and_grad(self.energy, argnums=(0, 1, 2))(rho, z, zb)
+        bad = ~jnp.isfinite(e)
+        return tuple(jnp.where(bad, jnp.nan, gi) for gi in g)
 
     def frame(self, rho, z, zb):
         """Outward unit normal n and tangent t (toward the equator) of the ball at each node.
