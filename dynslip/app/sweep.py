@@ -586,6 +586,7 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
     notes = []
     other = 0
     sizes = []
+    batch_size = _batch_size()
     for group in groups.values():
         forming = [m for m in group if _batchable(m)]
         for m in group:
@@ -595,7 +596,6 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
         if not forming:
             continue
         n_work = max(1, min(BATCH_WORKERS, len(forming) // MIN_MEMBERS_PER_WORKER))
-        batch_size = _batch_size()
         parts = [forming[k::n_work] for k in range(n_work)]
         sizes.append("+".join(str(len(p)) for p in parts))
         dirs = {m.fingerprint: run_dir(m) for m in forming}

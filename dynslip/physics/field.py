@@ -43,8 +43,13 @@ class Layout(eqx.Module):
         return (self.n - 1) + self.n + 1 + N_ACC + self.n_int * self.n
 
     @property
+    def accumulators(self) -> slice:
+        """Where the energy accumulators sit in the state."""
+        return slice(2 * self.n, 2 * self.n + N_ACC)
+
+    @property
     def internal_start(self) -> int:
-        return 2 * self.n + N_ACC
+        return self.accumulators.stop
 
     def internal(self, y):
         """The friction law's per-node state, (n,), or None for a memoryless law."""
@@ -62,7 +67,7 @@ class Layout(eqx.Module):
         rho = jnp.concatenate([jnp.zeros(1), y[: n - 1]])
         z = y[n - 1 : 2 * n - 1]
         zb = y[2 * n - 1]
-        acc = y[2 * n : 2 * n + N_ACC]
+        acc = y[self.accumulators]
         return rho, z, zb, acc
 
     def pack(self, rho, z, zb, acc, internal=None):

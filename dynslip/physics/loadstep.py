@@ -75,7 +75,7 @@ import optimistix as optx
 from diffrax._solver.implicit_euler import _implicit_relation
 from equinox.internal import ω
 
-from dynslip.physics.field import N_ACC, heal, sheet_structure, vector_field
+from dynslip.physics.field import heal, sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
@@ -176,7 +176,7 @@ def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_
            else lx.AutoLinearSolver(well_posed=None))
     if backtrack:
         # the energy accumulators do not feed back into the motion: left out of the merit
-        w = jnp.ones(layout.size).at[2 * layout.n:2 * layout.n + N_ACC].set(0.0)
+        w = jnp.ones(layout.size).at[layout.accumulators].set(0.0)
         newton = DampedNewton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True,
                               weights=w, max_backtrack=backtrack)
     else:
