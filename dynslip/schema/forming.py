@@ -165,10 +165,12 @@ class FormingPhysics(Strict):
     friction: FrictionSpec = FrictionSpec()
     rim_radius_mm: float = F(50.8, unit="mm", gt=0, le=1e4,
                              description="radius of the held edge (tube rim, or hands), in (0, 1e4] mm")
-    pre_stretch: float = F(1.05, ge=1.0, le=3.0,
-                           description="radial stretch of the held sheet: method 2, the small stretch of the disc "
-                           "clamped on the rim; method 1, the hand pre-stretch (the held disc has material radius "
-                           "rim_radius / pre_stretch)")
+    pre_stretch: float = F(1.05, ge=0.5, le=3.0,
+                           description="radial stretch of the held sheet, in [0.5, 3]: method 2, the small stretch "
+                           "of the disc clamped on the rim; method 1, the hand pre-stretch (the held disc has "
+                           "material radius rim_radius / pre_stretch). Below 1 the held disc is slack: more material "
+                           "than the rim's radius, the bound on what a sheet sliding over the rim could feed in "
+                           "(docs/forming.md, 'Material fed over the rim')")
     sheet_gap_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
                             description="initial height of the flat sheet above the ball top, in (0, 1e4] mm")
     gravity: bool = F(False, description="ball weight on (off by default: a downward-opening membrane pocket "
