@@ -88,6 +88,7 @@ def test_subprocess_no_traceback(tmp_path):
     ("paper_gent.yaml", "numerics.mu_bracket=[-1.0, 5.0]", "numerics.mu_bracket"),  # negative mu
     ("cylinder.yaml", "physics.mu=-0.5", "physics.mu"),
     ("method2.yaml", "physics.friction.mu_s=-1", "physics.friction.mu_s"),
+    ("method2.yaml", "physics.pre_stretch=0.4", "physics.pre_stretch"),           # below the slack bound 0.5
 ])
 def test_bad_field_exits_2_one_line_naming_it_and_writes_nothing(tmp_path, capsys, scenario, override, field):
     out = tmp_path / "out"
