@@ -1,8 +1,9 @@
 """Benchmark of the whole-sheet forming simulator: steps, rejected steps, time per step and
-compile time at N = 50, 100, 200 (dense Kvaerno5 linear algebra; the prototype took 26 ms
-per step at N = 200 and 10k-19k steps per path).
+compile time at N = 50, 100, 200, with the scenario's solver (load stepping by default, the
+structured linear solver; the prototype's Kvaerno5 took 26 ms per step at N = 200 and
+10k-19k steps per path). ``benchmarks/speed.py`` compares the solvers on one path.
 
-``run()`` times the default method 2 scenario on a shortened path (the push-down to
+``run()`` times the let-go method 2 scenario (``scenarios/method2_let_go.yaml``) on a shortened path (the push-down to
 -80 mm and a 10 s hold: the part of the path where the sheet stretches and slips) at each
 N; ``DYNSLIP_BENCH_FORMING_NODES=50,100`` picks the sizes and
 ``DYNSLIP_BENCH_FORMING_FULL=1`` runs the whole default path instead.

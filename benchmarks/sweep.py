@@ -15,8 +15,10 @@ run goes first and pays the compilation in this process; the dask workers are ne
 processes and pay it again (with the persistent compilation cache warm). The first
 member's time is reported apart (``first_member_s``) so that compilation is visible.
 
-"batched" is grouped sequential: the forming simulator exposes no batched entry point
-(see :mod:`dynslip.app.sweep`), so its figure measures the grouping overhead only.
+"batched" runs members of one shape in lockstep through the vmapped solver
+(:mod:`dynslip.physics.batch`), ``BATCH_SIZE`` members at a time (:mod:`dynslip.app.sweep`:
+``"auto"`` is one member per batch on the CPU, where lockstep pays for its slowest member's
+steps, and a worker's whole share on an accelerator), on the in-process or dask workers.
 """
 
 from __future__ import annotations
