@@ -38,7 +38,8 @@ def _get(d, dotted):
     return d
 
 
-@pytest.mark.parametrize("name", ["release.yaml", "release_toward_opening.yaml"])
+@pytest.mark.parametrize("name", ["release.yaml", "release_toward_opening.yaml", "release_pull.yaml",
+                                  "release_pull_tube.yaml"])
 def test_release_scenarios_share_the_geometry_of_their_start(name):
     """start_from: method2_let_go.yaml must be reusable: every geometry field agrees."""
     rel = load(SCENARIOS / name)

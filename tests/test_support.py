@@ -12,6 +12,7 @@ import math
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.protocols import BALL_FORCE, Protocol, Stage, StopRule
@@ -76,10 +77,15 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
           f"lift-off to z_b = {float(end['ball_z']):.3e} R; energy residual / work {r:.2e}")
 
 
-def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame():
+@pytest.mark.parametrize("preload_N", [None, -1.0])
+def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N):
     """release.force_ramp on a handmade trajectory: the ball creeps (0.01 mm/s) while the
     pull ramps, then tears out (1 mm/s); the release force is the applied force at the last
-    frame below the threshold, with the ball's drag share there."""
+    frame below the threshold, with the drag shares there: the ball's, eta_b |z_b'|, and the
+    sheet's, sum eta A_i (z_i' - z_b') over the nodes that do not move with the ball (here
+    nodes 2 and 3 stay put; node 4 is the held edge), A_i = pi (rbar_{i+1}^2 - rbar_{i-1}^2)/2.
+    With a preload stage (a pull before the ramp) the ramp, and so the resolution, starts from
+    the preload's force."""
     import json
 
     import xarray as xr
@@ -87,25 +93,54 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame():
     from dynslip.analysis.release import force_ramp_metrics
     from dynslip.schema.forming import ball_drag_coefficient
 
-    r_mm, fs = 20.0, 2.0
+    r_mm, fs, tau = 20.0, 2.0, 0.1
     t = np.arange(0.0, 21.0)
     v_mm = np.where(t <= 12.0, 0.01, 1.0)  # mm/s after each frame
     z_mm = np.concatenate([[0.0], np.cumsum(-v_mm[:-1])])
     applied = -0.05 * t  # G h0 R: the ramp (down)
     stage = np.ones_like(t, dtype=int)
     stage[:2] = 0
-    sc = {"physics": {"stages": [{"name": "rest", "ball": "free", "until": "duration"},
+    first = ({"name": "rest", "ball": "free", "until": "duration"} if preload_N is None else
+             {"name": "preload", "ball": "pull", "ball_force_N": preload_N, "until": "duration", "duration_s": 1.0})
+    sc = {"physics": {"stages": [first,
                                  {"name": "pull", "ball": "pull", "until": "ball_speed_above",
                                   "ball_speed_mm_s": 0.1, "ball_force_N": -2.0, "duration_s": 20.0}]},
-          "numerics": {"drag_time_s": 0.1, "ball_drag": 1.0, "save_interval_s": 1.0}}
-    ds = xr.Dataset({"ball_z": ("time", z_mm / r_mm), "ball_reaction": ("time", applied), "stage": ("time", stage)},
-                    coords={"time": t}, attrs={"scenario": json.dumps(sc), "force_scale_N": fs, "R_m": r_mm * 1e-3})
+          "numerics": {"drag_time_s": tau, "ball_drag": 1.0, "save_interval_s": 1.0}}
+    rbar = np.linspace(0.0, 2.0, 5)
+    zb = z_mm / r_mm
+    z = np.stack([zb + 1.0, zb + 0.9] + [np.full_like(zb, c) for c in (0.5, 0.2, 0.0)], axis=1)
+    ds = xr.Dataset({"ball_z": ("time", zb), "ball_reaction": ("time", applied), "stage": ("time", stage),
+                     "z": (("time", "rbar"), z)},
+                    coords={"time": t, "rbar": rbar},
+                    attrs={"scenario": json.dumps(sc), "force_scale_N": fs, "R_m": r_mm * 1e-3})
     m = force_ramp_metrics(ds)
     speed = np.abs(np.gradient(z_mm, t))  # what the metric sees (centred differences of the saved frames)
     last = int(np.flatnonzero((stage == 1) & (speed < 0.1))[-1])
     assert m["torn_out"] is True
     assert m["time_s"] == t[last] and last == 12  # frame 13 sees the tear-out step in its centred difference
     assert m["release_force_N"] == applied[last] * fs
-    eta_b = ball_drag_coefficient(0.1, 1.0)
+    eta_b = ball_drag_coefficient(tau, 1.0)
     assert abs(m["drag_share"] - eta_b * speed[last] / r_mm / abs(applied[last])) < 1e-12
-    assert abs(m["resolution_N"] - 0.1) < 1e-12
+    area = [np.pi * (rbar[i + 1] ** 2 - rbar[i - 1] ** 2) / 2 for i in (2, 3)]
+    sheet_drag = tau * sum(area) * speed[last] / r_mm  # static nodes, relative velocity +|z_b'|
+    assert abs(m["sheet_drag_share"] - sheet_drag / abs(applied[last])) < 1e-12
+    ramp = 2.0 if preload_N is None else 2.0 + preload_N
+    assert abs(m["resolution_N"] - ramp / 20.0) < 1e-12
+
+
+def test_a_pull_after_a_pull_continues_from_its_force():
+    """`ball: pull` ramps from 0, except after another pull stage: then from that stage's final
+    force (a preload, then the ramp), so the applied force is continuous across the boundary."""
+    from dynslip.schema.base import validate_data
+    from dynslip.schema.forming import build_protocol
+
+    pull = {"ball": "pull", "until": "duration", "duration_s": 10.0}
+    sc = validate_data({"kind": "forming", "physics": {"stages": [
+        {"name": "push_down", "clamp_to_z_mm": -30.0, "clamp_speed_mm_s": 4.0},
+        {"name": "rest", "ball": "free", "duration_s": 5.0},
+        {"name": "preload", **pull, "ball_force_N": -0.6},
+        {"name": "ramp", **pull, "ball_force_N": -6.0}]}})
+    st = {s.name: s for s in build_protocol(sc).stages}
+    fs = sc.physics.force_scale_N
+    assert st["preload"].ball_force_start == 0.0 and st["preload"].ball_force_end == pytest.approx(-0.6 / fs)
+    assert st["ramp"].ball_force_start is None and st["ramp"].ball_force_end == pytest.approx(-6.0 / fs)

@@ -86,6 +86,9 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     i = int(slow[-1])
     applied = float(ds["ball_reaction"].values[i])
     drag = float(_ball_drag_force(ds)[i])
+    sheet_drag = float(_sheet_drag_force(ds)[i])
+    prev = stages[idx - 1] if idx > 0 else {}
+    f_from = float(prev["ball_force_N"]) if prev.get("ball") == "pull" else 0.0  # a preload's force
     return {
         "release_force_N": applied * fs,
         "time_s": float(t[i]),
@@ -93,7 +96,8 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
         "threshold_mm_s": threshold,
         "torn_out": torn,
         "drag_share": abs(drag) / abs(applied) if applied else None,
-        "resolution_N": float(abs(stages[idx]["ball_force_N"]) / stages[idx]["duration_s"]
+        "sheet_drag_share": abs(sheet_drag) / abs(applied) if applied else None,
+        "resolution_N": float(abs(stages[idx]["ball_force_N"] - f_from) / stages[idx]["duration_s"]
                               * sc["numerics"]["save_interval_s"]),
     }
 
@@ -105,6 +109,25 @@ def _ball_drag_force(ds: xr.Dataset):
     t = ds["time"].values
     v = np.gradient(ds["ball_z"].values, t) if t.size > 1 else np.zeros(1)
     return eta_b * v
+
+
+def _sheet_drag_force(ds: xr.Dataset):
+    r"""The sheet's drag on the ball per frame (G h0 R, + up): the drag acts between sheet and
+    ball (:mod:`dynslip.physics.sheet`), so the nodes that do not move with the ball pull on it
+    with $\sum_i \eta A_i (\dot z_i - \dot z_b)$ (the held edge excluded), a regularisation
+    inside the force the sheet exerts. Node rates from the saved frames (central differences)."""
+    nu = json.loads(ds.attrs["scenario"])["numerics"]
+    t = ds["time"].values
+    if t.size < 2:
+        return np.zeros(t.size)
+    rbar = ds["rbar"].values
+    rmid, dr = 0.5 * (rbar[1:] + rbar[:-1]), np.diff(rbar)
+    area = np.zeros(rbar.size)
+    area[:-1] += np.pi * rmid * dr
+    area[1:] += np.pi * rmid * dr
+    area[-1] = 0.0
+    u = np.gradient(ds["z"].values, t, axis=0) - np.gradient(ds["ball_z"].values, t)[:, None]
+    return float(nu["drag_time_s"]) * (u @ area)
 
 
 def sheet_force(ds: xr.Dataset):

@@ -96,7 +96,8 @@ class StageSpec(Strict):
     ball: Literal["hold", "release", "free", "support", "pull"] = F(
         "hold", description="hold: ball held in place; release: the hold's reaction ramped to zero over the "
         "stage; free: no hold; support: the ball rests on the bottle neck (a rigid unilateral support below it: "
-        "the pocket may lift it off); pull: a force ramped from 0 to ball_force_N over the stage")
+        "the pocket may lift it off); pull: a force ramped from 0 (from the previous stage's final force when that "
+        "stage is a pull too: a preload, then a ramp) to ball_force_N over the stage")
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -335,6 +336,7 @@ def build_protocol(sc: FormingScenario):
     fs = p.force_scale_N
     z = (r + p.sheet_gap_mm) / r
     stages = []
+    prev_ball = None
     for s in p.stages:
         if s.clamp_to_z_mm is not None:
             dz = s.clamp_to_z_mm / r - z
@@ -358,8 +360,11 @@ def build_protocol(sc: FormingScenario):
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0,
                                 support=True, **ckw))
         elif s.ball == "pull":
-            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0,
+            # after a pull the ramp continues from that stage's final force (a preload, then a ramp)
+            start = None if prev_ball == "pull" else 0.0
+            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=start,
                                 ball_force_end=s.ball_force_N / fs, **ckw))
         else:
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0, **ckw))
+        prev_ball = s.ball
     return Protocol(tuple(stages), clamp_rho0=p.rim_radius_mm / r, clamp_z0=(r + p.sheet_gap_mm) / r, ball_z0=0.0)
