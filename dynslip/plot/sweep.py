@@ -202,10 +202,14 @@ def plot_critical_mu(result: dict, path) -> Path:
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(5, 3.2))
-    pts = [(int(n), c["value"], c["err"]) for n, c in result["critical_mu"].items() if c]
+    pts = [(int(n), c["value"], c["err"], bool(c.get("open"))) for n, c in result["critical_mu"].items() if c]
     if pts:
         ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], fmt="ko-", capsize=3,
                     label="critical mu (window search)")
+        low = [p for p in pts if p[3]]  # trapped at the range's lower end: mu_c is below it (an upper bound)
+        if low:
+            ax.plot([p[0] for p in low], [p[1] for p in low], "wv", mec="k", ms=9,
+                    label="open: below the searched range")
     ex = result.get("extrapolation", {})
     if ex.get("extrapolable"):
         ax.axhspan(ex["value"] - ex["err"], ex["value"] + ex["err"], color="C0", alpha=0.2,
