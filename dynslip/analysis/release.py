@@ -20,6 +20,7 @@ import xarray as xr
 
 from dynslip.analysis.paper import MEASURED_RELEASE_FORCE_N
 from dynslip.physics.protocols import ball_drag_coefficient
+from dynslip.physics.sheet import mesh_from_radii
 
 __all__ = ["release_metrics", "force_ramp_metrics", "sheet_force", "free_span_check"]
 
@@ -120,12 +121,8 @@ def _sheet_drag_force(ds: xr.Dataset):
     t = ds["time"].values
     if t.size < 2:
         return np.zeros(t.size)
-    rbar = ds["rbar"].values
-    rmid, dr = 0.5 * (rbar[1:] + rbar[:-1]), np.diff(rbar)
-    area = np.zeros(rbar.size)
-    area[:-1] += np.pi * rmid * dr
-    area[1:] += np.pi * rmid * dr
-    area[-1] = 0.0
+    area = np.array(mesh_from_radii(ds["rbar"].values).area)  # a writable copy
+    area[-1] = 0.0  # the held edge: no constitutive drag
     u = np.gradient(ds["z"].values, t, axis=0) - np.gradient(ds["ball_z"].values, t)[:, None]
     return float(nu["drag_time_s"]) * (u @ area)
 

@@ -48,7 +48,7 @@ import numpy as np
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
-__all__ = ["Mesh", "Penalty", "SheetModel", "make_mesh", "penalty_energy", "penalty_pressure"]
+__all__ = ["Mesh", "Penalty", "SheetModel", "make_mesh", "mesh_from_radii", "penalty_energy", "penalty_pressure"]
 
 
 class Mesh(eqx.Module):
@@ -69,11 +69,17 @@ def make_mesh(n: int, r_edge: float) -> Mesh:
     """Uniform mesh of ``n`` nodes from the pole to the material radius ``r_edge``."""
     if n < 4:
         raise ValueError("a sheet mesh needs at least 4 nodes")
-    rbar = np.linspace(0.0, r_edge, n)
+    return mesh_from_radii(np.linspace(0.0, r_edge, n))
+
+
+def mesh_from_radii(rbar) -> Mesh:
+    """The mesh of the given node material radii (pole first): element lengths, mid radii,
+    element areas and lumped node areas (half of each adjacent element's)."""
+    rbar = np.asarray(rbar, dtype=float)
     dr = np.diff(rbar)
     rmid = 0.5 * (rbar[1:] + rbar[:-1])
     area_el = 2 * np.pi * rmid * dr
-    area = np.zeros(n)
+    area = np.zeros(rbar.size)
     area[:-1] += 0.5 * area_el
     area[1:] += 0.5 * area_el
     return Mesh(*(jnp.asarray(a) for a in (rbar, dr, rmid, area_el, area)))
