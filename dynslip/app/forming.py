@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from dynslip.analysis.resolution import chord_check
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import ComputationError, InputError
@@ -36,7 +37,7 @@ def build_core(sc):
     m = p.material
     material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
-    mesh = make_mesh(nu.nodes, r_edge)
+    mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
     model = SheetModel(mesh, material, Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width)))
     protocol = build_protocol(sc)
     weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0
@@ -93,8 +94,9 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     at_rest = bool(last and last["condition_met"] and _stage_until(p, last["name"]) == "rest"
                    and len(result.stage_end) == len(stage_names))
     reaction = float(end["ball_reaction"])
-    if failed:
-        trapped = None
+    mesh_check = chord_check(ds, sc.numerics.max_chord_depth)
+    if failed or not mesh_check["resolved"]:
+        trapped = None  # a failed run, or sheet through the ball: no answer (analysis.resolution)
     else:
         trapped = bool(at_rest and np.isfinite(theta_max) and theta_max > math.pi / 2
                        and abs(reaction) < sc.numerics.trap_reaction_tol)
@@ -103,6 +105,7 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         "status": "failed" if failed else "ok",
         "message": result.failed or "",
         "trapped": trapped,
+        "mesh_check": mesh_check,
         "theta_max": theta_max,
         "rbar_max": rbar_max,
         "opening_radius": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
@@ -262,7 +265,9 @@ def _print_summary(console, s: dict) -> None:
     t.add_column("quantity")
     t.add_column("value", justify="right")
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
-    rows = [("trapped", s["trapped"]), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
+    rows = [("trapped", s["trapped"] if s["mesh_check"]["resolved"] else
+             f"unknown: a chord {s['mesh_check']['max_chord_depth']:.2f} R inside the ball (limit "
+             f"{s['mesh_check']['limit']:g}; refine or grade the mesh)"), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
             ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_mobilised_max", s["mu_mobilised_max"]),
             ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
             ("energy residual / work", s["energy_balance"]["relative_residual"])]

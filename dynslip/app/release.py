@@ -32,6 +32,7 @@ __all__ = ["load_start", "GEOMETRY_FIELDS"]
 GEOMETRY_FIELDS = (
     "physics.ball_radius_mm", "physics.thickness_um", "physics.youngs_modulus_MPa", "physics.material.model",
     "physics.material.jm", "physics.material.c1", "physics.rim_radius_mm", "physics.pre_stretch", "numerics.nodes",
+    "numerics.mesh_grading",
 )
 
 

@@ -17,7 +17,8 @@ A window narrower than the coarse step can fall between two scanned values and b
 missed: the coarse step is reported as the search's resolution.
 
 The predicate ``trapped(mu)`` returns ``True``/``False``, or ``None`` for a failed run;
-it may also raise :class:`~dynslip.errors.ComputationError`. A failed point is never
+it may also raise :class:`~dynslip.errors.ComputationError` (a scenario run whose contact
+the mesh does not resolve, ``summary.json`` ``mesh_check``, counts as failed). A failed point is never
 read as "not trapped": a failed coarse point is replaced by the points a quarter step
 either side of it (a bracket spans what still fails), and
 a failed bisection point is retried at the quarter points of the bracket; when those
@@ -293,6 +294,10 @@ def scenario_window(
         with tempfile.TemporaryDirectory(dir=work_dir) as tmp:
             summary = member_fn(member, Path(tmp) / "run", console)
         t = summary.get("trapped")
+        check = summary.get("mesh_check") or {}
+        if check.get("resolved") is False:  # no answer: recorded with the reason among the failed points
+            raise ComputationError(f"contact not resolved by the mesh: a chord {check['max_chord_depth']:.3g} R "
+                                   f"inside the ball at t = {check['time_s']:.4g} s (limit {check['limit']:g})")
         if t is None or (isinstance(t, float) and math.isnan(t)):
             return None
         return bool(t)
@@ -374,7 +379,7 @@ def run_window(
     lines = []
 
     def progress(mu, v):
-        word = {True: "trapped", False: "not trapped", None: "FAILED"}[v]
+        word = {True: "trapped", False: "not trapped", None: "FAILED or unresolved"}[v]
         lines.append(f"{field_name} = {mu:.6g}: {word}")
         console.print(f"  {field_name} = {mu:.6g}: {word}")
 

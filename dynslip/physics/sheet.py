@@ -65,11 +65,16 @@ class Mesh(eqx.Module):
         return int(self.rbar.shape[0])
 
 
-def make_mesh(n: int, r_edge: float) -> Mesh:
-    """Uniform mesh of ``n`` nodes from the pole to the material radius ``r_edge``."""
+def make_mesh(n: int, r_edge: float, grading: float = 1.0) -> Mesh:
+    """Mesh of ``n`` nodes from the pole to the material radius ``r_edge``, at
+    ``rbar_i = r_edge (i/(n-1))**grading``: uniform for ``grading = 1``, graded toward the
+    pole for ``grading > 1`` (first element ``r_edge/(n-1)**grading``, last about
+    ``grading`` times the uniform one)."""
     if n < 4:
         raise ValueError("a sheet mesh needs at least 4 nodes")
-    return mesh_from_radii(np.linspace(0.0, r_edge, n))
+    if grading < 1.0:
+        raise ValueError("mesh grading must be at least 1 (1 is uniform)")
+    return mesh_from_radii(r_edge * np.linspace(0.0, 1.0, n) ** grading)
 
 
 def mesh_from_radii(rbar) -> Mesh:

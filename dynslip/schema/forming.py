@@ -223,6 +223,10 @@ class FormingNumerics(Strict):
     """Mesh, drag, solver and regularisations (nondimensional unless a unit is given)."""
 
     nodes: int = F(50, ge=6, le=4000, description="nodes from the pole to the clamp, 6..4000")
+    mesh_grading: float = F(1.0, ge=1.0, le=4.0,
+                            description="node material radii rbar_i = rbar_edge (i/(N-1))^g: 1 is uniform, g > 1 "
+                            "grades the mesh toward the pole (where the push-down stretches the cap most), in "
+                            "[1, 4]")
     drag_time_s: float = F(0.1, unit="s", gt=0, le=MAX_TIME_S,
                            description="drag time tau = eta R^2/(G h0) of the overdamped sheet; loading is "
                            "slow when a stage lasts >> tau (docs/forming.md)")
@@ -272,6 +276,10 @@ class FormingNumerics(Strict):
                               description="healing criterion of slip_weakening: a node's slip distance resets where "
                               "its slip rate is at most this (checked at every save); 0 is the bare force criterion "
                               "S = 0, which a node settling onto its friction limit never reaches (docs/forming.md)")
+    max_chord_depth: float = F(0.1, gt=0, le=1.0,
+                               description="the mesh resolves the contact while no element's straight chord dips "
+                               "deeper than this into the ball (units R; 0.1 is about 0.9 rad of arc per element), "
+                               "checked on every saved frame; otherwise trapped is unknown (null), in (0, 1]")
     trap_reaction_tol: float = F(1e-3, gt=0, lt=1,
                                  description="trapped needs |ball reaction| below this (units G h0 R) at the end")
 
