@@ -43,13 +43,15 @@ def test_forces_are_the_exact_gradient_of_the_energy():
     assert float(g_zb) == pytest.approx(float(fd_b), rel=1e-6, abs=1e-6)
 
 
+@pytest.mark.parametrize("grading", [1.0, 2.5])
 @pytest.mark.parametrize("lam", [0.8, 1.0, 1.05, 1.4])
-def test_uniform_radial_stretch_is_a_discrete_equilibrium_with_the_closed_form_edge_force(lam):
+def test_uniform_radial_stretch_is_a_discrete_equilibrium_with_the_closed_form_edge_force(lam, grading):
     """rho = lambda rbar, flat: no force on any free node; the clamp's radial force is
     2 pi r_edge lambda T(lambda) with T the equibiaxial tension (zero at lambda = 1). A slack
     disc (lambda < 1, the schema's `pre_stretch` below 1) is wrinkled both ways: zero energy
-    and zero force everywhere (tension-field theory)."""
-    m = _model(n=15, r_edge=2.4)
+    and zero force everywhere (tension-field theory). The same on a mesh graded toward the
+    pole (`numerics.mesh_grading`)."""
+    m = SheetModel(make_mesh(15, 2.4, grading), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
     rho = lam * m.mesh.rbar
     z = jnp.full_like(rho, 5.0)  # far above the ball
     g_rho, g_z, g_zb = m.gradients(rho, z, 0.0)
@@ -156,3 +158,17 @@ def test_kinematics_stuck_and_free_nodes():
     g_rho, g_z, _ = k0["grads"]
     u_expect = -jnp.stack([g_rho, g_z]) / (0.3 * m.mesh.area)
     assert np.allclose(np.asarray(k0["u"][:, 1:-1]), np.asarray(u_expect[:, 1:-1]), rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("grading", [1.0, 1.5, 3.0])
+def test_graded_mesh_radii_and_areas(grading):
+    """rbar_i = r_edge (i/(n-1))^g; the lumped node areas and the element areas each add up to
+    the disc's area pi r_edge^2 exactly (areas 2 pi rmid dr telescope); grading below 1 is refused."""
+    n, r_edge = 21, 2.8
+    mesh = make_mesh(n, r_edge, grading)
+    assert np.allclose(np.asarray(mesh.rbar), r_edge * (np.arange(n) / (n - 1)) ** grading, rtol=0, atol=1e-15)
+    assert float(mesh.dr[0]) == pytest.approx(r_edge / (n - 1) ** grading, rel=1e-12)
+    for a in (mesh.area, mesh.area_el):
+        assert float(jnp.sum(a)) == pytest.approx(np.pi * r_edge**2, rel=1e-13)
+    with pytest.raises(ValueError, match="grading"):
+        make_mesh(n, r_edge, 0.9)

@@ -47,17 +47,31 @@ def chord_depths(rho, z, zb) -> np.ndarray:
 
 def chord_check(ds: xr.Dataset, limit: float) -> dict:
     """The largest chord depth over the saved frames of a trajectory, where and when, the
-    end state's, and whether the mesh resolves the contact (every depth at most ``limit``)."""
+    end state's, and whether the mesh resolves the contact (every depth at most ``limit``).
+
+    A piercing can begin and end between two saved frames: the sheet then ends far from the
+    ball and reads "not trapped". The pole node lies on the axis, which the ball fills from
+    ``zb - 1`` to ``zb + 1``, so a pole that changes sides of the ball's centre has passed
+    through it: that counts as depth 1 at the first frame on the other side
+    (``pole_crossed_ball``)."""
     depth = chord_depths(ds["rho"].values, ds["z"].values, ds["ball_z"].values)
     finite = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.unravel_index(int(np.argmax(finite)), finite.shape)
     worst = float(finite[k])
     rbar = ds["rbar"].values
+    t_worst, element = float(ds["time"].values[k[0]]), [float(rbar[k[1]]), float(rbar[k[1] + 1])]
+    side = np.sign(ds["z"].values[:, 0] - ds["ball_z"].values)
+    side = side[np.isfinite(side) & (side != 0)]
+    flips = np.flatnonzero(np.sign(ds["z"].values[:, 0] - ds["ball_z"].values) == -side[0]) if side.size else []
+    crossed = len(flips) > 0
+    if crossed and worst < 1.0:
+        worst, t_worst, element = 1.0, float(ds["time"].values[flips[0]]), [float(rbar[0]), float(rbar[1])]
     return {
         "max_chord_depth": worst,
-        "time_s": float(ds["time"].values[k[0]]),
-        "element_rbar": [float(rbar[k[1]]), float(rbar[k[1] + 1])],
+        "time_s": t_worst,
+        "element_rbar": element,
         "end_max_chord_depth": float(np.max(finite[-1])),
+        "pole_crossed_ball": bool(crossed),
         "limit": float(limit),
         "resolved": bool(worst <= limit),
         "means": ("largest depth (units R) that a straight element between two nodes reaches inside the ball, "
