@@ -80,6 +80,22 @@ def test_an_edge_blocked_by_failures_is_flagged_unresolved():
     assert res.failed
 
 
+@pytest.mark.parametrize("edge", [0.63, 0.4117])
+def test_a_window_bounded_by_failed_runs_is_bisected_against_them_and_flagged(edge):
+    """Below the edge every run fails (the mesh does not resolve the contact), above it the
+    ball is trapped up to 0.8, and above 0.8 the runs fail again: each edge is found to tol
+    on "trapped" and flagged failed_side (a bound on where the model answers), not open."""
+    res = find_windows(lambda m: (edge < m < 0.8) or None, 0.0, 1.0, coarse=6, tol=1e-3)
+    (w,) = res.windows
+    for e, true in ((w.lo, edge), (w.hi, 0.8)):
+        assert e.failed_side and not e.open and not e.unresolved
+        assert abs(e.value - true) <= e.err <= 0.5e-3
+    # a not-trapped run on the way makes it an ordinary edge
+    res = find_windows(lambda m: True if m > edge else (False if m > edge - 0.01 else None), 0.0, 1.0,
+                       coarse=6, tol=1e-3)
+    assert not res.windows[0].lo.failed_side and abs(res.windows[0].lo.value - edge) <= 1e-3
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     a=st.floats(0.0, 3.0),

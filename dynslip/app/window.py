@@ -50,6 +50,9 @@ class Edge:
     err: float
     open: bool = False  # the edge is the end of the scanned range, not a found transition
     unresolved: bool = False  # bisection stopped on failed runs before reaching tol
+    # the runs beyond this edge failed or did not resolve the contact: it bounds where the model
+    # answers "trapped", and the path's own edge may lie beyond it
+    failed_side: bool = False
 
 
 @dataclass(frozen=True)
@@ -203,11 +206,19 @@ def find_windows(
                 b = mid
         edges[i] = (a, b, unresolved)
 
-    # Windows: runs of trapped scan points, closed by the refined edges.
+    # Windows: runs of trapped scan points, closed by the refined edges. A window that reaches
+    # failed points (not the range's end) is bisected against them: its edge is where the
+    # model stops answering "trapped", flagged failed_side.
+    def _range_end(m: float, below: bool) -> Edge:
+        beyond = [f for f in res.failed if (f < m if below else f > m)]
+        if not beyond:
+            return Edge(m, 0.0, open=True)
+        return _bisect_against_failed(ev, max(beyond) if below else min(beyond), m, tol)
+
     start: Edge | None = None
     first_m, first_v = scanned[0]
     if first_v:
-        start = Edge(first_m, 0.0, open=True)
+        start = _range_end(first_m, below=True)
     for i in range(len(scanned) - 1):
         if i not in edges:
             continue
@@ -219,8 +230,24 @@ def find_windows(
         else:
             start = edge
     if start is not None:
-        res.windows.append(Window(start, Edge(scanned[-1][0], 0.0, open=True)))
+        res.windows.append(Window(start, _range_end(scanned[-1][0], below=False)))
     return res
+
+
+def _bisect_against_failed(ev: Callable[[float], bool | None], failed: float, trapped: float, tol: float) -> Edge:
+    """The edge between a failed point and a trapped one, bisected to ``tol`` on "trapped".
+    A not-trapped point met on the way makes it an ordinary edge (``failed_side`` false)."""
+    f, t = failed, trapped
+    failed_side = True
+    while abs(t - f) > tol:
+        mid = 0.5 * (f + t)
+        vm = ev(mid)
+        if vm:
+            t = mid
+        else:
+            f = mid
+            failed_side = failed_side and vm is None
+    return Edge(0.5 * (f + t), 0.5 * abs(t - f), failed_side=failed_side)
 
 
 # ---------------------------------------------------------------------------------------

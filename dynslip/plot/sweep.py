@@ -202,7 +202,8 @@ def plot_critical_mu(result: dict, path) -> Path:
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(5, 3.2))
-    pts = [(int(n), c["value"], c["err"], bool(c.get("open"))) for n, c in result["critical_mu"].items() if c]
+    pts = [(int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))
+           for n, c in result["critical_mu"].items() if c]
     if pts:
         ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], fmt="ko-", capsize=3,
                     label="critical mu (window search)")
@@ -210,6 +211,10 @@ def plot_critical_mu(result: dict, path) -> Path:
         if low:
             ax.plot([p[0] for p in low], [p[1] for p in low], "wv", mec="k", ms=9,
                     label="open: below the searched range")
+        bound = [p for p in pts if p[4]]  # the runs below failed or did not resolve the contact
+        if bound:
+            ax.plot([p[0] for p in bound], [p[1] for p in bound], "ws", mec="C1", ms=9, mew=1.5,
+                    label="below: runs failed or unresolved (a bound)")
     ex = result.get("extrapolation", {})
     if ex.get("extrapolable"):
         ax.axhspan(ex["value"] - ex["err"], ex["value"] + ex["err"], color="C0", alpha=0.2,
