@@ -97,3 +97,26 @@ def test_a_window_search_counts_an_unresolved_run_as_failed_not_as_an_answer(tmp
     failed = dict((m, why) for m, why in res["failed"])
     assert failed and all(m < 0.45 for m in failed)
     assert all("not resolved by the mesh" in why and "0.97 R" in why for why in failed.values())
+
+
+@pytest.mark.slow
+def test_the_low_friction_neo_hookean_tube_path_pierces_the_ball_and_has_no_answer(tmp_path):
+    """The rim-feed tube path at mu_s = 0.3 on 40 nodes: the neo-Hookean pole stretches without
+    bound and its element ends joining the pole to the far side of the ball. The bare criteria
+    read that as trapped (at rest, contact past the equator, no reaction) with next to no
+    friction mobilised; the mesh check says the mesh does not resolve it, so trapped is null."""
+    from conftest import SCENARIOS
+
+    from dynslip.app.kinds import run as run_scenario
+    from dynslip.schema.base import load
+
+    sc = load(SCENARIOS / "method2_rim_feed.yaml",
+              ["numerics.nodes=40", "physics.friction.mu_s=0.3", "physics.friction.mu_k=0.2484"])
+    s = run_scenario(sc, tmp_path, None)
+    assert s["status"] == "ok"
+    c = s["mesh_check"]
+    assert not c["resolved"] and c["max_chord_depth"] > 0.9 and c["element_rbar"][0] == 0.0
+    assert s["trapped"] is None
+    # what the bare criteria saw: a closed bag at rest, held by no friction
+    assert s["end_at_rest"] and s["theta_max"] > 3.0 and abs(s["ball_reaction_end"]) < 1e-3
+    assert s["mu_mobilised_max"] < 0.05
