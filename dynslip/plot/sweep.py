@@ -223,6 +223,9 @@ def plot_critical_mu(result: dict, path) -> Path:
 
     ax.axhline(MEASURED_MU_S, color="C3", ls=":", label=f"measured mu_s = {MEASURED_MU_S:g}")
     ax.set_xscale("log")
+    ns = sorted(int(n) for n in result["critical_mu"])
+    ax.set_xticks(ns, [str(n) for n in ns])
+    ax.minorticks_off()
     ax.set_xlabel("nodes N")
     ax.set_ylabel(result.get("field", "mu"))
     ax.set_title("critical mu of the path against the mesh", fontsize=9)
