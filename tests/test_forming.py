@@ -243,7 +243,7 @@ def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir)
     out = tmp_path / "o"
     cmd = [sys.executable, "-m", "dynslip.cli", "run", str(scenarios_dir / "method2.yaml"), "--out", str(out),
            "--set", "numerics.nodes=12", "--set", "numerics.max_steps=100",
-           "--set", "numerics.solver=kvaerno5"]
+           "--set", "numerics.solver=kvaerno5", "--set", "numerics.max_chord_depth=1"]  # 12 nodes: coarse chords
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert res.returncode == 3, res.stderr[-2000:]
     text = res.stderr + res.stdout

@@ -55,7 +55,9 @@ def test_method1_runs_at_small_size(tmp_path):
     the hands' stretch is what the scenario says at the start."""
     import xarray as xr
 
-    sc = load(SCENARIOS / "method1.yaml", ["numerics.nodes=12"])
+    # 12 elements cannot resolve the contact (chords 0.1 R deep): the mesh check is off here,
+    # this test is about the path's set-up and energy balance (tests/test_resolution.py: the check)
+    sc = load(SCENARIOS / "method1.yaml", ["numerics.nodes=12", "numerics.max_chord_depth=1"])
     s = run_scenario(sc, tmp_path, None)
     assert s["status"] == "ok"
     assert_energy_closes(s)

@@ -20,29 +20,9 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from dynslip.physics.sheet import chord_depths
+
 __all__ = ["chord_depths", "chord_check"]
-
-
-def chord_depths(rho, z, zb) -> np.ndarray:
-    """Depth inside the unit ball about ``(0, zb)`` of each element chord (positive inside),
-    for node positions ``rho, z`` of shape (..., N) and ball heights ``zb`` of shape (...);
-    returns shape (..., N-1).
-
-    Example::
-
-        >>> import numpy as np
-        >>> th = np.array([0.0, 0.3])  # two nodes on the ball, 0.3 rad apart
-        >>> bool(abs(chord_depths(np.sin(th), np.cos(th), 0.0)[0] - (1 - np.cos(0.15))) < 1e-12)
-        True
-    """
-    rho, z = np.asarray(rho, float), np.asarray(z, float)
-    zb = np.asarray(zb, float)[..., None]
-    p = np.stack([rho[..., :-1], z[..., :-1] - zb], axis=-1)  # element start, relative to the centre
-    d = np.stack([np.diff(rho, axis=-1), np.diff(z, axis=-1)], axis=-1)
-    dd = np.sum(d * d, axis=-1)
-    t = np.clip(-np.sum(p * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    closest = p + t[..., None] * d
-    return 1.0 - np.sqrt(np.sum(closest * closest, axis=-1))
 
 
 def chord_check(ds: xr.Dataset, limit: float) -> dict:

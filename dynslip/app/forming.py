@@ -45,7 +45,8 @@ def build_core(sc):
                         max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
                         contact_threshold=nu.contact_threshold, heal_rate=nu.heal_rate_mm_s / r,
                         max_increment=nu.max_increment, max_increment_free=nu.max_increment_free,
-                        newton_max_iter=nu.newton_max_iter, newton_backtrack=nu.newton_backtrack)
+                        newton_max_iter=nu.newton_max_iter, newton_backtrack=nu.newton_backtrack,
+                        max_chord_depth=nu.max_chord_depth)
     kwargs = dict(
         friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
                                d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
@@ -265,9 +266,7 @@ def _print_summary(console, s: dict) -> None:
     t.add_column("quantity")
     t.add_column("value", justify="right")
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
-    rows = [("trapped", s["trapped"] if s["mesh_check"]["resolved"] else
-             f"unknown: a chord {s['mesh_check']['max_chord_depth']:.2f} R inside the ball (limit "
-             f"{s['mesh_check']['limit']:g}; refine or grade the mesh)"), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
+    rows = [("trapped", s["trapped"]), ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
             ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_mobilised_max", s["mu_mobilised_max"]),
             ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
             ("energy residual / work", s["energy_balance"]["relative_residual"])]

@@ -48,7 +48,8 @@ import numpy as np
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
-__all__ = ["Mesh", "Penalty", "SheetModel", "make_mesh", "mesh_from_radii", "penalty_energy", "penalty_pressure"]
+__all__ = ["Mesh", "Penalty", "SheetModel", "chord_depths", "make_mesh", "mesh_from_radii", "penalty_energy",
+           "penalty_pressure"]
 
 
 class Mesh(eqx.Module):
@@ -88,6 +89,30 @@ def mesh_from_radii(rbar) -> Mesh:
     area[:-1] += 0.5 * area_el
     area[1:] += 0.5 * area_el
     return Mesh(*(jnp.asarray(a) for a in (rbar, dr, rmid, area_el, area)))
+
+
+def chord_depths(rho, z, zb) -> np.ndarray:
+    """Depth inside the unit ball about ``(0, zb)`` of each element chord (positive inside),
+    for node positions ``rho, z`` of shape (..., N) and ball heights ``zb`` of shape (...);
+    returns shape (..., N-1). The penalty acts at nodes only, so nothing keeps a chord out of
+    the ball: a deep one means the mesh does not resolve the contact
+    (:mod:`dynslip.analysis.resolution`).
+
+    Example::
+
+        >>> import numpy as np
+        >>> th = np.array([0.0, 0.3])  # two nodes on the ball, 0.3 rad apart
+        >>> bool(abs(chord_depths(np.sin(th), np.cos(th), 0.0)[0] - (1 - np.cos(0.15))) < 1e-12)
+        True
+    """
+    rho, z = np.asarray(rho, float), np.asarray(z, float)
+    zb = np.asarray(zb, float)[..., None]
+    p = np.stack([rho[..., :-1], z[..., :-1] - zb], axis=-1)  # element start, relative to the centre
+    d = np.stack([np.diff(rho, axis=-1), np.diff(z, axis=-1)], axis=-1)
+    dd = np.sum(d * d, axis=-1)
+    t = np.clip(-np.sum(p * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    closest = p + t[..., None] * d
+    return 1.0 - np.sqrt(np.sum(closest * closest, axis=-1))
 
 
 class Penalty(eqx.Module):

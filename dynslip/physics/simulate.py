@@ -46,7 +46,7 @@ from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
 from dynslip.physics.protocols import Protocol
-from dynslip.physics.sheet import SheetModel
+from dynslip.physics.sheet import SheetModel, chord_depths
 from dynslip.physics.upstream import VeryChord
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "MemberRun", "Segment",
@@ -73,6 +73,9 @@ class Settings:
     newton_backtrack: int = 4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
     max_increment: float = 20.0
     max_increment_free: float = 5.0
+    # a run stops as failed when an element chord dips deeper than this into the ball, or the
+    # pole passes through it (the mesh no longer resolves the contact); None: never checked
+    max_chord_depth: float | None = None
 
 
 def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
@@ -343,11 +346,35 @@ class MemberRun:
                            "(a stretch outside the material's range)")
             self._end_stage()
             return
+        why = self._unresolved(rec)
+        if why:
+            self.failed = (f"stage '{self.stage.name}' at t = {self.t:.6g} s: contact not resolved by the mesh: "
+                           f"{why}; refine the mesh (numerics.nodes, numerics.mesh_grading) or allow deeper "
+                           "chords (numerics.max_chord_depth)")
+            self._end_stage()
+            return
         met, self.stop_state = self.stage.stop.check(rec, self.t, self.stop_state)
         if met:
             self.met = True
         if met or self.seg >= len(self.seg_ts):
             self._end_stage()
+
+    def _unresolved(self, rec: dict) -> str | None:
+        """Why the frame ``rec`` is past what the mesh resolves, or None (``Settings.max_chord_depth``)."""
+        limit = self.settings.max_chord_depth
+        if limit is None:
+            return None
+        depth = chord_depths(rec["rho"], rec["z"], rec["ball_z"])
+        k = int(np.argmax(np.where(np.isfinite(depth), depth, -np.inf)))
+        if depth[k] > limit:
+            rbar = np.asarray(self.model.mesh.rbar)
+            return (f"the chord of the element on rbar [{rbar[k]:.4g}, {rbar[k + 1]:.4g}] R lies {depth[k]:.3g} R "
+                    f"inside the ball (limit {limit:g} R)")
+        first = self.frames[0]
+        s0, s1 = np.sign(first["z"][0] - first["ball_z"]), np.sign(rec["z"][0] - rec["ball_z"])
+        if s0 != 0 and s1 == -s0:  # the pole is on the axis, which the ball fills: it went through
+            return "the pole passed through the ball"
+        return None
 
     def _end_stage(self) -> None:
         last = self.frames[-1]

@@ -279,7 +279,8 @@ class FormingNumerics(Strict):
     max_chord_depth: float = F(0.1, gt=0, le=1.0,
                                description="the mesh resolves the contact while no element's straight chord dips "
                                "deeper than this into the ball (units R; 0.1 is about 0.9 rad of arc per element), "
-                               "checked on every saved frame; otherwise trapped is unknown (null), in (0, 1]")
+                               "checked on every saved frame (and the pole must not pass through the ball); a run "
+                               "that goes past it stops as failed (exit 3: no answer to trapped), in (0, 1]")
     trap_reaction_tol: float = F(1e-3, gt=0, lt=1,
                                  description="trapped needs |ball reaction| below this (units G h0 R) at the end")
 
