@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from dynslip.physics.sheet import chord_depths
+from dynslip.physics.sheet import chord_depths, deepest_chord
 
 __all__ = ["chord_depths", "chord_check"]
 
@@ -34,24 +34,16 @@ def chord_check(ds: xr.Dataset, limit: float) -> dict:
     ``zb - 1`` to ``zb + 1``, so a pole that changes sides of the ball's centre has passed
     through it: that counts as depth 1 at the first frame on the other side
     (``pole_crossed_ball``)."""
-    depth = chord_depths(ds["rho"].values, ds["z"].values, ds["ball_z"].values)
-    finite = np.where(np.isfinite(depth), depth, -np.inf)
-    k = np.unravel_index(int(np.argmax(finite)), finite.shape)
-    worst = float(finite[k])
-    rbar = ds["rbar"].values
-    t_worst, element = float(ds["time"].values[k[0]]), [float(rbar[k[1]]), float(rbar[k[1] + 1])]
-    side = np.sign(ds["z"].values[:, 0] - ds["ball_z"].values)
-    side = side[np.isfinite(side) & (side != 0)]
-    flips = np.flatnonzero(np.sign(ds["z"].values[:, 0] - ds["ball_z"].values) == -side[0]) if side.size else []
-    crossed = len(flips) > 0
-    if crossed and worst < 1.0:
-        worst, t_worst, element = 1.0, float(ds["time"].values[flips[0]]), [float(rbar[0]), float(rbar[1])]
+    rho, z, zb, times, rbar = (ds[v].values for v in ("rho", "z", "ball_z", "time", "rbar"))
+    depth, k, crossed = deepest_chord(rho, z, zb, np.sign(z[0, 0] - zb[0]))
+    f = int(np.argmax(depth))  # the first frame of the deepest (a crossing: the first on the other side)
+    worst = float(depth[f])
     return {
         "max_chord_depth": worst,
-        "time_s": t_worst,
-        "element_rbar": element,
-        "end_max_chord_depth": float(np.max(finite[-1])),
-        "pole_crossed_ball": bool(crossed),
+        "time_s": float(times[f]),
+        "element_rbar": [float(rbar[k[f]]), float(rbar[k[f] + 1])],
+        "end_max_chord_depth": float(deepest_chord(rho[-1], z[-1], zb[-1], 0.0)[0]),
+        "pole_crossed_ball": bool(crossed.any()),
         "limit": float(limit),
         "resolved": bool(worst <= limit),
         "means": ("largest depth (units R) that a straight element between two nodes reaches inside the ball, "

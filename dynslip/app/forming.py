@@ -266,7 +266,8 @@ def _print_summary(console, s: dict) -> None:
     t.add_column("quantity")
     t.add_column("value", justify="right")
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
-    rows = [("trapped", s["trapped"]), ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]), ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
+    rows = [("trapped", s["trapped"]), ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
+            ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
             ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_mobilised_max", s["mu_mobilised_max"]),
             ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
             ("energy residual / work", s["energy_balance"]["relative_residual"])]

@@ -48,8 +48,8 @@ import numpy as np
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
-__all__ = ["Mesh", "Penalty", "SheetModel", "chord_depths", "make_mesh", "mesh_from_radii", "penalty_energy",
-           "penalty_pressure"]
+__all__ = ["Mesh", "Penalty", "SheetModel", "chord_depths", "deepest_chord", "make_mesh", "mesh_from_radii",
+           "penalty_energy", "penalty_pressure"]
 
 
 class Mesh(eqx.Module):
@@ -113,6 +113,21 @@ def chord_depths(rho, z, zb) -> np.ndarray:
     t = np.clip(-np.sum(p * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
     closest = p + t[..., None] * d
     return 1.0 - np.sqrt(np.sum(closest * closest, axis=-1))
+
+
+def deepest_chord(rho, z, zb, pole_side: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The deepest chord of each frame (shapes as :func:`chord_depths`, frames on the leading
+    axes): ``(depth, element index, pole crossed)``. The pole node lies on the axis, which the
+    ball fills from ``zb - 1`` to ``zb + 1``, so a pole on the other side of the ball's centre
+    from ``pole_side`` (the sign of ``z_pole - zb`` at the start; 0: not checked) has passed
+    through it: depth 1 on element 0, at least."""
+    depth = chord_depths(rho, z, zb)
+    depth = np.where(np.isfinite(depth), depth, -np.inf)
+    k = np.argmax(depth, axis=-1)
+    worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]
+    crossed = (pole_side != 0) & (np.sign(np.asarray(z, float)[..., 0] - np.asarray(zb, float)) == -pole_side)
+    through = crossed & (worst < 1.0)
+    return np.where(through, 1.0, worst), np.where(through, 0, k), crossed
 
 
 class Penalty(eqx.Module):

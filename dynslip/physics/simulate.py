@@ -46,7 +46,7 @@ from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
 from dynslip.physics.protocols import Protocol
-from dynslip.physics.sheet import SheetModel, chord_depths
+from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
 
 __all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "MemberRun", "Segment",
@@ -364,16 +364,15 @@ class MemberRun:
         limit = self.settings.max_chord_depth
         if limit is None:
             return None
-        depth = chord_depths(rec["rho"], rec["z"], rec["ball_z"])
-        k = int(np.argmax(np.where(np.isfinite(depth), depth, -np.inf)))
-        if depth[k] > limit:
-            rbar = np.asarray(self.model.mesh.rbar)
-            return (f"the chord of the element on rbar [{rbar[k]:.4g}, {rbar[k + 1]:.4g}] R lies {depth[k]:.3g} R "
-                    f"inside the ball (limit {limit:g} R)")
         first = self.frames[0]
-        s0, s1 = np.sign(first["z"][0] - first["ball_z"]), np.sign(rec["z"][0] - rec["ball_z"])
-        if s0 != 0 and s1 == -s0:  # the pole is on the axis, which the ball fills: it went through
+        depth, k, crossed = deepest_chord(rec["rho"], rec["z"], rec["ball_z"],
+                                          np.sign(first["z"][0] - first["ball_z"]))
+        if crossed:
             return "the pole passed through the ball"
+        if depth > limit:
+            rbar = np.asarray(self.model.mesh.rbar)
+            return (f"the chord of the element on rbar [{rbar[k]:.4g}, {rbar[k + 1]:.4g}] R lies {float(depth):.3g} R "
+                    f"inside the ball (limit {limit:g} R)")
         return None
 
     def _end_stage(self) -> None:
