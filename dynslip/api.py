@@ -104,7 +104,7 @@ def run(scn, out=None, *, force: bool = False, console=None) -> Result:
     for the progress and the summary table (default: quiet).
     """
     from dynslip.app import kinds
-    from dynslip.physics.materials import MaterialRangeError
+    from dynslip.errors import MaterialRangeError
 
     console = _console(console)
     if out is not None:

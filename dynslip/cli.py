@@ -17,8 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-from dynslip.errors import ComputationError, InputError
-from dynslip.physics.materials import MaterialRangeError
+from dynslip.errors import ComputationError, InputError, MaterialRangeError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -85,8 +84,9 @@ def cmd_run(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from dynslip.app.sweep import is_sweep_file, validate_sweep
+    from dynslip.app.sweep import validate_sweep
     from dynslip.schema import base as sc
+    from dynslip.schema.sweep import is_sweep_file
 
     if is_sweep_file(args.scenario):
         if args.set:
@@ -101,9 +101,9 @@ def cmd_validate(args) -> int:
 
 
 def cmd_schema(args) -> int:
-    from dynslip.app.sweep import Linspace, SweepSpec, WindowSpec
-    from dynslip.app.window import MAX_COARSE
+    from dynslip.analysis.windows import MAX_COARSE
     from dynslip.schema import base as sc
+    from dynslip.schema.sweep import Linspace, SweepSpec, WindowSpec
 
     print(sc.schema_reference({"sweep file": SweepSpec, "sweep grid axis {start, stop, num}": Linspace,
                                "sweep window (also `dynslip window --lo --hi --coarse --tol`)": WindowSpec}))

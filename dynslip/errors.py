@@ -2,6 +2,8 @@
 
 - :class:`InputError` (exit 2): bad input; the message is one line naming the field,
   the value and what is allowed.
+- :class:`MaterialRangeError` (exit 3): a stretch outside the range where the material's
+  energy is defined, met during a computation.
 - :class:`ComputationError` (exit 3): a computation ran and did not succeed (solver
   failure, no root in a bracket); what was computed is kept and marked incomplete.
 """
@@ -19,3 +21,7 @@ class ComputationError(RuntimeError):
 
     exit_code = 3
     partial = None
+
+
+class MaterialRangeError(ValueError):
+    """A stretch lies outside the range where the material's energy is defined."""

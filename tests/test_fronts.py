@@ -10,18 +10,16 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dynslip.app.fronts import run_fronts
-from dynslip.errors import InputError
+from dynslip.analysis.front_summary import fronts_dataset, stage_summary
 from dynslip.analysis.fronts import (
     BIRTH_EVENTS,
     DEATH_EVENTS,
-    fronts_dataset,
     fronts_in_frame,
     motion_state,
-    stage_summary,
-    summary_lines,
     track_fronts,
 )
+from dynslip.app.fronts import run_fronts, summary_lines
+from dynslip.errors import InputError
 from dynslip.data.files import check_units, write_netcdf
 from helpers import synthetic_trajectory
 

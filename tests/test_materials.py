@@ -4,7 +4,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics.materials import Gent, Hookean, MaterialRangeError, MooneyRivlin, NeoHookean, check_range, tensions
+from dynslip.errors import MaterialRangeError
+from dynslip.physics.materials import Gent, Hookean, MooneyRivlin, NeoHookean, check_range, tensions
 from dynslip.physics.sphere import check_static_range
 
 MODELS = [Hookean(), NeoHookean(), MooneyRivlin(c1=0.3, c2=0.2), Gent(jm=50.0), Gent(jm=5.0)]

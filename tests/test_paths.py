@@ -7,8 +7,8 @@ import pytest
 import yaml
 
 from dynslip.app.members import resolve
-from dynslip.app.sweep import expand, load_spec
-from dynslip.app.window import friction_field, member_at
+from dynslip.app.sweep import expand
+from dynslip.schema.sweep import friction_field, load_spec, member_at
 from dynslip.errors import InputError
 from dynslip.schema.base import load, load_data
 from dynslip.schema.paths import get_path, set_path

@@ -9,7 +9,8 @@ import yaml
 from dynslip.app.release import GEOMETRY_FIELDS
 from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load, validate_data
-from dynslip.app.sweep import expand, load_spec
+from dynslip.app.sweep import expand
+from dynslip.schema.sweep import load_spec
 
 from conftest import SCENARIOS, assert_energy_closes
 

@@ -25,7 +25,8 @@ import dynslip.schema.base as scenario_mod
 import dynslip.app.sweep as sweep_mod
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.base import Strict, format_validation_error
-from dynslip.app.sweep import load_spec, run_sweep
+from dynslip.app.sweep import run_sweep
+from dynslip.schema.sweep import load_spec
 
 HERE = Path(__file__).resolve().parent
 

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dynslip.errors import ComputationError, InputError
-from dynslip.app.window import find_windows, friction_field, member_at
+from dynslip.analysis.windows import find_windows
+from dynslip.schema.sweep import friction_field, member_at
 
 TWO = [(0.31, 0.47), (1.23, 1.61)]
 

@@ -8,14 +8,13 @@ run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-from dynslip.analysis.resolution import chord_check
+from dynslip.analysis.summary import summarize
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import ComputationError, InputError
@@ -73,100 +72,6 @@ def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=No
         friction_smoothing=sc.numerics.friction_smoothing, extra_attrs=extra_attrs)
 
 
-def summarize(sc, ds: xr.Dataset, result) -> dict:
-    """summary.json: the end state, the friction it needs, energy balance, solver statistics."""
-    p = sc.physics
-    end = ds.isel(time=-1)
-    failed = result.failed is not None
-    contact = np.asarray(end["state"]) > 0
-    theta_max = float(end["theta_max"])
-    rbar_max = float(end["rbar_max"])
-    lt = np.asarray(end["lambda_theta"])
-    lp = np.asarray(end["lambda_phi"])
-    i_t = int(np.nanargmax(lt))
-    mu_mob = np.asarray(end["mu_mobilised"])
-    mu_mobilised_max = float(np.nanmax(mu_mob[contact])) if contact.any() else float("nan")
-    stage_names = [s.name for s in p.stages]
-    slack = next((s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None)
-    work = np.abs(ds["work_clamp"].values) + np.abs(ds["work_ball"].values)
-    work_scale = float(np.max(work)) if work.size else float("nan")
-    resid = ds["energy_residual"].values
-    last = result.stage_end[-1] if result.stage_end else None
-    at_rest = bool(last and last["condition_met"] and _stage_until(p, last["name"]) == "rest"
-                   and len(result.stage_end) == len(stage_names))
-    reaction = float(end["ball_reaction"])
-    mesh_check = chord_check(ds, sc.numerics.max_chord_depth)
-    if failed or not mesh_check["resolved"]:
-        trapped = None  # a failed run, or sheet through the ball: no answer (analysis.resolution)
-    else:
-        trapped = bool(at_rest and np.isfinite(theta_max) and theta_max > math.pi / 2
-                       and abs(reaction) < sc.numerics.trap_reaction_tol)
-    st = result.stats
-    summary = {
-        "status": "failed" if failed else "ok",
-        "message": result.failed or "",
-        "trapped": trapped,
-        "mesh_check": mesh_check,
-        "theta_max": theta_max,
-        "rbar_max": rbar_max,
-        "opening_radius": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
-        "rest_state_check": {
-            "sin_theta_max": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
-            "rbar_max": rbar_max,
-            "holds": bool(np.isfinite(theta_max) and math.sin(theta_max) <= rbar_max),
-            "hoop_stretch_at_lift_off": (math.sin(theta_max) / rbar_max) if rbar_max > 0 else float("nan"),
-            "paper_rough": {"theta_max": 1.8, "rbar_max": 0.9},
-        },
-        "largest_stretch": {
-            "lambda_theta": float(lt[i_t]),
-            "rbar": float(ds["rbar"].values[i_t]),
-            "theta": float(end["theta"].values[i_t]),
-            "in_contact": bool(contact[i_t]),
-            "lambda_phi_max": float(np.nanmax(lp)),
-            "path_max_lambda_theta": float(np.nanmax(ds["lambda_theta"].values)),
-        },
-        "friction_law": p.friction.law,
-        "mu": p.friction.nominal_mu,
-        **({"mu_s": p.friction.mu_s, "mu_k": p.friction.mu_k, "d_c_mm": p.friction.d_c_mm}
-           if p.friction.law == "slip_weakening" else {}),
-        "mu_mobilised_max": mu_mobilised_max,
-        "mu_mobilised_max_means": ("largest |friction| / normal force over the contact of the end state: the "
-                                   "friction this state mobilises, not the least friction the path needs (a "
-                                   "fully mobilised end state returns the input mu); the path's critical mu is "
-                                   "found by `dynslip window` (window.json)"),
-        "contact_nodes": int(contact.sum()),
-        "slack_rim_height": {
-            "reached": bool(slack["condition_met"]) if slack else None,
-            "z_R": slack["clamp_z"] if slack else None,
-            "z_mm": slack["clamp_z"] * p.ball_radius_mm if slack else None,
-        },
-        "end_at_rest": at_rest,
-        "ball_reaction_end": reaction,
-        "ball_z_end": float(end["ball_z"]),
-        "clamp_force_end": float(end["clamp_force"]),
-        "energy_balance": {
-            "residual_end": float(resid[-1]),
-            "residual_max_abs": float(np.max(np.abs(resid))),
-            "work_scale": work_scale,
-            "relative_residual": float(np.max(np.abs(resid)) / work_scale) if work_scale > 0 else float("nan"),
-            "initial_energy": float(ds.attrs["energy_initial"]),
-        },
-        "stages": result.stage_end,
-        "solver": {
-            "steps": st["steps"], "accepted": st["accepted"], "rejected": st["rejected"],
-            "segments": st["segments"], "compile_s": st["compile_s"], "run_s": st["run_s"],
-            "time_per_step_ms": st["time_per_step_ms"], "wall_s": st.get("wall_s"),
-            "method": st.get("method"), "newton_iterations": st.get("newton_iterations"),
-        },
-        "nodes": sc.numerics.nodes,
-    }
-    return summary
-
-
-def _stage_until(p, name):
-    return next(s.until for s in p.stages if s.name == name)
-
-
 def _progress(console, total):
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -190,7 +95,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
     """Run a forming scenario into ``out``; return the summary (raises ComputationError on failure)."""
     from rich.console import Console
 
-    from dynslip.physics.materials import MaterialRangeError  # noqa: F401  (documented error type)
+    from dynslip.errors import MaterialRangeError  # noqa: F401  (documented error type)
     from dynslip.plot.forming import make_figures
     from dynslip.physics.simulate import simulate
 

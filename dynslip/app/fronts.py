@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from dynslip.analysis.fronts import fronts_dataset
+from dynslip.analysis.front_summary import fronts_dataset
 from dynslip.data.files import write_json, write_netcdf
 from dynslip.data.trajectory import open_trajectory
 from dynslip.plot.fronts import plot_fronts
 
-__all__ = ["run_fronts"]
+__all__ = ["run_fronts", "summary_lines"]
 
 
 def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None) -> list[Path]:
@@ -31,3 +31,28 @@ def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None) -
         plot_fronts(ds, fr, out_dir / "fronts.png"),
         write_json(out_dir / "fronts_summary.json", {"stages": stages}),
     ]
+
+
+def summary_lines(stages: list[dict]) -> list[str]:
+    """One line per stage for the command line: front direction and rest order."""
+    out = []
+    for e in stages:
+        if not e.get("frames"):
+            out.append(f"{e['name']}: no saved frame")
+            continue
+        line = (
+            f"{e['name']} ({e['t_start_s']:.4g}-{e['t_end_s']:.4g} s): {e['n_tracks']} front(s), "
+            f"travel {e['front_direction'].replace('_', ' ')}"
+        )
+        if e.get("last_to_rest_rbar"):
+            n_last = len(e["last_to_rest_rbar"])
+            at_once = f" ({n_last} nodes at once)" if n_last > 1 else ""
+            line += (
+                f"; last to come to rest at rbar = {max(e['last_to_rest_rbar']):.3g}{at_once} "
+                f"(t = {e['last_rest_time_s']:.4g} s); outermost contact rests last: "
+                f"{'yes' if e['outermost_contact_rests_last'] else 'no'}"
+            )
+        if e.get("n_nodes_slipping_at_end"):
+            line += f"; {e['n_nodes_slipping_at_end']} node(s) still slipping at the end"
+        out.append(line)
+    return out

@@ -11,200 +11,26 @@ writes what it computed (``complete = 0``, summary ``status: failed``) and raise
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from dynslip.analysis.paper import PAPER_MU, paper_mu
+from dynslip.analysis.static import _rule_text, _summary, compute_static
 from dynslip.data import files as io
+from dynslip.data.static import static_dataset
 from dynslip.errors import ComputationError
 from dynslip.plot.style import MODEL_LABELS as LABEL
 
-__all__ = ["PAPER_MU", "compute_static", "static_dataset", "run_static", "run_figure4", "run_family",
+__all__ = ["PAPER_MU", "run_static", "run_figure4", "run_family",
            "run_cylinder", "paper_mu"]
-
-SAT_REL = 0.02  # |F_m| = mu F_N within 2% counts as saturated
 
 
 def _scales(p) -> dict:
     g_pa = p.youngs_modulus_MPa * 1e6 / 3.0
     r_m, h0_m = p.ball_radius_mm * 1e-3, p.thickness_mm * 1e-3
     return {"R_m": r_m, "G_Pa": g_pa, "h0_m": h0_m, "force_scale_N": g_pa * h0_m * r_m}
-
-
-def _rule_text(sel) -> str:
-    if sel.rule == "switch_radius":
-        return f"fully mobilised member whose F_m changes sign at rbar_s = {sel.value:g} R"
-    return f"fully mobilised member whose F_m changes sign (and lambda_theta peaks) at theta_s = {sel.value:g} rad"
-
-
-def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, selection, num,
-                   jm=None) -> dict:
-    """Member, march and search for one material. Returns a dict of arrays and scalars; on a
-    failed search the dict has ``status = "failed"`` and ``error`` (nothing is raised here)."""
-    import jax.numpy as jnp
-
-    from dynslip.physics import sphere as S
-
-    n = num.n_nodes
-    rbar = S.grid(n, rbar_max)
-    h = float(rbar[1] - rbar[0])
-    t0 = time.perf_counter()
-    member = S.solve_member(material, selection.value, theta_max, rbar_max, num.switch_guess,
-                            by=selection.rule, rtol=num.ode_rtol)
-    t_bvp = time.perf_counter() - t0
-    out: dict = {"model": model, "rbar": rbar, "h": h, "member": member, "t_bvp_s": t_bvp,
-                 "fv_tol": num.fv_tolerance(),
-                 "rule": _rule_text(selection), "paper_mu": paper_mu(model, jm)}
-    if member.converged:
-        th_m, _ = S.sample_member(material, member, rbar_max, rbar, rtol=num.ode_rtol)
-    else:
-        th_m = np.full(n, np.nan)
-    out["theta_member"] = th_m
-    if initial_shape == "fully_mobilised":
-        if not member.converged:
-            out.update(status="failed", theta=th_m, theta_initial=th_m,
-                       error=f"{LABEL.get(model, model)}: the fully mobilised boundary-value problem did not "
-                       f"converge for {out['rule']} (largest end-condition residual {member.residual:.3g})")
-            return out
-        theta0 = th_m
-    else:
-        theta0 = S.initial_shape("linear", rbar, theta_max)
-    out["theta_initial"] = theta0
-    march_kw = dict(method=num.march, vtol=num.rest_velocity, max_steps=num.max_steps,
-                    rtol=num.diffrax_rtol, solver=num.diffrax_solver,
-                    dt=float(S.stable_dt(material, jnp.asarray(theta0), h, num.dt_safety)))
-    t0 = time.perf_counter()
-    try:
-        sr = S.search_mu(material, theta0, h, num.mu_bracket[0], num.mu_bracket[1], mu_tol=num.mu_tol,
-                         fv_tol=num.fv_tolerance(), **march_kw)
-    except ComputationError as err:
-        part = err.partial
-        out.update(status="failed", error=f"{LABEL.get(model, model)}: {err}", theta=np.asarray(part["theta"][0]),
-                   mu=float("nan"), fv_bracket=part["fv"], mu_bracket=part["mu"],
-                   theta_bracket_ends=part["theta"], t_search_s=time.perf_counter() - t0)
-        _add_fields(out, material, np.asarray(part["theta"][0]), h, num.mu_bracket[0], num)
-        return out
-    out["t_search_s"] = time.perf_counter() - t0
-    out.update(status="ok", mu=sr.mu, theta=sr.theta, fv_bracket=sr.fv_bracket, mu_bracket=num.mu_bracket,
-               evaluations=sr.evaluations, march_steps=int(sr.march.steps), march_converged=bool(sr.march.converged))
-    _add_fields(out, material, sr.theta, h, sr.mu, num)
-    try:
-        S.check_static_range(material, out["lambda_theta"], out["lambda_phi"], "in the final state")
-    except ValueError as err:
-        out.update(status="failed", error=str(err))
-    return out
-
-
-def _add_fields(out, material, theta, h, mu, num):
-    import jax.numpy as jnp
-
-    from dynslip.physics import sphere as S
-
-    f = S.fields(material, jnp.asarray(theta), h)
-    fm, fn = np.asarray(f.fm), np.asarray(f.fn)
-    out.update(lambda_theta=np.asarray(f.lt), lambda_phi=np.asarray(f.lp), T_theta=np.asarray(f.tt),
-               T_phi=np.asarray(f.tp), F_m=fm, F_N=fn)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out["mu_mobilised"] = np.where(fn > 0, np.abs(fm) / fn, np.nan)
-    # Direction of friction F_f = -F_m: +1 toward the equator (increasing theta), -1 toward the
-    # pole, 0 where F_m vanishes (the pole) to round-off.
-    scale = np.max(np.abs(fm)) if np.all(np.isfinite(fm)) else 1.0
-    out["friction_direction"] = np.where(np.abs(fm) <= 1e-12 * scale, 0, -np.sign(fm)).astype(np.int8)
-    chk = S.check_equilibrium(material, theta, h, mu, vtol=num.rest_velocity, force_tol=1e-8)
-    out["check"] = chk
-    out["saturated_fraction"] = S.saturation_fraction(fm, fn, mu, SAT_REL) if np.isfinite(mu) else float("nan")
-    rbar = out["rbar"]
-    th = np.asarray(theta)
-    i_t, i_p = int(np.nanargmax(out["lambda_theta"])), int(np.nanargmax(out["lambda_phi"]))
-    i_s, i_i = S.sign_change_index(fm), S.inflection_index(th)
-    out["extrema"] = {
-        "lambda_theta_max": float(out["lambda_theta"][i_t]), "lambda_theta_max_rbar": float(rbar[i_t]),
-        "lambda_theta_max_theta": float(th[i_t]),
-        "lambda_phi_max": float(out["lambda_phi"][i_p]), "lambda_phi_max_rbar": float(rbar[i_p]),
-        "lambda_phi_max_theta": float(th[i_p]),
-        "F_m_sign_change_rbar": float(rbar[i_s]) if i_s >= 0 else None,
-        "theta_inflection_rbar": float(rbar[i_i]) if i_i >= 0 else None,
-    }
-
-
-def static_dataset(res: dict, scenario_json: str, kind: str, scales: dict) -> xr.Dataset:
-    """The result dataset of one static computation (plots read this)."""
-    d = ("rbar",)
-    nd = "1"
-    v = io.variable
-    member = res["member"]
-    data = {
-        "theta": v(res["theta"], d, "rad", "polar angle of the material point"),
-        "theta_initial": v(res["theta_initial"], d, "rad", "initial shape of the march"),
-        "theta_member": v(res["theta_member"], d, "rad", "selected fully mobilised member (ODE solution)"),
-    }
-    if "lambda_theta" in res:
-        data.update({
-            "lambda_theta": v(res["lambda_theta"], d, nd, "meridional stretch"),
-            "lambda_phi": v(res["lambda_phi"], d, nd, "hoop stretch"),
-            "T_theta": v(res["T_theta"], d, nd, "meridional tension per deformed length", scale="G*h0"),
-            "T_phi": v(res["T_phi"], d, nd, "hoop tension per deformed length", scale="G*h0"),
-            "F_m": v(res["F_m"], d, nd, "meridional elastic force density", scale="G*h0/R"),
-            "F_N": v(res["F_N"], d, nd, "normal force density", scale="G*h0/R"),
-            "mu_mobilised": v(res["mu_mobilised"], d, nd, "mobilised friction coefficient |F_f|/F_N"),
-            "friction_direction": v(res["friction_direction"], d, nd,
-                                    "direction of friction on the sheet: +1 toward the equator, -1 toward the pole"),
-        })
-    data["mu"] = v(res.get("mu", np.nan), (), nd, "friction coefficient returned by the mu search")
-    data["mu_family"] = v(member.mu, (), nd, "friction coefficient of the selected fully mobilised member")
-    chk = res.get("check", {})
-    data["F_v"] = v(chk.get("F_v", np.nan), (), nd, "vertical force of the ball on the sheet (eq. Fz)", scale="G*h0*R")
-    data["F_v_identity"] = v(chk.get("F_v_identity", np.nan), (), nd,
-                             "2 pi T_theta(theta_max) sin^2(theta_max)", scale="G*h0*R")
-    ds = xr.Dataset(data, coords={"rbar": v(res["rbar"], d, nd, "undeformed radius", scale="R")})
-    ds.attrs.update(io.provenance(scenario_json, kind))
-    ds.attrs.update(scales)
-    ds.attrs.update(model=res["model"], selection_rule=res["rule"], status=res["status"],
-                    complete=int(res["status"] == "ok"), switch_rbar=member.rbar_s,
-                    switch_theta=member.theta_s, pole_stretch=member.lam0)
-    if res["status"] != "ok":
-        ds.attrs["error"] = res.get("error", "")
-    io.check_units(ds)
-    return ds
-
-
-def _summary(res: dict) -> dict:
-    member = res["member"]
-    s = {
-        "status": res["status"],
-        "model": res["model"],
-        "mu": res.get("mu"),
-        "mu_family": member.mu,
-        "paper_mu": res["paper_mu"],
-        "selection_rule": res["rule"],
-        "switch_rbar": member.rbar_s,
-        "switch_theta": member.theta_s,
-        "pole_stretch": member.lam0,
-        "n_nodes": int(len(res["rbar"])),
-    }
-    if res["paper_mu"] and res.get("mu") is not None and np.isfinite(res.get("mu", np.nan)):
-        s["mu_vs_paper_percent"] = 100.0 * (res["mu"] / res["paper_mu"] - 1.0)
-    if res["paper_mu"] and member.converged:
-        s["mu_family_vs_paper_percent"] = 100.0 * (member.mu / res["paper_mu"] - 1.0)
-    chk = res.get("check")
-    if chk:
-        s.update(F_v=chk["F_v"], F_v_identity=chk["F_v_identity"], F_v_identity_residual=chk["F_v_residual"],
-                 T_theta_edge=chk["T_theta_edge"], coulomb_excess=chk["coulomb_excess"],
-                 max_velocity=chk["vmax"], min_F_N=chk["min_F_N"], equilibrium_ok=chk["ok"],
-                 saturated_fraction=res["saturated_fraction"], saturation_tolerance=SAT_REL, **res["extrema"])
-    for k in ("evaluations", "march_steps", "march_converged", "t_bvp_s", "t_search_s"):
-        if k in res:
-            s[k] = res[k]
-    s["fv_tolerance"] = res.get("fv_tol")
-    if "fv_bracket" in res:
-        s["mu_bracket"] = list(res["mu_bracket"])
-        s["F_v_at_bracket_ends"] = list(res["fv_bracket"])
-    if res["status"] != "ok":
-        s["error"] = res.get("error", "")
-    return s
 
 
 def _table(console, title: str, rows: list[dict]) -> None:

@@ -65,167 +65,30 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
-import xarray as xr
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dynslip.app.members import default_member_fn, resolve
+from dynslip.data.sweep import assemble
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.paths import get_path, set_path
+from dynslip.schema.sweep import BASE_KEY, SweepSpec, _unit_of_field, load_spec
 
 MODES = ("sequential", "batched", "dask")
 #: The default runner: the fastest in ``benchmarks/sweep.py`` on the 2-core machine.
 DEFAULT_MODE = "sequential"
 CONNECT_TIMEOUT_S = 10.0
-BASE_KEY = "base"
-MEMBER_DIM = "member"
-#: summary keys not turned into variables (kept by ``status`` and ``error``, or declarations)
-SUMMARY_SKIP = ("units", "status", "message")
-#: wall-clock measures: kept in the member files, left out of the dataset (which must not
-#: depend on the runner or the machine's load)
-TIMING_SUFFIXES = ("compile_s", "run_s", "wall_s", "time_per_step_ms")
-WINDOW_DIM = "window"
-
-#: units and long names of the summary keys the forming runner returns
-KNOWN_VARIABLES: dict[str, tuple[str, str]] = {
-    "trapped": ("1", "ball ends trapped (1 yes, 0 no, NaN failed member or contact not resolved by the mesh)"),
-    "theta_max": ("rad", "polar angle of the contact edge at the end"),
-    "rbar_max": ("1", "material radius reaching the contact edge, by R"),
-    "opening_radius": ("1", "radius of the pocket's opening R sin(theta_max), by R"),
-    "mu_mobilised_max": ("1", "largest mobilised |F_f| / F_N on the end state"),
-    "release_force": ("N", "peak force of the release"),
-}
 
 
 # ---------------------------------------------------------------------------------------
 # The sweep file
 
 
-#: the most members a sweep may have (a grid's product of axis lengths, or a list's length)
-MAX_MEMBERS = 10_000
-
-
-class _Strict(BaseModel):
-    # strict: numbers given as text ("0.3") are errors, as in scenario files; finite numbers only
-    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
-
-
-class Linspace(_Strict):
-    """``{start, stop, num}``: ``num`` equally spaced values, both ends included."""
-
-    start: float
-    stop: float
-    num: int = Field(ge=1, le=MAX_MEMBERS, description="number of values, 1..10000")
-
-    def values(self) -> list[float]:
-        return [float(v) for v in np.linspace(self.start, self.stop, self.num)]
-
-
-class WindowSpec(_Strict):
-    """The trapping-window search run for each member (see :mod:`dynslip.app.window`)."""
-
-    field: str | None = Field(None, description="friction field; default mu (ideal law) or mu_s")
-    lo: float = Field(0.0, ge=0, le=100)
-    hi: float = Field(3.0, gt=0, le=100)
-    coarse: int = Field(13, ge=2, le=1000, description="coarse scan points, 2..1000")
-    tol: float = Field(0.02, ge=1e-6, le=100, description="width of the final brackets, in [1e-6, 100]")
-
-    @model_validator(mode="after")
-    def _range(self):
-        if not self.hi > self.lo:
-            raise ValueError(f"empty range: hi = {self.hi} must exceed lo = {self.lo}")
-        return self
-
-
-class SweepSpec(_Strict):
-    """A study: a base scenario, overrides for all, and a grid or a list of members."""
-
-    name: str = ""
-    description: str = ""
-    base: str = Field(description="scenario file, relative to the sweep file")
-    overrides: dict[str, Any] = Field(default_factory=dict)
-    grid: dict[str, list[Any] | Linspace] | None = Field(
-        None, description="field -> list of values or {start, stop, num}; at most 10000 members in all")
-    list_: list[dict[str, Any]] | None = Field(None, alias="list", description="members, at most 10000")
-    window: WindowSpec | None = None
-    out: str | None = None
-    mode: Literal["sequential", "batched", "dask"] | None = None
-    keep_runs: bool = Field(False, description="keep each member's run folder under <out>/runs/")
-
-    @model_validator(mode="after")
-    def _one_of(self):
-        if (self.grid is None) == (self.list_ is None):
-            raise ValueError("give exactly one of 'grid' and 'list'")
-        if self.grid is not None and not self.grid:
-            raise ValueError("empty grid: name at least one field")
-        if self.list_ is not None and not self.list_:
-            raise ValueError("empty list: give at least one member")
-        n = 1
-        for k, v in (self.grid or {}).items():
-            vals = v.values() if isinstance(v, Linspace) else v
-            if not vals:
-                raise ValueError(f"grid field '{k}': empty range (no values)")
-            n *= len(vals)
-        n = len(self.list_) if self.list_ is not None else n
-        if n > MAX_MEMBERS:
-            raise ValueError(f"{n} members: allowed at most {MAX_MEMBERS} (split the study)")
-        return self
-
-    def grid_values(self) -> dict[str, list[Any]]:
-        return {
-            k: (v.values() if isinstance(v, Linspace) else list(v))
-            for k, v in (self.grid or {}).items()
-        }
-
-
-def is_sweep_file(path) -> bool:
-    """Whether ``path`` reads as a sweep file (a mapping with ``base`` and no ``kind``) rather
-    than a scenario; anything unreadable is left to the scenario loader to report."""
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError, UnicodeDecodeError):
-        return False
-    return isinstance(data, dict) and "kind" not in data and BASE_KEY in data
-
-
 def validate_sweep(path, validate_fn: Callable | None = None) -> list[Member]:
     """``dynslip validate SWEEP.yaml``: the sweep file and every member's scenario validated
     (nothing runs); returns the members. Raises :class:`InputError` (one line)."""
     return expand(load_spec(path), Path(path), validate_fn)
-
-
-def load_spec(path) -> SweepSpec:
-    """Read and validate a sweep file; raises :class:`InputError` (one line)."""
-    from dynslip.schema.yamlio import read_yaml
-
-    path = Path(path)
-    data = read_yaml(path, "sweep")  # UTF-8 text, duplicate keys refused; InputError otherwise
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: a sweep file must be a mapping (base, grid or list, ...)")
-    try:
-        return SweepSpec.model_validate(data)
-    except ValidationError as err:
-        e = max(
-            err.errors(), key=lambda e: len(e["loc"])
-        )  # for a union, the branch that got furthest
-        loc = ".".join(str(p) for p in e["loc"] if p not in ("list[any]", "Linspace"))
-        msg = (
-            "unknown field (allowed: name, description, base, overrides, grid, list, window, out, mode, keep_runs)"
-            if e["type"] == "extra_forbidden"
-            else e["msg"]
-        )
-        value = e.get("input")
-        shown = (
-            json.dumps(value)
-            if isinstance(value, (int, float, str, bool, type(None)))
-            else type(value).__name__
-        )
-        if not loc and e["type"] == "value_error":  # a check across fields: its message names them
-            raise InputError(f"{path}: {msg.removeprefix('Value error, ')}") from None
-        raise InputError(f"{path}: field '{loc or '<root>'}' = {shown}: {msg}") from None
 
 
 # ---------------------------------------------------------------------------------------
@@ -296,7 +159,7 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
             except KeyError:
                 raise InputError(f"{src}: field '{k}' does not exist in the scenario") from None
         if window is not None:
-            from dynslip.app.window import friction_field
+            from dynslip.schema.sweep import friction_field
 
             field_name, _ = friction_field(resolved, window["field"])
             if field_name in assign:
@@ -347,7 +210,8 @@ def execute_member(
         except Exception as err:  # noqa: BLE001 - a member's failure is data, not a crash of the sweep
             rec.update(status="error", error=f"{type(err).__name__}: {err}")
         if window is not None:
-            from dynslip.app.window import friction_field, scenario_window
+            from dynslip.app.window import scenario_window
+            from dynslip.schema.sweep import friction_field
 
             field_name, tied = friction_field(resolved, window["field"])
             mu0 = float(get_path(resolved, field_name))
@@ -505,7 +369,8 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
     """What :func:`dynslip.app.forming.run_forming` makes of a driver result: the summary
     (raises :class:`ComputationError` for a failed run), with its files in ``out`` when given
     (``keep_runs``; the figures too)."""
-    from dynslip.app.forming import summarize, to_dataset
+    from dynslip.analysis.summary import summarize
+    from dynslip.app.forming import to_dataset
     from dynslip.data import files as io
 
     names = [s.name for s in sc.physics.stages]
@@ -630,161 +495,6 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
 
 # ---------------------------------------------------------------------------------------
 # The dataset
-
-
-def _flatten(summary: dict, prefix: str = "") -> dict[str, Any]:
-    out = {}
-    for k, v in summary.items():
-        if k in SUMMARY_SKIP:
-            continue
-        if isinstance(v, dict):
-            out.update(_flatten(v, f"{prefix}{k}_"))
-        elif (isinstance(v, (bool, int, float, str)) or v is None) and not (prefix + k).endswith(
-            TIMING_SUFFIXES
-        ):
-            out[prefix + k] = v
-    return out
-
-
-def _coord(values: list) -> np.ndarray:
-    arr = np.asarray(values)
-    return arr if arr.dtype.kind in "biuf" else np.asarray([str(v) for v in values])
-
-
-def assemble(
-    spec: SweepSpec, members: list[Member], records: dict[str, dict], attrs: dict
-) -> xr.Dataset:
-    """One dataset from the member records: a dimension per swept field (grid) or ``member``."""
-    from dynslip.data.files import variable
-
-    if spec.grid is not None:
-        grid = spec.grid_values()
-        dims = tuple(grid)
-        shape = tuple(len(v) for v in grid.values())
-        coords = {k: variable(_coord(v), (k,), "1", f"swept field {k}") for k, v in grid.items()}
-        for k in dims:
-            if k != BASE_KEY:
-                coords[k].attrs["units"] = _unit_of_field(k, members)
-    else:
-        dims = (MEMBER_DIM,)
-        shape = (len(members),)
-        keys = list(dict.fromkeys(k for m in members for k in m.assign))
-        coords = {MEMBER_DIM: variable(np.arange(len(members)), dims, "1", "member of the list")}
-        for k in keys:
-            vals = [m.assign.get(k, _base_value(m, k)) for m in members]
-            coords[k] = variable(
-                _coord(vals),
-                dims,
-                "1" if k == BASE_KEY else _unit_of_field(k, members),
-                f"swept field {k}",
-            )
-    flat = {m.fingerprint: _flatten(records[m.fingerprint]["summary"]) for m in members}
-    units_decl: dict[str, str] = {}
-    for m in members:
-        units_decl.update(records[m.fingerprint]["summary"].get("units", {}) or {})
-    names = list(
-        dict.fromkeys(["trapped", *KNOWN_VARIABLES, *(k for f in flat.values() for k in f)])
-    )
-    data_vars = {}
-    for name in names:
-        vals = [flat[m.fingerprint].get(name) for m in members]
-        present = [v for v in vals if v is not None]
-        if not present and name not in ("trapped",):
-            continue
-        if present and all(isinstance(v, str) for v in present):
-            arr = np.full(shape, "", dtype=object)
-            fill = [v if isinstance(v, str) else "" for v in vals]
-        else:
-            arr = np.full(shape, np.nan)
-            fill = [
-                float(v) if isinstance(v, (int, float)) and not isinstance(v, str) else np.nan
-                for v in vals
-            ]
-        for m, v in zip(members, fill, strict=True):
-            arr[m.index if spec.grid is not None else m.index[0]] = v
-        unit, long_name = KNOWN_VARIABLES.get(
-            name, (units_decl.get(name, "1"), f"{name} (from the member's summary)")
-        )
-        extra = (
-            {}
-            if name in KNOWN_VARIABLES or name in units_decl
-            else {"units_note": "not declared by the simulator"}
-        )
-        data_vars[name] = variable(
-            arr.astype(str) if arr.dtype == object else arr, dims, unit, long_name, **extra
-        )
-    status = np.full(shape, "missing", dtype=object)
-    error = np.full(shape, "", dtype=object)
-    for m in members:
-        at = m.index if spec.grid is not None else m.index[0]
-        status[at] = records[m.fingerprint]["status"]
-        error[at] = records[m.fingerprint]["error"]
-    data_vars["status"] = variable(
-        status.astype(str), dims, "1", "member status: ok, failed (ComputationError) or error"
-    )
-    data_vars["error"] = variable(error.astype(str), dims, "1", "error of a failed member")
-    if spec.window is not None:
-        data_vars.update(_window_vars(spec, members, records, dims, shape))
-    ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)
-    return ds
-
-
-def _window_vars(spec, members, records, dims, shape) -> dict:
-    from dynslip.data.files import variable
-
-    n_max = max([1] + [len(records[m.fingerprint]["window"]["windows"]) for m in members])
-    wdims = (*dims, WINDOW_DIM)
-    out = {
-        k: np.full((*shape, n_max), np.nan)
-        for k in ("window_lo", "window_hi", "window_lo_err", "window_hi_err")
-    }
-    n = np.full(shape, np.nan)
-    nfail = np.full(shape, np.nan)
-    for m in members:
-        at = m.index if spec.grid is not None else m.index[0]
-        w = records[m.fingerprint]["window"]
-        n[at] = len(w["windows"])
-        nfail[at] = len(w["failed"])
-        for j, d in enumerate(w["windows_detail"]):
-            out["window_lo"][at][j] = d["lo"]["value"]
-            out["window_hi"][at][j] = d["hi"]["value"]
-            out["window_lo_err"][at][j] = d["lo"]["err"]
-            out["window_hi_err"][at][j] = d["hi"]["err"]
-    field_name = records[members[0].fingerprint]["window"]["field"]
-    res = {
-        name: variable(
-            arr, wdims, "1", f"{name.replace('_', ' ')} of the trapping windows of {field_name}"
-        )
-        for name, arr in out.items()
-    }
-    res["n_windows"] = variable(n, dims, "1", f"number of trapping windows of {field_name} found")
-    res["window_failed_runs"] = variable(nfail, dims, "1", "failed runs of the window search")
-    return res
-
-
-def _unit_of_field(dotted: str, members: list[Member]) -> str:
-    """The unit a scenario field declares in its schema metadata, or ``"1"``."""
-    try:
-        from dynslip.schema.base import _classes
-
-        kind = members[0].resolved.get("kind")
-        cls = _classes().get(kind)
-        if cls is None:
-            return "1"
-        schema = cls.model_json_schema()
-        node, defs = schema, schema.get("$defs", {})
-        keys = iter(dotted.split("."))
-        for k in keys:
-            prop = node.get("properties", {}).get(k, {})
-            if "items" in prop:  # a list: the next key names an item (by name or index)
-                prop = prop["items"]
-                next(keys, None)
-            ref = prop.get("$ref") or (prop.get("allOf") or [{}])[0].get("$ref")
-            node = defs[ref.split("/")[-1]] if ref else prop
-        unit = node.get("unit", "1")
-        return unit if isinstance(unit, str) else "1"
-    except Exception:  # noqa: BLE001 - units are metadata; never fail a sweep on them
-        return "1"
 
 
 def _base_value(m: Member, k: str):
@@ -944,7 +654,8 @@ def run_sweep(
         if spec.grid is not None
         else list(dict.fromkeys(k for m in members for k in m.assign))
     )
-    ds = assemble(spec, members, records, attrs)
+    ds = assemble(spec, members, records, attrs, base_value=_base_value,
+                  unit_of=lambda k: "1" if k == BASE_KEY else _unit_of_field(k, members))
     write_netcdf(ds, out / "sweep.nc")
     statuses = [records[m.fingerprint]["status"] for m in members]
     summary = {

@@ -35,6 +35,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dynslip.errors import MaterialRangeError
+
 __all__ = [
     "AbstractMaterial",
     "AbstractIncompressible",
@@ -42,17 +44,12 @@ __all__ = [
     "NeoHookean",
     "MooneyRivlin",
     "Gent",
-    "MaterialRangeError",
     "tensions",
     "relaxed_energy",
     "relaxed_tensions",
     "check_range",
     "make_material",
 ]
-
-
-class MaterialRangeError(ValueError):
-    """A stretch lies outside the range where the material's energy is defined."""
 
 
 def invariants(lt, lp):

@@ -20,7 +20,8 @@ import numpy as np
 import xarray as xr
 
 from dynslip.errors import InputError
-from dynslip.analysis.fronts import _rest_speed, fronts_dataset, motion_state
+from dynslip.analysis.front_summary import _rest_speed, fronts_dataset
+from dynslip.analysis.fronts import motion_state
 from dynslip.data.trajectory import open_trajectory, stage_names, time_indices
 from dynslip.plot.fronts import draw_spacetime
 from dynslip.plot.style import STATE_COLORS, STATE_LABELS

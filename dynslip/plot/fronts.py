@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from dynslip.analysis.fronts import BIRTH_EVENTS, DEATH_EVENTS, _rest_speed, motion_state
+from dynslip.analysis.front_summary import _rest_speed
+from dynslip.analysis.fronts import BIRTH_EVENTS, DEATH_EVENTS, motion_state
 from dynslip.data.files import save_figure
 from dynslip.data.trajectory import stage_names
 from dynslip.plot.style import STATE_COLORS, STATE_LABELS, state_colormap

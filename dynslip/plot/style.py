@@ -3,11 +3,13 @@
 - :data:`STATE_COLORS`: the colours of the trajectory's ``state`` flags (free, stuck,
   slipping toward the pole, slipping toward the equator; :mod:`dynslip.data.trajectory`),
   :data:`STATE_LABELS` their labels, :func:`state_colormap` the colormap of the flags;
-- :data:`MODEL_LABELS`: the material models as figures name them.
+- :data:`MODEL_LABELS`: the material models as figures name them (from
+  :mod:`dynslip.analysis.paper`).
 """
 
 from __future__ import annotations
 
+from dynslip.analysis.paper import MODEL_LABELS
 from dynslip.data.trajectory import STATE_MEANINGS
 
 __all__ = ["STATE_COLORS", "STATE_LABELS", "MODEL_LABELS", "state_colormap"]
@@ -16,8 +18,6 @@ STATE_COLORS = ("#d9d9d9", "#1f4e9c", "#e08a1e", "#c0282d")
 """Colours of the state flags free, stuck, slipping toward the pole, toward the equator."""
 STATE_LABELS = tuple(m.replace("_", " ") for m in STATE_MEANINGS)
 """Labels of the state flags (their meanings in the contract, in words)."""
-MODEL_LABELS = {"hookean": "Hookean", "neo_hookean": "neo-Hookean", "gent": "Gent", "mooney_rivlin": "Mooney-Rivlin"}
-"""The material models (``model`` of a material section) as figures and tables name them."""
 
 
 def state_colormap():

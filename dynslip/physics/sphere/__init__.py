@@ -1,0 +1,105 @@
+r"""The paper's contact-region model of a membrane on a rigid sphere (paper Section 3):
+one module per concept (:mod:`.grid` the grid formulas, :mod:`.march` the march to rest,
+:mod:`.search` the search on $\mu$, :mod:`.family` the fully mobilised family,
+:mod:`.checks` the checks), re-exported here.
+
+Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
+densities by $G h_0/R$, forces by $G h_0 R$. A material point at undeformed radius
+$\bar r$ sits at polar angle $\theta(\bar r)$ on the unit sphere; the sheet is in
+contact from the pole $\bar r = 0$ to $\bar r_{max}$, where $\theta = \theta_{max}$.
+
+Grid formulas (paper Section 3.3, physics.md Section 2), on ``N`` equally spaced nodes
+$\bar r_i = i h$, $h = \bar r_{max}/(N-1)$:
+
+- $\lambda_\theta = d\theta/d\bar r$ (paper eq. (eq_lambda_th)): centred differences, an
+  odd ghost node at the pole ($\theta_{-1} = -\theta_1$) and the second-order one-sided
+  difference $(3\theta_{N-1} - 4\theta_{N-2} + \theta_{N-3})/2h$ at the outer end;
+- $\lambda_\phi = \sin\theta/\bar r$ (eq. (eq_lambda_phi)), $\lambda_\phi = \lambda_\theta$ at the pole;
+- $T_\theta, T_\phi$ from :func:`dynslip.physics.materials.tensions` (eqs. (1)-(2), typo fixed);
+- $F_m = dT_\theta/d\theta + (T_\theta - T_\phi)\cot\theta$ with
+  $dT_\theta/d\theta = (dT_\theta/d\bar r)/\lambda_\theta$ (same differences; $T_\theta$ even at
+  the pole, so $F_m = 0$ there);
+- $F_N = T_\theta + T_\phi$; Coulomb $|F_f| \le \mu F_N$ (eq. (FOB)), at rest $F_f = -F_m$;
+- $F_v = 2\pi\int_0^{\theta_{max}} (F_N\cos\theta - F_f\sin\theta)\sin\theta\,d\theta$ (eq. (eq_Fz)),
+  trapezoidal in $\bar r$ with $d\theta = \lambda_\theta d\bar r$. At any equilibrium
+  $F_v = 2\pi T_\theta(\theta_{max})\sin^2\theta_{max}$ (physics.md Section 2).
+
+Solvers:
+
+- the paper's soft-threshold march $\dot\theta_i = S(F_{m,i}, \mu F_{N,i})$,
+  $S(f, c) = \mathrm{sign}(f)\max(|f| - c, 0)$, to rest: :func:`march_explicit` (a jitted
+  forward-Euler ``lax.while_loop``), :func:`march_implicit` (backward Euler with growing
+  steps, each solved by semi-smooth Newton) and :func:`march_diffrax` (diffrax with a
+  steady-state event);
+- the search on $\mu$ for $F_v = 0$: :func:`search_mu` (bracket and bisection);
+- the well-posed form, the fully mobilised family (:func:`solve_member`): $F_m = +\mu F_N$
+  from the pole to the switch point, $F_m = -\mu F_N$ beyond, an ODE in $\bar r$ solved by
+  shooting with unknowns (pole stretch, $\mu$, switch radius) and end conditions
+  $\theta(\bar r_{max}) = \theta_{max}$, $T_\theta(\bar r_{max}) = 0$, and the switch angle
+  $\theta(\bar r_s) = \theta_s$ that parameterises the family.
+"""
+from dynslip.physics.materials import tensions
+from dynslip.physics.sphere.checks import (
+    check_equilibrium,
+    check_static_range,
+    inflection_index,
+    saturation_fraction,
+    sign_change_index,
+)
+from dynslip.physics.sphere.family import (
+    Member,
+    sample_member,
+    solve_family,
+    solve_member,
+)
+from dynslip.physics.sphere.grid import (
+    GridFields,
+    fields,
+    grid,
+    initial_shape,
+    vertical_force,
+    vertical_force_identity,
+)
+from dynslip.physics.sphere.march import (
+    MarchResult,
+    march,
+    march_diffrax,
+    march_explicit,
+    march_implicit,
+    stable_dt,
+    velocity,
+    velocity_jacobian,
+)
+from dynslip.physics.sphere.search import (
+    SearchResult,
+    search_mu,
+)
+
+__all__ = [
+    "grid",
+    "initial_shape",
+    "GridFields",
+    "fields",
+    "vertical_force",
+    "vertical_force_identity",
+    "velocity",
+    "stable_dt",
+    "MarchResult",
+    "march_explicit",
+    "march_diffrax",
+    "velocity_jacobian",
+    "march_implicit",
+    "march",
+    "SearchResult",
+    "search_mu",
+    "Member",
+    "solve_member",
+    "solve_family",
+    "sample_member",
+    "check_static_range",
+    "saturation_fraction",
+    "sign_change_index",
+    "inflection_index",
+    "check_equilibrium",
+    "tensions",
+]
