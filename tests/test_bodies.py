@@ -232,6 +232,18 @@ def test_position_is_a_shift_along_the_axis():
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
 
 
+def test_across_the_axis_is_the_mirror_image():
+    x = _rng_points(40, [0.0, -1.5], [2.0, 1.5], seed=5)
+    xm = x * np.array([-1.0, 1.0])
+    for name, body in BODIES.items():
+        d, n, s, t = proj(body, x, 0.1)
+        dm, nm, sm, tm = proj(body, xm, 0.1)
+        np.testing.assert_allclose(dm, d, atol=1e-14, err_msg=name)
+        np.testing.assert_allclose(sm, s, atol=1e-14, err_msg=name)
+        np.testing.assert_allclose(nm, n * np.array([-1.0, 1.0]), atol=1e-14, err_msg=name)
+        np.testing.assert_allclose(tm, t * np.array([-1.0, 1.0]), atol=1e-14, err_msg=name)
+
+
 # ---------------------------------------------------------------- joints and gradients
 
 

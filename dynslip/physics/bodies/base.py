@@ -20,7 +20,9 @@ turned counter-clockwise (:mod:`.segments`). The sheet's penetration of today's 
 ``1 - |x - x_b|`` (:mod:`dynslip.physics.sheet`), is ``-distance``.
 
 The distance in the meridian plane is the distance in space: for $\rho \ge 0$ the nearest
-point of a surface of revolution lies in the point's own meridian half plane.
+point of a surface of revolution lies in the point's own meridian half plane. A point with
+$\rho < 0$ (an iterate across the axis) is its mirror image $(-\rho, z)$ in space: the same
+distance and surface coordinate, the normal's and tangent's $\rho$ components negated.
 """
 
 from __future__ import annotations
@@ -128,8 +130,12 @@ class AbstractProfileBody(AbstractBody):
 
     def project(self, x, z=0.0) -> Projection:
         x = jnp.asarray(x, float)
-        shift = jnp.stack([jnp.zeros_like(jnp.asarray(z, float)), jnp.asarray(z, float)])
-        return project_onto_segments(segment_arrays(self.segments), x - shift)
+        rho = x[..., 0]
+        mirror = rho < 0
+        xm = jnp.stack([jnp.where(mirror, -rho, rho), x[..., 1] - z], axis=-1)
+        p = project_onto_segments(segment_arrays(self.segments), xm)
+        flip = jnp.where(mirror, -1.0, 1.0)[..., None] * jnp.array([1.0, 0.0]) + jnp.array([0.0, 1.0])
+        return Projection(distance=p.distance, normal=flip * p.normal, s=p.s, tangent=flip * p.tangent)
 
 
 def _samples(seg, m=64):

@@ -70,8 +70,9 @@ def contact_forces(bodies, x_nodes, penalty: Penalty, positions=None) -> Contact
 
 
 def contact_energy_density(bodies, x_nodes, penalty: Penalty, positions=None):
-    """Penalty energy per reference area of each node, summed over the bodies (N,) (units
-    G h0 / R^... per reference area as :func:`~dynslip.physics.sheet.penalty_energy`); its
-    negative gradient in x is :attr:`Contact.force` summed over the bodies."""
+    """Penalty energy per reference area of each node, summed over the bodies (N,), as
+    :func:`~dynslip.physics.sheet.penalty_energy` (times the nodes' reference areas, summed:
+    the sheet's penalty energy, G h0 R^2); its negative gradient in x is
+    :attr:`Contact.force` summed over the bodies."""
     zs = _positions(bodies, positions)
     return sum(penalty_energy(penalty, -b.distance(x_nodes, zs[k])) for k, b in enumerate(bodies))

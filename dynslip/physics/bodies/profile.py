@@ -4,8 +4,8 @@ r"""A body of any profile: a user's list of :class:`~.segments.Line` and
 $\rho \ge 0$, from the axis to the axis or closed on itself, not crossing itself, listed with
 the solid on the right (from the top of the axis down the outside).
 
-Example: a marble on a pin's head, one smooth profile (a ball of radius 1 whose bottom cap is
-replaced by a fillet and a cylinder would join C1 the same way)::
+Example: a capsule, a quarter ball, a cylinder of length 1 and another quarter ball, joined
+C1::
 
     >>> import math
     >>> from dynslip.physics.bodies.segments import Arc, Line
