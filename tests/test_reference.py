@@ -11,8 +11,14 @@ from dynslip.physics import reference as ref
 def test_analysis_paper_is_the_reference():
     from dynslip.analysis import paper
 
-    for name in ("PAPER_MU", "PAPER_JM", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S",
-                 "MEASURED_MU_K"):
+    for name in (
+        "PAPER_MU",
+        "PAPER_JM",
+        "ROUGH_END_STATE",
+        "MEASURED_RELEASE_FORCE_N",
+        "MEASURED_MU_S",
+        "MEASURED_MU_K",
+    ):
         assert getattr(paper, name) is getattr(ref, name)
     assert paper.paper_mu("gent", ref.PAPER_JM) == ref.PAPER_MU["gent"]
     assert paper.paper_mu("gent", 2 * ref.PAPER_JM) is None
@@ -40,8 +46,11 @@ def test_release_analysis_uses_the_runs_ball_drag():
 
     assert release.ball_drag_coefficient is forming.ball_drag_coefficient
     for drag_time_s, ball_drag in [(0.1, 1.0), (0.02, 3.5), (1.0, 0.0)]:
-        assert release.ball_drag_coefficient(drag_time_s, ball_drag) == \
-            forming.ball_drag_coefficient(drag_time_s, ball_drag) == drag_time_s * 4 * math.pi * ball_drag
+        assert (
+            release.ball_drag_coefficient(drag_time_s, ball_drag)
+            == forming.ball_drag_coefficient(drag_time_s, ball_drag)
+            == drag_time_s * 4 * math.pi * ball_drag
+        )
 
 
 def test_release_figure_is_in_the_python_api():

@@ -37,16 +37,27 @@ def _table(console, title: str, rows: list[dict]) -> None:
     from rich.table import Table
 
     t = Table(title=title)
-    cols = [("model", "model"), ("mu", "mu"), ("mu_family", "mu (BVP)"), ("paper_mu", "paper"),
-            ("mu_vs_paper_percent", "vs paper %"), ("F_v", "F_v [G h0 R]"), ("saturated_fraction", "saturated"),
-            ("lambda_theta_max", "max l_t"), ("lambda_theta_max_theta", "at theta"), ("status", "status")]
+    cols = [
+        ("model", "model"),
+        ("mu", "mu"),
+        ("mu_family", "mu (BVP)"),
+        ("paper_mu", "paper"),
+        ("mu_vs_paper_percent", "vs paper %"),
+        ("F_v", "F_v [G h0 R]"),
+        ("saturated_fraction", "saturated"),
+        ("lambda_theta_max", "max l_t"),
+        ("lambda_theta_max_theta", "at theta"),
+        ("status", "status"),
+    ]
     for _, name in cols:
         t.add_column(name, justify="right")
     for r in rows:
         cells = []
         for key, _ in cols:
             val = r.get(key)
-            cells.append("-" if val is None else (f"{val:.4g}" if isinstance(val, float) else str(val)))
+            cells.append(
+                "-" if val is None else (f"{val:.4g}" if isinstance(val, float) else str(val))
+            )
         t.add_row(*cells)
     console.print(t)
     if rows:
@@ -89,21 +100,40 @@ def run_figure4(sc, out: Path, console) -> dict:
     results, sums, dss = [], [], []
     for model in ("hookean", "neo_hookean", "gent"):
         mat = make_material(model, jm=p.jm)
-        res = compute_static(mat, model, rbar_max=p.rbar_max, theta_max=p.theta_max, initial_shape=p.initial_shape,
-                             selection=p.selection, num=sc.numerics, jm=p.jm if model == "gent" else None)
+        res = compute_static(
+            mat,
+            model,
+            rbar_max=p.rbar_max,
+            theta_max=p.theta_max,
+            initial_shape=p.initial_shape,
+            selection=p.selection,
+            num=sc.numerics,
+            jm=p.jm if model == "gent" else None,
+        )
         results.append(res)
         sums.append(_summary(res))
         dss.append(static_dataset(res, sc.to_json(), "figure4", _scales(p)))
-    ds = xr.concat(dss, dim="model", combine_attrs="drop_conflicts", data_vars="all", coords="minimal")
-    ds = ds.assign_coords(model=io.variable(["hookean", "neo_hookean", "gent"], ("model",), "1", "material model"))
-    ds.attrs.update(io.provenance(sc.to_json(), "figure4"), complete=int(all(r["status"] == "ok" for r in results)))
+    ds = xr.concat(
+        dss, dim="model", combine_attrs="drop_conflicts", data_vars="all", coords="minimal"
+    )
+    ds = ds.assign_coords(
+        model=io.variable(["hookean", "neo_hookean", "gent"], ("model",), "1", "material model")
+    )
+    ds.attrs.update(
+        io.provenance(sc.to_json(), "figure4"),
+        complete=int(all(r["status"] == "ok" for r in results)),
+    )
     ds.attrs.pop("model", None)
     ds.attrs.pop("status", None)
     for name in ("switch_rbar", "switch_theta", "pole_stretch"):
         ds.attrs.pop(name, None)
     io.write_netcdf(ds, out / "result.nc")
-    summary = {"status": "ok" if ds.attrs["complete"] else "failed", "models": sums,
-               "mu": {s["model"]: s.get("mu") for s in sums}, "selection_rule": sums[0]["selection_rule"]}
+    summary = {
+        "status": "ok" if ds.attrs["complete"] else "failed",
+        "models": sums,
+        "mu": {s["model"]: s.get("mu") for s in sums},
+        "selection_rule": sums[0]["selection_rule"],
+    }
     io.write_json(out / "summary.json", summary)
     if all("lambda_theta" in r for r in results):
         save_figure4(ds, out / "figure4.png")
@@ -121,14 +151,24 @@ def run_family(sc, out: Path, console) -> dict:
     p, num = sc.physics, sc.numerics
     values = np.linspace(p.switch_from, p.switch_to, num.n_members)
     models = ["hookean", "neo_hookean", "gent"]
-    cols = {k: np.full((3, len(values)), np.nan) for k in ("mu", "pole_stretch", "switch_rbar", "switch_theta")}
+    cols = {
+        k: np.full((3, len(values)), np.nan)
+        for k in ("mu", "pole_stretch", "switch_rbar", "switch_theta")
+    }
     selected = []
     for i, model in enumerate(models):
         mat = make_material(model, jm=p.jm)
         # Continuation from the middle of the range outward, both ways.
         mid = len(values) // 2
-        up = S.solve_family(mat, values[mid:], p.theta_max, p.rbar_max, num.switch_guess, by=p.switch_by,
-                            rtol=num.ode_rtol)
+        up = S.solve_family(
+            mat,
+            values[mid:],
+            p.theta_max,
+            p.rbar_max,
+            num.switch_guess,
+            by=p.switch_by,
+            rtol=num.ode_rtol,
+        )
         g = (up[0].lam0, up[0].mu, up[0].rbar_s) if up[0].converged else num.switch_guess
         down = S.solve_family(mat, values[:mid][::-1], p.theta_max, p.rbar_max, g, by=p.switch_by,
                               rtol=num.ode_rtol)[::-1]
@@ -145,18 +185,44 @@ def run_family(sc, out: Path, console) -> dict:
         {
             "mu": v(cols["mu"], dims, "1", "friction coefficient of the fully mobilised member"),
             "pole_stretch": v(cols["pole_stretch"], dims, "1", "stretch at the pole"),
-            "switch_rbar": v(cols["switch_rbar"], dims, "1", "undeformed radius where F_m changes sign", scale="R"),
-            "switch_theta": v(cols["switch_theta"], dims, "rad", "polar angle where F_m changes sign"),
-            "mu_selected": v([m.mu for m in selected], ("model",), "1", "mu of the member picked by the selection rule"),
-            "switch_rbar_selected": v([m.rbar_s for m in selected], ("model",), "1", "switch radius of that member",
-                                      scale="R"),
-            "switch_theta_selected": v([m.theta_s for m in selected], ("model",), "rad", "switch angle of that member"),
-            "mu_paper": v([paper_mu(m, p.jm) or np.nan for m in models], ("model",), "1", "the paper's mu"),
+            "switch_rbar": v(
+                cols["switch_rbar"],
+                dims,
+                "1",
+                "undeformed radius where F_m changes sign",
+                scale="R",
+            ),
+            "switch_theta": v(
+                cols["switch_theta"], dims, "rad", "polar angle where F_m changes sign"
+            ),
+            "mu_selected": v(
+                [m.mu for m in selected],
+                ("model",),
+                "1",
+                "mu of the member picked by the selection rule",
+            ),
+            "switch_rbar_selected": v(
+                [m.rbar_s for m in selected],
+                ("model",),
+                "1",
+                "switch radius of that member",
+                scale="R",
+            ),
+            "switch_theta_selected": v(
+                [m.theta_s for m in selected], ("model",), "rad", "switch angle of that member"
+            ),
+            "mu_paper": v(
+                [paper_mu(m, p.jm) or np.nan for m in models], ("model",), "1", "the paper's mu"
+            ),
         },
         coords={
             "model": v(models, ("model",), "1", "material model"),
-            "switch_value": v(values, ("member",), "rad" if p.switch_by == "switch_angle" else "1",
-                              f"family parameter ({p.switch_by})"),
+            "switch_value": v(
+                values,
+                ("member",),
+                "rad" if p.switch_by == "switch_angle" else "1",
+                f"family parameter ({p.switch_by})",
+            ),
         },
     )
     ds.attrs.update(io.provenance(sc.to_json(), "family"), **_scales(p), switch_by=p.switch_by,
@@ -166,11 +232,18 @@ def run_family(sc, out: Path, console) -> dict:
     rows = []
     for i, model in enumerate(models):
         pm = paper_mu(model, p.jm)
-        rows.append({"model": model, "mu": selected[i].mu, "mu_family": selected[i].mu, "paper_mu": pm,
-                     "mu_vs_paper_percent": 100 * (selected[i].mu / pm - 1) if pm else None,
-                     "status": "ok" if selected[i].converged else "failed",
-                     "selection_rule": _rule_text(p.selection),
-                     "members_converged": int(np.isfinite(cols["mu"][i]).sum())})
+        rows.append(
+            {
+                "model": model,
+                "mu": selected[i].mu,
+                "mu_family": selected[i].mu,
+                "paper_mu": pm,
+                "mu_vs_paper_percent": 100 * (selected[i].mu / pm - 1) if pm else None,
+                "status": "ok" if selected[i].converged else "failed",
+                "selection_rule": _rule_text(p.selection),
+                "members_converged": int(np.isfinite(cols["mu"][i]).sum()),
+            }
+        )
     summary = {"status": "ok", "selection_rule": _rule_text(p.selection), "selected": rows,
                "mu_range": {m: [float(np.nanmin(cols["mu"][i])), float(np.nanmax(cols["mu"][i]))]
                             for i, m in enumerate(models)}}
@@ -198,7 +271,7 @@ def run_cylinder(sc, out: Path, console) -> dict:
     for k, tmax in enumerate(angles):
         key, sub = jax.random.split(key)
         th, t, ff = C.random_admissible(sub, p.mu, float(tmax), num.n_profiles, num.n_nodes)
-        fv[k] = np.asarray(jax.vmap(lambda tt, f: C.vertical_force(tt, f, th))(t, ff))
+        fv[k] = np.asarray(jax.vmap(lambda tt, f: C.vertical_force(tt, f, th))(t, ff))  # noqa: B023 - called here
         fv_closed[k] = np.asarray(C.vertical_force_closed(t[:, -1], tmax))
         lo, hi = C.capstan_bounds(p.mu, th)
         excess = max(excess, float(jnp.max(jnp.maximum(lo - t, t - hi) / hi)))
@@ -209,18 +282,42 @@ def run_cylinder(sc, out: Path, console) -> dict:
     v = io.variable
     ds = xr.Dataset(
         {
-            "F_v": v(fv, ("theta_max", "profile"), "1", "vertical force per unit length, random admissible states",
-                     scale="T0"),
-            "F_v_closed": v(fv_closed, ("theta_max", "profile"), "1", "T(theta_max) sin(theta_max)", scale="T0"),
-            "F_v_lower": v(np.exp(-p.mu * angles) * np.sin(angles), ("theta_max",), "1",
-                           "lower bound T0 exp(-mu theta_max) sin(theta_max)", scale="T0"),
-            "T": v(np.asarray(t), ("sample", "theta"), "1", "tension of random admissible states", scale="T0"),
-            "T_lower": v(np.asarray(lo), ("theta",), "1", "capstan lower bound T0 exp(-mu theta)", scale="T0"),
-            "T_upper": v(np.asarray(hi), ("theta",), "1", "capstan upper bound T0 exp(mu theta)", scale="T0"),
+            "F_v": v(
+                fv,
+                ("theta_max", "profile"),
+                "1",
+                "vertical force per unit length, random admissible states",
+                scale="T0",
+            ),
+            "F_v_closed": v(
+                fv_closed, ("theta_max", "profile"), "1", "T(theta_max) sin(theta_max)", scale="T0"
+            ),
+            "F_v_lower": v(
+                np.exp(-p.mu * angles) * np.sin(angles),
+                ("theta_max",),
+                "1",
+                "lower bound T0 exp(-mu theta_max) sin(theta_max)",
+                scale="T0",
+            ),
+            "T": v(
+                np.asarray(t),
+                ("sample", "theta"),
+                "1",
+                "tension of random admissible states",
+                scale="T0",
+            ),
+            "T_lower": v(
+                np.asarray(lo), ("theta",), "1", "capstan lower bound T0 exp(-mu theta)", scale="T0"
+            ),
+            "T_upper": v(
+                np.asarray(hi), ("theta",), "1", "capstan upper bound T0 exp(mu theta)", scale="T0"
+            ),
             "mu": v(p.mu, (), "1", "friction coefficient"),
         },
-        coords={"theta_max": v(angles, ("theta_max",), "rad", "lift-off angle"),
-                "theta": v(np.asarray(th), ("theta",), "rad", "polar angle on the cylinder")},
+        coords={
+            "theta_max": v(angles, ("theta_max",), "rad", "lift-off angle"),
+            "theta": v(np.asarray(th), ("theta",), "rad", "polar angle on the cylinder"),
+        },
     )
     ds.attrs.update(io.provenance(sc.to_json(), "cylinder"), complete=1)
     io.check_units(ds)
@@ -231,12 +328,15 @@ def run_cylinder(sc, out: Path, console) -> dict:
         "mu": p.mu,
         "capstan_ratio_at_pi": float(np.exp(p.mu * np.pi)),
         "min_F_v": float(fv.min()),
-        "min_F_v_over_lower_bound": float(np.min(fv / (np.exp(-p.mu * angles) * np.sin(angles))[:, None])),
+        "min_F_v_over_lower_bound": float(
+            np.min(fv / (np.exp(-p.mu * angles) * np.sin(angles))[:, None])
+        ),
         "all_F_v_positive": bool((fv > 0).all()),
         "max_rel_diff_F_v_vs_closed_form": float(rel),
         "max_capstan_bound_violation": excess,
         "n_states": int(fv.size),
-        "conclusion": "F_v > 0 for every admissible state: no invagination in 2D" if (fv > 0).all()
+        "conclusion": "F_v > 0 for every admissible state: no invagination in 2D"
+        if (fv > 0).all()
         else "some admissible state has F_v <= 0",
     }
     io.write_json(out / "summary.json", summary)
