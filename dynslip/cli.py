@@ -8,6 +8,9 @@ SIGINT, 143 terminated by SIGTERM (likewise kept, the marker naming the signal).
 ``--out`` of ``run``, ``sweep`` and ``window`` may be a new folder, an empty one or an
 earlier dynslip result (replaced only once the new run succeeded); a folder that is not
 a dynslip result needs ``--force``; an existing file is never replaced.
+
+Longer than 400 lines: one parser for the eight commands, every option with its help line
+(what, unit, default) and every command with its examples.
 """
 
 from __future__ import annotations

@@ -195,3 +195,72 @@ def _summary(res: dict) -> dict:
     if res["status"] != "ok":
         s["error"] = res.get("error", "")
     return s
+
+
+#: the material models of the paper's Fig. 4 and of the family, in their order
+FIGURE4_MODELS = ("hookean", "neo_hookean", "gent")
+
+
+def figure4_summary(sums: list[dict], complete: bool) -> dict:
+    """``summary.json`` of ``kind: figure4``: each model's static summary, and mu by model."""
+    return {
+        "status": "ok" if complete else "failed",
+        "models": sums,
+        "mu": {s["model"]: s.get("mu") for s in sums},
+        "selection_rule": sums[0]["selection_rule"],
+    }
+
+
+def family(materials: dict, values, theta_max, rbar_max, guess, rtol, switch_by, selection):
+    """The fully mobilised family of each material (``{model: material}``) over the family
+    parameter ``values`` (``switch_by``: switch radius or angle), by continuation from the
+    middle of the range outward, both ways; and the member the selection rule picks.
+
+    Returns (``{"mu", "pole_stretch", "switch_rbar", "switch_theta"}`` arrays (model, member),
+    NaN where a member did not converge; the selected members)."""
+    from dynslip.physics import sphere as S
+
+    cols = {
+        k: np.full((len(materials), len(values)), np.nan)
+        for k in ("mu", "pole_stretch", "switch_rbar", "switch_theta")
+    }
+    selected = []
+    for i, mat in enumerate(materials.values()):
+        # Continuation from the middle of the range outward, both ways.
+        mid = len(values) // 2
+        up = S.solve_family(mat, values[mid:], theta_max, rbar_max, guess, by=switch_by, rtol=rtol)
+        g = (up[0].lam0, up[0].mu, up[0].rbar_s) if up[0].converged else guess
+        down = S.solve_family(mat, values[:mid][::-1], theta_max, rbar_max, g, by=switch_by,
+                              rtol=rtol)[::-1]
+        for j, m in enumerate(down + up):
+            if m.converged:
+                cols["mu"][i, j], cols["pole_stretch"][i, j] = m.mu, m.lam0
+                cols["switch_rbar"][i, j], cols["switch_theta"][i, j] = m.rbar_s, m.theta_s
+        sel = S.solve_member(mat, selection.value, theta_max, rbar_max, guess, by=selection.rule,
+                             rtol=rtol)
+        selected.append(sel)
+    return cols, selected
+
+
+def family_summary(cols: dict, selected: list, models: list[str], jm, selection):
+    """The table rows (one per model: the selected member against the paper's mu) and
+    ``summary.json`` of ``kind: family``."""
+    rows = []
+    for i, model in enumerate(models):
+        pm = paper_mu(model, jm)
+        rows.append(
+            {
+                "model": model,
+                "mu": selected[i].mu,
+                "mu_family": selected[i].mu,
+                "paper_mu": pm,
+                "mu_vs_paper_percent": 100 * (selected[i].mu / pm - 1) if pm else None,
+                "status": "ok" if selected[i].converged else "failed",
+                "selection_rule": _rule_text(selection),
+                "members_converged": int(np.isfinite(cols["mu"][i]).sum()),
+            }
+        )
+    summary = {"status": "ok", "selection_rule": _rule_text(selection), "selected": rows,
+               "mu_range": {m: [float(np.nanmin(cols["mu"][i])), float(np.nanmax(cols["mu"][i]))]
+                            for i, m in enumerate(models)}}
+    return rows, summary

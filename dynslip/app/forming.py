@@ -13,7 +13,6 @@ from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
-import xarray as xr
 
 from dynslip.analysis.summary import summarize
 from dynslip.data import files as io
@@ -82,7 +81,7 @@ def build_core(sc):
     return model, protocol, kwargs
 
 
-def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None) -> xr.Dataset:
+def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None):
     """The trajectory contract from the driver's frames
     (:func:`dynslip.data.trajectory.frames_to_dataset`), handed the scenario's values as plain
     data."""

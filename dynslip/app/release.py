@@ -22,8 +22,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import xarray as xr
-
 from dynslip.errors import InputError
 from dynslip.schema.paths import get_path
 
@@ -50,7 +48,7 @@ def _resolve(path: str, base: Path | None) -> Path:
     return base / p
 
 
-def _start_dataset(sc, console, run) -> tuple[xr.Dataset, Path]:
+def _start_dataset(sc, console, run) -> tuple:
     from dynslip.data.trajectory import open_trajectory
 
     src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))

@@ -1,4 +1,8 @@
-"""Studies over scenario fields: sweep files, members, runners, resume and the dataset.
+"""Studies over scenario fields: members, runners and resume (the sweep file is
+:mod:`dynslip.schema.sweep`, the dataset :mod:`dynslip.data.sweep`).
+
+Longer than 400 lines: the three runners (sequential, batched in lockstep, dask) are still
+here beside the entry point; they are to move to a module of their own (issue 24).
 
 A sweep file is a small YAML file of its own (validated strictly, like a scenario)::
 

@@ -1,5 +1,9 @@
 """Files: atomic writes, staged run folders, dataset provenance and unit checks.
 
+Longer than 400 lines: the one set of rules for writing results (atomic files, which
+folders a run may replace, staging, the markers of incomplete and interrupted runs) is
+kept in one place, so that every command follows the same rules.
+
 Every file is written whole or not at all (written beside its target, then renamed).
 
 Output folders (:func:`check_out`, checked before anything is computed or created): a

@@ -68,3 +68,74 @@ def static_dataset(res: dict, scenario_json: str, kind: str, scales: dict) -> xr
         ds.attrs["error"] = res.get("error", "")
     io.check_units(ds)
     return ds
+
+
+def figure4_dataset(
+    dss: list[xr.Dataset], models, scenario_json: str, complete: bool
+) -> xr.Dataset:
+    """The datasets of the models (:func:`static_dataset`) along a ``model`` dimension."""
+    ds = xr.concat(
+        dss, dim="model", combine_attrs="drop_conflicts", data_vars="all", coords="minimal"
+    )
+    ds = ds.assign_coords(model=io.variable(list(models), ("model",), "1", "material model"))
+    ds.attrs.update(io.provenance(scenario_json, "figure4"), complete=int(complete))
+    ds.attrs.pop("model", None)
+    ds.attrs.pop("status", None)
+    for name in ("switch_rbar", "switch_theta", "pole_stretch"):
+        ds.attrs.pop(name, None)
+    return ds
+
+
+def family_dataset(cols: dict, selected: list, values, models: list[str], mu_paper: list,
+                   switch_by: str) -> xr.Dataset:
+    """The fully mobilised family (model, member) and the selected members (model)."""
+    v = io.variable
+    dims = ("model", "member")
+    return xr.Dataset(
+        {
+            "mu": v(cols["mu"], dims, "1", "friction coefficient of the fully mobilised member"),
+            "pole_stretch": v(cols["pole_stretch"], dims, "1", "stretch at the pole"),
+            "switch_rbar": v(cols["switch_rbar"], dims, "1",
+                             "undeformed radius where F_m changes sign", scale="R"),
+            "switch_theta": v(cols["switch_theta"], dims, "rad",
+                              "polar angle where F_m changes sign"),
+            "mu_selected": v([m.mu for m in selected], ("model",), "1",
+                             "mu of the member picked by the selection rule"),
+            "switch_rbar_selected": v([m.rbar_s for m in selected], ("model",), "1",
+                                      "switch radius of that member", scale="R"),
+            "switch_theta_selected": v([m.theta_s for m in selected], ("model",), "rad",
+                                       "switch angle of that member"),
+            "mu_paper": v(mu_paper, ("model",), "1", "the paper's mu"),
+        },
+        coords={
+            "model": v(models, ("model",), "1", "material model"),
+            "switch_value": v(values, ("member",), "rad" if switch_by == "switch_angle" else "1",
+                              f"family parameter ({switch_by})"),
+        },
+    )
+
+
+def cylinder_dataset(mu: float, angles, study: dict) -> xr.Dataset:
+    """The 2D cylinder study (:func:`dynslip.analysis.cylinder.cylinder_study`) with units."""
+    v = io.variable
+    return xr.Dataset(
+        {
+            "F_v": v(study["fv"], ("theta_max", "profile"), "1",
+                     "vertical force per unit length, random admissible states", scale="T0"),
+            "F_v_closed": v(study["fv_closed"], ("theta_max", "profile"), "1",
+                            "T(theta_max) sin(theta_max)", scale="T0"),
+            "F_v_lower": v(np.exp(-mu * angles) * np.sin(angles), ("theta_max",), "1",
+                           "lower bound T0 exp(-mu theta_max) sin(theta_max)", scale="T0"),
+            "T": v(study["T"], ("sample", "theta"), "1", "tension of random admissible states",
+                   scale="T0"),
+            "T_lower": v(study["T_lower"], ("theta",), "1", "capstan lower bound T0 exp(-mu theta)",
+                         scale="T0"),
+            "T_upper": v(study["T_upper"], ("theta",), "1", "capstan upper bound T0 exp(mu theta)",
+                         scale="T0"),
+            "mu": v(mu, (), "1", "friction coefficient"),
+        },
+        coords={
+            "theta_max": v(angles, ("theta_max",), "rad", "lift-off angle"),
+            "theta": v(study["theta"], ("theta",), "rad", "polar angle on the cylinder"),
+        },
+    )

@@ -3,6 +3,10 @@
 Physical units in the file (mm, mm/s, s, N, MPa, um, g); the runner converts them to the
 nondimensional core (lengths by the ball radius R, forces by G h0 R, time in s).
 Heights are measured from the ball centre, upward. See docs/forming.md.
+
+Longer than 400 lines: one validated model per section of the forming scenario (friction,
+stage, numerics, physics, the scenario), each field with its bounds, unit and
+description, and the protocol the validated stages build; a field per argument line.
 """
 
 from __future__ import annotations
