@@ -40,7 +40,12 @@ def difference(a: dict, b: dict) -> dict:
     """
     rb = b["rbar"][b["contact"]]
     if rb.size < 2 or not a["contact"].any():
-        return {"max_abs_dtheta": float("nan"), "common_rbar_max": float("nan"), "rbar": [], "dtheta": []}
+        return {
+            "max_abs_dtheta": float("nan"),
+            "common_rbar_max": float("nan"),
+            "rbar": [],
+            "dtheta": [],
+        }
     sel = a["contact"] & (a["rbar"] <= rb.max()) & (a["rbar"] >= rb.min())
     tb = np.interp(a["rbar"][sel], rb, b["theta"][b["contact"]])
     d = a["theta"][sel] - tb

@@ -13,13 +13,12 @@ import copy
 import math
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
-from dynslip.analysis.windows import WindowResult, check_range, find_windows
+from dynslip.analysis.windows import WindowResult, check_search, find_windows
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.paths import get_path
-from dynslip.schema.sweep import friction_field, member_at
+from dynslip.schema.sweep import WindowSpec, friction_field, member_at
 
 # ---------------------------------------------------------------------------------------
 # A scenario's window: the predicate from running the scenario at each mu.
@@ -49,22 +48,18 @@ def scenario_window(
             summary = member_fn(member, Path(tmp) / "run", console)
         t = summary.get("trapped")
         check = summary.get("mesh_check") or {}
-        if check.get("resolved") is False:  # no answer: recorded with the reason among the failed points
-            raise ComputationError(f"contact not resolved by the mesh: a chord {check['max_chord_depth']:.3g} R "
-                                   f"inside the ball at t = {check['time_s']:.4g} s (limit {check['limit']:g})")
+        if (
+            check.get("resolved") is False
+        ):  # no answer: recorded with the reason among the failed points
+            raise ComputationError(
+                f"contact not resolved by the mesh: a chord {check['max_chord_depth']:.3g} R "
+                f"inside the ball at t = {check['time_s']:.4g} s (limit {check['limit']:g})"
+            )
         if t is None or (isinstance(t, float) and math.isnan(t)):
             return None
         return bool(t)
 
     return find_windows(trapped, lo, hi, coarse=coarse, tol=tol, known=known, progress=progress)
-
-
-@dataclass(frozen=True)
-class WindowDefaults:
-    lo: float = 0.0
-    hi: float = 3.0
-    coarse: int = 13
-    tol: float = 0.02
 
 
 def run_window(
@@ -109,16 +104,16 @@ def run_window(
         data["start_from"] = str((path.parent / start).resolve())
     resolved = resolve(data, str(path), validate_fn)
     field_name, tied = friction_field(resolved, field)
-    d = WindowDefaults()
-    lo = d.lo if lo is None else float(lo)
-    hi = d.hi if hi is None else float(hi)
-    coarse = d.coarse if coarse is None else int(coarse)
-    tol = d.tol if tol is None else float(tol)
+    d = WindowSpec.model_fields  # the defaults of a sweep's window search
+    lo = d["lo"].default if lo is None else float(lo)
+    hi = d["hi"].default if hi is None else float(hi)
+    coarse = d["coarse"].default if coarse is None else int(coarse)
+    tol = d["tol"].default if tol is None else float(tol)
     # Check the range and the scenario at both ends before running anything.
     for mu in (lo, hi):
         if mu < 0:
             raise InputError(f"{path}: window range: {field_name} = {mu}: must be >= 0")
-    check_range(lo, hi, coarse, tol, str(path))
+    check_search(lo, hi, coarse, tol, str(path))
     for mu in (lo, hi):
         resolve(
             member_at(data, resolved, field_name, tied, mu),
@@ -169,8 +164,11 @@ def run_window(
     result["critical_mu"] = critical_edge(result["windows_detail"])
     if tied:
         base = float(get_path(resolved, field_name))
-        result["critical_mu_tied"] = ({t: float(get_path(resolved, t)) / base * result["critical_mu"]["value"]
-                                       for t in tied} if result["critical_mu"] and base else None)
+        result["critical_mu_tied"] = (
+            {t: float(get_path(resolved, t)) / base * result["critical_mu"]["value"] for t in tied}
+            if result["critical_mu"] and base
+            else None
+        )
     write_json(out / "window.json", result)
     if res.evaluations and all(v is None for v in res.evaluations.values()):
         raise ComputationError(
@@ -193,14 +191,24 @@ def parse_nodes(text: str) -> list[int]:
     try:
         ns = [int(x) for x in str(text).split(",") if x.strip()]
     except ValueError:
-        raise InputError(f"--nodes = {text!r}: allowed: comma-separated mesh sizes, e.g. 50,100,200") from None
+        raise InputError(
+            f"--nodes = {text!r}: allowed: comma-separated mesh sizes, e.g. 50,100,200"
+        ) from None
     if not ns or any(not 6 <= n <= 4000 for n in ns) or sorted(set(ns)) != ns:
         raise InputError(f"--nodes = {text!r}: allowed: increasing mesh sizes, each in 6..4000")
     return ns
 
 
-def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | None = None, console=None,
-                     force: bool = False, **kw) -> dict:
+def run_window_nodes(
+    scenario,
+    nodes: list[int],
+    overrides=(),
+    *,
+    out: Path | None = None,
+    console=None,
+    force: bool = False,
+    **kw,
+) -> dict:
     """``dynslip window SCENARIO --nodes 50,100,200``: the window search at each mesh size
     (``<out>/N<n>/``), then ``<out>/window.json`` with ``critical_mu`` per N (value, err),
     its Richardson extrapolation with the measured order
@@ -218,8 +226,14 @@ def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | No
     per_n = {}
     for n in nodes:
         console.print(f"[bold]N = {n}[/bold]")
-        per_n[n] = run_window(scenario, [*overrides, f"numerics.nodes={n}"], out=out / f"N{n}", console=console,
-                              force=force, **kw)
+        per_n[n] = run_window(
+            scenario,
+            [*overrides, f"numerics.nodes={n}"],
+            out=out / f"N{n}",
+            console=console,
+            force=force,
+            **kw,
+        )
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
     crit = {str(n): per_n[n]["critical_mu"] for n in nodes}
@@ -228,16 +242,32 @@ def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | No
                          [per_n[n]["critical_mu"]["err"] for n in found])
               if found else {"extrapolable": False, "reason": "no window at any mesh size"})
     first = per_n[nodes[0]]
-    result = {"scenario": str(path), "overrides": list(overrides), "field": first["field"], "tied": first["tied"],
-              "nodes": list(nodes), "critical_mu": crit, "extrapolation": extrap,
-              "windows": {str(n): per_n[n]["windows"] for n in nodes},
-              "upper_edges": "reported as found; an upper edge is an artefact unless it survives refinement"}
+    result = {
+        "scenario": str(path),
+        "overrides": list(overrides),
+        "field": first["field"],
+        "tied": first["tied"],
+        "nodes": list(nodes),
+        "critical_mu": crit,
+        "extrapolation": extrap,
+        "windows": {str(n): per_n[n]["windows"] for n in nodes},
+        "upper_edges": "reported as found; an upper edge is an artefact unless it survives "
+            "refinement",
+    }
     write_json(out / "window.json", result)
     plot_critical_mu(result, out / "critical_mu.png")
-    console.print(f"critical {result['field']} per N: "
-                  + ", ".join(f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c else f"{n}: none" for n, c in crit.items()))
+    console.print(
+        f"critical {result['field']} per N: "
+        + ", ".join(
+            f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c else f"{n}: none"
+            for n, c in crit.items()
+        )
+    )
     if extrap.get("extrapolable"):
-        console.print(f"extrapolated: {extrap['value']:.4g} +- {extrap['err']:.2g} (order {extrap['order']:.2f})")
+        console.print(
+            f"extrapolated: {extrap['value']:.4g} +- {extrap['err']:.2g} (order "
+            f"{extrap['order']:.2f})"
+        )
     else:
         console.print(f"not extrapolable: {extrap.get('reason')}")
     return result

@@ -20,8 +20,16 @@ from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.data import files as io
 from dynslip.plot.style import STATE_LABELS, state_colormap
 
-__all__ = ["make_figures", "snapshot_indices", "meridian", "theta_rbar", "state_map", "plot_meridian",
-           "plot_theta", "plot_state_map"]
+__all__ = [
+    "make_figures",
+    "snapshot_indices",
+    "meridian",
+    "theta_rbar",
+    "state_map",
+    "plot_meridian",
+    "plot_theta",
+    "plot_state_map",
+]
 
 def snapshot_indices(ds: xr.Dataset, per_stage: int = 2) -> list[int]:
     """Frames at the end of every stage plus ``per_stage - 1`` inside each (sorted, unique)."""
@@ -30,7 +38,15 @@ def snapshot_indices(ds: xr.Dataset, per_stage: int = 2) -> list[int]:
     for s in np.unique(stage):
         where = np.flatnonzero(stage == s)
         for k in range(1, per_stage + 1):
-            idx.add(int(where[min(len(where) - 1, k * len(where) // per_stage - 1 if k < per_stage else -1)]))
+            idx.add(
+                int(
+                    where[
+                        min(
+                            len(where) - 1, k * len(where) // per_stage - 1 if k < per_stage else -1
+                        )
+                    ]
+                )
+            )
     return sorted(idx)
 
 
@@ -54,7 +70,13 @@ def plot_meridian(ds: xr.Dataset, ax, indices):
         ax.plot(-rho, z, color=c, lw=1.4)
         zb = float(fr["ball_z"])
         ax.add_patch(Circle((0, zb), 1.0, fill=False, color=c, ls=":", lw=0.8))
-        ax.plot([float(fr["clamp_rho"]), -float(fr["clamp_rho"])], [float(fr["clamp_z"])] * 2, "s", color=c, ms=4)
+        ax.plot(
+            [float(fr["clamp_rho"]), -float(fr["clamp_rho"])],
+            [float(fr["clamp_z"])] * 2,
+            "s",
+            color=c,
+            ms=4,
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
@@ -69,12 +91,19 @@ def plot_theta(ds: xr.Dataset, ax, indices):
         th = ds["theta"].values[i]
         if np.all(np.isnan(th)):
             continue
-        ax.plot(rbar, th, "o-", ms=2.5, color=cmap(k / max(len(indices) - 1, 1)), label=_label(ds, i))
+        ax.plot(
+            rbar, th, "o-", ms=2.5, color=cmap(k / max(len(indices) - 1, 1)), label=_label(ds, i)
+        )
     ax.axhline(np.pi / 2, color="k", lw=0.6, ls="--")
     ax.text(0.02, np.pi / 2 + 0.03, "equator", fontsize=7)
     rough = ROUGH_END_STATE
-    ax.plot([rough["rbar_max"]], [rough["theta_max"]], "kx", ms=8,
-            label=f"paper (rough): rbar_max {rough['rbar_max']:g}, theta_max {rough['theta_max']:g}")
+    ax.plot(
+        [rough["rbar_max"]],
+        [rough["theta_max"]],
+        "kx",
+        ms=8,
+        label=f"paper (rough): rbar_max {rough['rbar_max']:g}, theta_max {rough['theta_max']:g}",
+    )
     ax.set_xlabel("rbar / R (material radius)")
     ax.set_ylabel("theta (rad), where in contact")
     ax.set_title("theta(rbar) on the contact region")
@@ -101,17 +130,31 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     for j in np.flatnonzero(np.diff(stage)):
         ax.axvline(t[j + 1], color="k", lw=0.6)
         s = int(stage[j + 1])
-        ax.text(t[j + 1], 0.98, names[s] if s < len(names) else str(s), rotation=90, va="top", ha="right",
-                fontsize=7, transform=ax.get_xaxis_transform())
+        ax.text(
+            t[j + 1],
+            0.98,
+            names[s] if s < len(names) else str(s),
+            rotation=90,
+            va="top",
+            ha="right",
+            fontsize=7,
+            transform=ax.get_xaxis_transform(),
+        )
     kinetic = kinetic_mask(ds)
     if kinetic is not None and kinetic.any():
-        # slipping with the slip distance past d_c: sliding at mu_k (unhatched slip: at mu_s onset, weakening)
-        ax.contourf(t, rbar, kinetic.T.astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"])
+        # slipping with the slip distance past d_c: sliding at mu_k (unhatched slip: at mu_s onset,
+        # weakening)
+        ax.contourf(
+            t, rbar, kinetic.T.astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"]
+        )
         ax.plot([], [], " ", label="//// sliding at mu_k (slip > d_c)")
     contact = ds["rbar_max"].values
     ax.plot(t, contact, "k-", lw=0.8, label="rbar_max (outermost contact)")
     if rbar_limit is None:
-        rbar_limit = min(float(rbar[-1]), 1.5 * float(np.nanmax(contact)) if np.isfinite(contact).any() else rbar[-1])
+        rbar_limit = min(
+            float(rbar[-1]),
+            1.5 * float(np.nanmax(contact)) if np.isfinite(contact).any() else rbar[-1],
+        )
     ax.set_ylim(0, rbar_limit)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("rbar / R")

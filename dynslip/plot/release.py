@@ -32,8 +32,16 @@ def release_force(ds: xr.Dataset, metrics: dict | None = None) -> Figure:
     disp = (zb - zb[0]) * r_mm
     fig = Figure(figsize=(6.4, 6.4), layout="constrained")
     a, b = fig.subplots(2, 1, sharex=True)
-    a.plot(disp, sheet_force(ds) * fs, "-", color="C0", label="force against the sheet (hold less ball drag)")
-    a.plot(disp, ds["ball_reaction"].values * fs, ":", color="C0", lw=0.8, label="force of the hold")
+    a.plot(
+        disp,
+        sheet_force(ds) * fs,
+        "-",
+        color="C0",
+        label="force against the sheet (hold less ball drag)",
+    )
+    a.plot(
+        disp, ds["ball_reaction"].values * fs, ":", color="C0", lw=0.8, label="force of the hold"
+    )
     a.axhline(MEASURED_RELEASE_FORCE_N, color="k", ls=":",
               label=f"measured release force {MEASURED_RELEASE_FORCE_N:g} N")
     a.plot([metrics["peak_displacement_mm"]], [metrics["peak_force_N"]], "o", color="C3",

@@ -205,9 +205,17 @@ def plot_critical_mu(result: dict, path) -> Path:
     pts = [(int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))
            for n, c in result["critical_mu"].items() if c]
     if pts:
-        ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], fmt="ko-", capsize=3,
-                    label="critical mu (window search)")
-        low = [p for p in pts if p[3]]  # trapped at the range's lower end: mu_c is below it (an upper bound)
+        ax.errorbar(
+            [p[0] for p in pts],
+            [p[1] for p in pts],
+            yerr=[p[2] for p in pts],
+            fmt="ko-",
+            capsize=3,
+            label="critical mu (window search)",
+        )
+        low = [
+            p for p in pts if p[3]
+        ]  # trapped at the range's lower end: mu_c is below it (an upper bound)
         if low:
             ax.plot([p[0] for p in low], [p[1] for p in low], "wv", mec="k", ms=9,
                     label="open: below the searched range")
