@@ -119,11 +119,11 @@ def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], 
         r0 = _time.perf_counter()
         out = jax.device_get(compiled(*inputs))
         run_s = (_time.perf_counter() - r0) / len(active)  # the tick's time, shared by its active members
-        lockstep = int(np.max(out[2]))  # the tick's cost: the largest increment count of the batch
+        lockstep = int(np.max(out.steps))  # the tick's cost: the largest increment count of the batch
         for b in active:
             r, seg = runs[b], segs[b]
             r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + lockstep
-            if not r.advance(seg, tuple(o[b] for o in out), run_s):
+            if not r.advance(seg, jax.tree_util.tree_map(lambda o, b=b: o[b], out), run_s):
                 continue
             r.y = jnp.asarray(r.y)
             if r.heals_between_segments:

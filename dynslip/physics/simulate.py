@@ -44,7 +44,8 @@ import numpy as np
 from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, sheet_structure, vector_field
 from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
+from dynslip.physics.loadstep import run_segment
+from dynslip.physics.newton import MotionNewton, SegmentOutput
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
@@ -90,33 +91,80 @@ def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = Non
     return cls(root_finder=chord(linear_solver=lin))
 
 
+class TimeStepping(eqx.Module):
+    """A stiff diffrax solver (Kvaerno5, the reference) with a PID controller over a save segment."""
+
+    name: str = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
+    linear_solver: str = eqx.field(static=True, default="structured")
+    pcoeff: float = eqx.field(static=True, default=0.3)
+    icoeff: float = eqx.field(static=True, default=0.3)
+
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput:
+        term = diffrax.ODETerm(vector_field(model, layout))
+        solver = _solver(self.name, self.linear_solver, layout)
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
+        sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
+                                  max_steps=self.max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
+        y1 = sol.ys[-1]
+        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
+        st = sol.stats
+        return SegmentOutput(y=y1, ok=ok, steps=st["num_steps"], accepted=st["num_accepted_steps"],
+                             rejected=st["num_rejected_steps"], newton_iterations=jnp.zeros((), jnp.int32))
+
+
+class FullStateLoadStep(eqx.Module):
+    """The load stepping of :mod:`dynslip.physics.loadstep` (Newton on the whole state: motion,
+    slip distance and energy accumulators), kept as the baseline of the motion-only Newton."""
+
+    settings: Settings = eqx.field(static=True)
+
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput:
+        s = self.settings
+        y, ok, nst, nacc, nrej, nit = run_segment(
+            model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=s.max_steps, max_iter=s.newton_max_iter,
+            max_increment=s.max_increment, max_increment_free=s.max_increment_free, linear_solver=s.linear_solver,
+            heal_rate=s.heal_rate, backtrack=s.newton_backtrack)
+        return SegmentOutput(y=y, ok=ok, steps=nst, accepted=nacc, rejected=nrej, newton_iterations=nit)
+
+
+LOAD_STEPPING = ("load_step", "load_step_full")
+
+
+def solver_for(settings: Settings):
+    """The segment solver object of ``settings.solver``: ``load_step`` (the default,
+    :class:`dynslip.physics.newton.MotionNewton`), ``load_step_full`` (the full-state Newton
+    baseline), or a diffrax solver name (``kvaerno5``, ``kvaerno3``, ``kvaerno4``,
+    ``implicit_euler``)."""
+    s = settings
+    if s.solver == "load_step":
+        return MotionNewton(max_iter=s.newton_max_iter, backtrack=s.newton_backtrack,
+                            linear="thomas" if s.linear_solver == "thomas" else "cyclic",
+                            max_increment=s.max_increment, max_increment_free=s.max_increment_free,
+                            heal_rate=s.heal_rate, max_steps=s.max_steps)
+    if s.solver == "load_step_full":
+        return FullStateLoadStep(settings=s)
+    return TimeStepping(name=s.solver, max_steps=s.max_steps, linear_solver=s.linear_solver, pcoeff=s.pcoeff,
+                        icoeff=s.icoeff)
+
+
 _SOLVE_CACHE: dict = {}
 _COMPILED: dict = {}  # ahead-of-time compiled segment solves, keyed by everything static
 
 
 def segment_solver(settings: Settings):
-    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for a solver name and
-    step limit; shared by every run (compiled once per mesh size and material class)."""
-    if settings.solver == "load_step":  # implicit Euler load increments (returns Newton iterations too)
-        return load_step_segment_solver(settings)
-    key = (settings.solver, settings.max_steps, settings.linear_solver)
-    if key in _SOLVE_CACHE:
-        return _SOLVE_CACHE[key]
-    max_steps = settings.max_steps
-    pcoeff, icoeff = settings.pcoeff, settings.icoeff
+    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput`` of
+    the solver object of ``settings`` (:func:`solver_for`); shared by every run (compiled once
+    per mesh size and material class)."""
+    solver = solver_for(settings)
+    if solver in _SOLVE_CACHE:
+        return _SOLVE_CACHE[solver]
 
     @eqx.filter_jit
     def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
-        term = diffrax.ODETerm(vector_field(model, layout))
-        solver = _solver(settings.solver, settings.linear_solver, layout)
-        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff)
-        sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
-                                  max_steps=max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
-        y1 = sol.ys[-1]
-        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
-        return y1, ok, sol.stats["num_steps"], sol.stats["num_accepted_steps"], sol.stats["num_rejected_steps"]
+        return solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol)
 
-    _SOLVE_CACHE[key] = solve
+    _SOLVE_CACHE[solver] = solve
     return solve
 
 
@@ -205,7 +253,7 @@ def _to_numpy(rec):
 def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
     """Everything a compiled segment solve is specialised on: the solver's settings other than
     the tolerances, the mesh size and the non-array parts of the model and stage loads."""
-    return (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
+    return (repr(solver_for(settings)), settings.solver, settings.max_steps, settings.linear_solver, layout.n,
             settings.newton_max_iter, settings.newton_backtrack, settings.max_increment, settings.max_increment_free,
             settings.heal_rate,
             repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
@@ -252,7 +300,7 @@ class MemberRun:
         self.stage_end: list = []
         self.stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0,
                       "method": settings.solver,
-                      "newton_iterations": 0 if settings.solver == "load_step" else None}
+                      "newton_iterations": 0 if settings.solver in LOAD_STEPPING else None}
         self.dt_guess = 1e-3 * settings.save_interval
         self.reaction = 0.0
         self.clamp_reaction = (0.0, 0.0)
@@ -293,11 +341,11 @@ class MemberRun:
         return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args)
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
-        """Take a segment's solve output ``(y1, ok, steps, accepted, rejected[, newton])``; False
+        """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
         (and the run done, with ``failed`` set) where the solver did not reach the segment's end."""
-        y1, ok, nst, nacc, nrej = out[:5]
-        if len(out) > 5:  # load_step: Newton iterations
-            self.stats["newton_iterations"] += int(out[5])
+        y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
+        if self.settings.solver in LOAD_STEPPING:
+            self.stats["newton_iterations"] += int(out.newton_iterations)
         ok = bool(ok)
         self.stats["run_s"] += run_s
         nst, nacc, nrej = int(nst), int(nacc), int(nrej)
@@ -326,7 +374,7 @@ class MemberRun:
     def heals_between_segments(self) -> bool:
         """Time-stepped solvers reset the friction law's state at segment ends (load stepping
         heals inside every increment)."""
-        return bool(self.layout.n_int) and self.settings.solver != "load_step"
+        return bool(self.layout.n_int) and self.settings.solver not in LOAD_STEPPING
 
     # -- recording and the stop check
     def record(self, rec: dict) -> None:
