@@ -60,7 +60,7 @@ def _batched_solver(settings):
     if key not in _VMAPPED:
         solve = segment_solver(settings)
         a = eqx.if_array(0)  # array leaves mapped; a model's float constants (Gent's J_m) broadcast
-        _VMAPPED[key] = eqx.filter_jit(eqx.filter_vmap(solve, in_axes=(a, None, a, a, a, a, a, a, a)))
+        _VMAPPED[key] = eqx.filter_jit(eqx.filter_vmap(solve, in_axes=(a, None, a, a, a, a, a, a, a, a)))
     return _VMAPPED[key]
 
 
@@ -112,7 +112,8 @@ def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], 
         segs = [r.segment() for r in runs]
         inputs = (models_b, layout, np.stack([np.asarray(s.y) for s in segs]),
                   np.asarray([s.t0 for s in segs]), np.asarray([s.t1 for s in segs]),
-                  np.asarray([s.dt0 for s in segs]), stack([s.args for s in segs]), rtol, atol)
+                  np.asarray([s.dt0 for s in segs]), stack([s.args for s in segs]), rtol, atol,
+                  jax.tree_util.tree_map(lambda *r: np.stack([np.asarray(x) for x in r]), *[s.rate for s in segs]))
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(("batch", n_b, *keys[0]), lambda inputs=inputs: vsolve.lower(*inputs).compile(),
                              [runs[b].stats for b in active])

@@ -52,7 +52,7 @@ from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["MotionNewton", "SegmentOutput", "increment_rates", "newton_blocks", "residual", "slip_update"]
+__all__ = ["MotionNewton", "SegmentOutput", "increment_rates", "newton_blocks", "residual", "slip_update", "zero_rate"]
 
 GROW = 1.5
 CUT = 0.5
@@ -71,6 +71,7 @@ class SegmentOutput(eqx.Module):
     accepted: jax.Array
     rejected: jax.Array
     newton_iterations: jax.Array
+    rate: tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
 
     def __iter__(self):
         """The five values the time-stepped segment solve used to return as a tuple
@@ -370,15 +371,16 @@ class MotionNewton(eqx.Module):
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
         return y1, ok, it, (q - q0, zb - zb0)
 
-    def segment(self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput:
-        """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``."""
+    def segment(self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
+        ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment."""
         from dynslip.physics.loadstep import increment_cap
 
         cap = increment_cap(args, self.max_increment, self.max_increment_free)
         dt_min = MIN_FRACTION * (t1 - t0)
         zero = jnp.array(0, dtype=jnp.int32)
         n = layout.n
-        rate0 = (jnp.zeros((n, 2)), jnp.zeros(()))
+        rate0 = zero_rate(n) if rate is None else rate
 
         def cond(c):
             t, _, _, dt, _, nacc, nrej, _ = c
@@ -401,6 +403,12 @@ class MotionNewton(eqx.Module):
                     nit + iters)
 
         init = (t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
-        t, y, _, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
+        t, y, rate, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
         ok = (t >= t1) & jnp.all(jnp.isfinite(y))
-        return SegmentOutput(y=y, ok=ok, steps=nacc + nrej, accepted=nacc, rejected=nrej, newton_iterations=nit)
+        return SegmentOutput(y=y, ok=ok, steps=nacc + nrej, accepted=nacc, rejected=nrej, newton_iterations=nit,
+                             rate=rate)
+
+
+def zero_rate(n: int):
+    """The predictor's rate at a stage's start: zero on ``(q, zb)``."""
+    return (jnp.zeros((n, 2)), jnp.zeros(()))

@@ -45,7 +45,7 @@ from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, 
 from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.loadstep import run_segment
-from dynslip.physics.newton import MotionNewton, SegmentOutput
+from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
@@ -100,7 +100,7 @@ class TimeStepping(eqx.Module):
     pcoeff: float = eqx.field(static=True, default=0.3)
     icoeff: float = eqx.field(static=True, default=0.3)
 
-    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput:
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
         term = diffrax.ODETerm(vector_field(model, layout))
         solver = _solver(self.name, self.linear_solver, layout)
         ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
@@ -110,7 +110,8 @@ class TimeStepping(eqx.Module):
         ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
         st = sol.stats
         return SegmentOutput(y=y1, ok=ok, steps=st["num_steps"], accepted=st["num_accepted_steps"],
-                             rejected=st["num_rejected_steps"], newton_iterations=jnp.zeros((), jnp.int32))
+                             rejected=st["num_rejected_steps"], newton_iterations=jnp.zeros((), jnp.int32),
+                             rate=zero_rate(layout.n))
 
 
 class FullStateLoadStep(eqx.Module):
@@ -119,13 +120,14 @@ class FullStateLoadStep(eqx.Module):
 
     settings: Settings = eqx.field(static=True)
 
-    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput:
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
         s = self.settings
         y, ok, nst, nacc, nrej, nit = run_segment(
             model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=s.max_steps, max_iter=s.newton_max_iter,
             max_increment=s.max_increment, max_increment_free=s.max_increment_free, linear_solver=s.linear_solver,
             heal_rate=s.heal_rate, backtrack=s.newton_backtrack)
-        return SegmentOutput(y=y, ok=ok, steps=nst, accepted=nacc, rejected=nrej, newton_iterations=nit)
+        return SegmentOutput(y=y, ok=ok, steps=nst, accepted=nacc, rejected=nrej, newton_iterations=nit,
+                             rate=zero_rate(layout.n))
 
 
 LOAD_STEPPING = ("load_step", "load_step_full")
@@ -161,8 +163,8 @@ def segment_solver(settings: Settings):
         return _SOLVE_CACHE[solver]
 
     @eqx.filter_jit
-    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
-        return solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol)
+    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None):
+        return solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
 
     _SOLVE_CACHE[solver] = solve
     return solve
@@ -268,6 +270,7 @@ class Segment:
     t1: float
     dt0: float
     args: StageArgs
+    rate: tuple  # the predictor's rate (load stepping), zero at a stage's start
 
 
 class MemberRun:
@@ -325,6 +328,7 @@ class MemberRun:
         n_seg = max(1, math.ceil(stage.max_duration / self.settings.save_interval - 1e-9))
         self.seg_ts = np.linspace(self.t, self.t + stage.max_duration, n_seg + 1)
         self.seg = 1
+        self.rate = zero_rate(self.layout.n)
         self.met = stage.stop.met_at_duration
         self.stop_state = stage.stop.init()
 
@@ -336,9 +340,9 @@ class MemberRun:
     def segment(self) -> Segment:
         """The next save segment; a finished run asks for a zero-length one (masked by the batch)."""
         if self.done:
-            return Segment(self.y, self.t, self.t, self.dt_guess, self.args)
+            return Segment(self.y, self.t, self.t, self.dt_guess, self.args, self.rate)
         t1 = float(self.seg_ts[self.seg])
-        return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args)
+        return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args, self.rate)
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
         """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
@@ -362,7 +366,7 @@ class MemberRun:
             self._end_stage()
             return False
         self.dt_guess = (seg.t1 - self.t) / max(nacc, 1)
-        self.y, self.t = y1, seg.t1
+        self.y, self.t, self.rate = y1, seg.t1, out.rate
         self.seg += 1
         return True
 
@@ -485,7 +489,7 @@ def simulate(
     run.record(frame_record(model, layout, _f(run.t), run.y, run.args, thr))
     while not run.done:
         seg = run.segment()
-        inputs = (model, layout, seg.y, _f(seg.t0), _f(seg.t1), _f(seg.dt0), seg.args, run.rtol, run.atol)
+        inputs = (model, layout, seg.y, _f(seg.t0), _f(seg.t1), _f(seg.dt0), seg.args, run.rtol, run.atol, seg.rate)
         compiled = _compiled(static_key(settings, layout, model, seg.args),
                              lambda inputs=inputs: solve.lower(*inputs).compile(), [run.stats])
         r0 = _time.perf_counter()
