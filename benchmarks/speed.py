@@ -123,7 +123,13 @@ def _scipy(ref, core) -> tuple[dict, object]:
 
     from dynslip.physics.field import Layout, _f, sheet_structure, vector_field
     from dynslip.physics.linalg import to_dense
-    from dynslip.physics.simulate import Result, _stage_args, frame_record, initial_state, reset_internal
+    from dynslip.physics.simulate import (
+        Result,
+        _stage_args,
+        frame_record,
+        initial_state,
+        reset_internal,
+    )
 
     sc, model, protocol, kw = core
     settings = kw["settings"]
@@ -144,7 +150,7 @@ def _scipy(ref, core) -> tuple[dict, object]:
     args0 = args_of(protocol.stages[0], 0.0, y, 0.0, (0.0, 0.0))
     c0 = time.perf_counter()
     vf(_f(0.0), y, args0).block_until_ready()
-    rec_fn = lambda t, yy, a: {k: np.asarray(v) for k, v in  # noqa: E731
+    rec_fn = lambda t, yy, a: {k: np.asarray(v) for k, v in
                                frame_record(model, layout, _f(t), yy, a, settings.contact_threshold).items()}
     rec_fn(0.0, y, args0)
     reset_internal(model, layout, y, args0, _f(settings.heal_rate)).block_until_ready()

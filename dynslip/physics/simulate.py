@@ -50,7 +50,8 @@ from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
 
-__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "MemberRun", "Segment",
+__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "RunFailure", "StepLimit", "NonFinite",
+           "ContactUnresolved", "Result", "solver_for", "simulate", "MemberRun", "Segment",
            "static_key", "initial_state",
            "vector_field", "frame_record", "N_ACC"]
 
@@ -224,6 +225,43 @@ class SolverFailure(RuntimeError):
     """The solver did not reach the end of a segment (step limit, NaN, material range)."""
 
 
+class RunFailure(SolverFailure):
+    """Why a run stopped as failed, in physics terms, with the quantities (``Result.failure``;
+    ``Result.failed`` is its message). The schema layer maps each kind to the settings a user
+    can change (numerics.max_steps, numerics.nodes, ...): no setting names here."""
+
+    def __init__(self, stage: str, t: float, what: str):
+        self.stage, self.t, self.what = stage, t, what
+        super().__init__(f"stage '{stage}' at t = {t:.6g} s: {what}")
+
+
+class StepLimit(RunFailure):
+    """A save segment from ``t`` to ``t1`` needed more than ``max_steps`` steps."""
+
+    def __init__(self, stage: str, t: float, t1: float, max_steps: int):
+        self.t1, self.max_steps = t1, max_steps
+        super().__init__(stage, t, f"the solver did not reach t = {t1:.6g} s: step limit reached "
+                                   f"({max_steps} steps per save segment)")
+
+
+class NonFinite(RunFailure):
+    """A state or energy went non-finite (a stretch outside the material's range, or divergence)."""
+
+
+class ContactUnresolved(RunFailure):
+    """The mesh no longer resolves the contact: an element chord ``depth`` (R) inside the ball,
+    beyond ``limit`` (R), on the element of material radii ``element`` (R), or the pole passed
+    through the ball (``pole_crossed``, depth 1)."""
+
+    def __init__(self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool):
+        self.depth, self.limit, self.element, self.pole_crossed = depth, limit, element, pole_crossed
+        why = ("the pole passed through the ball" if pole_crossed else
+               f"the chord of the element on rbar [{element[0]:.4g}, {element[1]:.4g}] R lies {depth:.3g} R "
+               f"inside the ball (limit {limit:g} R)")
+        super().__init__(stage, t, f"contact not resolved by the mesh: {why}; a finer mesh near the contact, or "
+                                   "a larger chord-depth limit, is needed")
+
+
 @dataclasses.dataclass
 class Result:
     frames: list  # dicts of numpy arrays (see frame_record) plus "time", "stage"
@@ -231,6 +269,7 @@ class Result:
     stats: dict
     failed: str | None = None
     e0: float = 0.0
+    failure: RunFailure | None = None  # the failure with its quantities (failed is its message)
 
 
 def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_drag, weight, support_z=0.0,
@@ -309,6 +348,7 @@ class MemberRun:
         self.clamp_reaction = (0.0, 0.0)
         self.t_wall0 = _time.perf_counter()
         self.failed: str | None = None
+        self.failure: RunFailure | None = None
         self.e0: float | None = None
         self.si = -1
         self.done = False
@@ -359,11 +399,12 @@ class MemberRun:
         self.stats["segments"] += 1
         if not ok:
             s = self.settings
-            why = ("step limit reached" if nst >= s.max_steps else
-                   "non-finite state (NaN/inf: a stretch outside the material's range, or divergence)")
-            self.failed = (f"solver failed in stage '{self.stage.name}' between t = {self.t:.6g} s and "
-                           f"{seg.t1:.6g} s: {why} (max_steps per segment = {s.max_steps})")
-            self._end_stage()
+            if nst >= s.max_steps:
+                self._fail(StepLimit(self.stage.name, self.t, seg.t1, s.max_steps))
+            else:
+                self._fail(NonFinite(self.stage.name, self.t, f"the solver did not reach t = {seg.t1:.6g} s: "
+                                     "non-finite state (NaN/inf: a stretch outside the material's range, or "
+                                     "divergence)"))
             return False
         self.dt_guess = (seg.t1 - self.t) / max(nacc, 1)
         self.y, self.t, self.rate = y1, seg.t1, out.rate
@@ -394,16 +435,12 @@ class MemberRun:
             self.e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
             return  # the initial frame
         if not np.all(np.isfinite(rec["energy_elastic"])):
-            self.failed = (f"stage '{self.stage.name}' at t = {self.t:.6g} s: elastic energy not finite "
-                           "(a stretch outside the material's range)")
-            self._end_stage()
+            self._fail(NonFinite(self.stage.name, self.t, "elastic energy not finite (a stretch outside the "
+                                                          "material's range)"))
             return
-        why = self._unresolved(rec)
-        if why:
-            self.failed = (f"stage '{self.stage.name}' at t = {self.t:.6g} s: contact not resolved by the mesh: "
-                           f"{why}; refine the mesh (numerics.nodes, numerics.mesh_grading) or allow deeper "
-                           "chords (numerics.max_chord_depth)")
-            self._end_stage()
+        unresolved = self._unresolved(rec)
+        if unresolved is not None:
+            self._fail(unresolved)
             return
         met, self.stop_state = self.stage.stop.check(rec, self.t, self.stop_state)
         if met:
@@ -411,7 +448,11 @@ class MemberRun:
         if met or self.seg >= len(self.seg_ts):
             self._end_stage()
 
-    def _unresolved(self, rec: dict) -> str | None:
+    def _fail(self, failure: RunFailure) -> None:
+        self.failure, self.failed = failure, str(failure)
+        self._end_stage()
+
+    def _unresolved(self, rec: dict) -> ContactUnresolved | None:
         """Why the frame ``rec`` is past what the mesh resolves, or None (``Settings.max_chord_depth``)."""
         limit = self.settings.max_chord_depth
         if limit is None:
@@ -419,12 +460,10 @@ class MemberRun:
         first = self.frames[0]
         depth, k, crossed = deepest_chord(rec["rho"], rec["z"], rec["ball_z"],
                                           np.sign(first["z"][0] - first["ball_z"]))
-        if crossed:
-            return "the pole passed through the ball"
-        if depth > limit:
+        if crossed or depth > limit:
             rbar = np.asarray(self.model.mesh.rbar)
-            return (f"the chord of the element on rbar [{rbar[k]:.4g}, {rbar[k + 1]:.4g}] R lies {float(depth):.3g} R "
-                    f"inside the ball (limit {limit:g} R)")
+            return ContactUnresolved(self.stage.name, self.t, float(depth), float(limit),
+                                     (float(rbar[k]), float(rbar[k + 1])), bool(crossed))
         return None
 
     def _end_stage(self) -> None:
@@ -445,7 +484,7 @@ class MemberRun:
 
     def result(self) -> Result:
         return Result(frames=self.frames, stage_end=self.stage_end, stats=self.stats, failed=self.failed,
-                      e0=self.e0 or 0.0)
+                      e0=self.e0 or 0.0, failure=self.failure)
 
 
 def _compiled(key, compile_fn, stats_list):
