@@ -20,7 +20,7 @@ with the sheet's drag taken relative to the ball (:mod:`dynslip.physics.sheet`).
 Energy balance: $W_c + W_b = \Delta(E_{el} + E_{pen}) + D_{drag} + D_{fric}$, with the
 initial (pre-stretch) energy counted in $E(0)$.
 
-Integration: load stepping (:mod:`dynslip.physics.loadstep`, the schema default) or a
+Integration: load stepping (:mod:`dynslip.physics.newton`, the schema default) or a
 stiff diffrax solver (Kvaerno5, the reference) with a PID controller, one stage at a time
 (a restart at every stage boundary: the protocol's kinks), each stage run in save segments; condition stops (clamp force below a threshold, rest) are
 checked between segments, so their resolution is the save interval. The vector field
