@@ -151,3 +151,29 @@ def test_slip_update_adds_the_increments_slip_and_sticks_below_the_threshold():
     assert float(d1) == 0.01
     _, d1 = nw.slip_update(fr, jnp.asarray(2.0), jnp.asarray(0.0), 0.0, d0, c)
     assert float(d1) == 0.01
+
+
+@pytest.mark.slow
+def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
+    """The return map takes mu at the increment's start (first order in time, as implicit Euler);
+    on a short push-down with slip weakening the end state stays within 1e-6 R of the full-state
+    Newton's, whose slip distance is implicit, and the slip distances agree where they are large."""
+    import math
+
+    from test_forming import MODEL as SHEET
+    from test_forming import PRE, Z0, push_protocol
+
+    from dynslip.physics.simulate import Settings, simulate
+
+    def run(solver):
+        fr = make_friction("slip_weakening", mu_s=1.0, mu_k=0.8, d_c=0.02, eps=1e-3)
+        return simulate(SHEET, push_protocol(), friction=fr, eps=1e-3, drag=0.1, ball_drag=0.4 * math.pi,
+                        pre_stretch=PRE, z_sheet=Z0, settings=Settings(solver=solver, save_interval=1.0))
+
+    a, b = run("load_step"), run("load_step_full")
+    assert a.failed is None and b.failed is None
+    fa, fb = a.frames[-1], b.frames[-1]
+    d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))
+    print(f"motion-only vs full-state Newton, slip weakening: max |dx| = {d:.2e} R")
+    assert d < 1e-6
+    assert np.max(fb["slip_distance"]) > 0.02  # the push-down weakens the contact
