@@ -9,12 +9,11 @@ run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import jax.numpy as jnp
 import numpy as np
 
 from dynslip.analysis.summary import summarize
+from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import ComputationError
@@ -139,9 +138,9 @@ def resolve_start(sc, console=None):
     return sc._start
 
 
-def run_forming(sc, out: Path, console=None) -> dict:
-    """Run a forming scenario into ``out``; return the summary (raises ComputationError on
-    failure)."""
+def run_forming(sc, out, console=None) -> dict:
+    """Run a forming scenario into ``out`` (a folder, or :class:`dynslip.app.outputs.Outputs`:
+    in memory without a folder); return the summary (raises ComputationError on failure)."""
     from rich.console import Console
 
     from dynslip.errors import MaterialRangeError  # noqa: F401  (documented error type)
@@ -149,8 +148,9 @@ def run_forming(sc, out: Path, console=None) -> dict:
     from dynslip.plot.forming import make_figures
 
     console = console or Console(stderr=True)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    outs = Outputs.of(out)
+    if outs.writes:
+        outs.folder.mkdir(parents=True, exist_ok=True)
     model, protocol, kw = build_core(sc)
     start, start_info = resolve_start(sc, console) or (None, None)
     names = protocol.names
@@ -169,7 +169,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
             else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
         )
         ds = to_dataset(sc, frames, rbar, e0, complete, names, start_info)
-        io.write_netcdf(ds, out / "trajectory.nc")
+        outs.netcdf(ds, "trajectory.nc")
         return ds
 
     def on_frame(rec):
@@ -182,7 +182,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
             t=rec["time"],
             description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})",
         )
-        if len(frames_seen) % FLUSH_FRAMES == 0:
+        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file
             flush(frames_seen)
 
     try:
@@ -197,13 +197,13 @@ def run_forming(sc, out: Path, console=None) -> dict:
     if result.failed:
         ds = flush(result.frames)
         if ds is not None:
-            io.write_json(out / "summary.json", summarize(sc, ds, result))
+            outs.json(summarize(sc, ds, result))
         raise ComputationError(
-            f"{result.failed}; partial trajectory kept in {out / 'trajectory.nc'}"
+            f"{result.failed}; partial trajectory kept in {outs.where('trajectory.nc')}"
         )
     ds = to_dataset(sc, result.frames, rbar, result.e0, True, names, start_info)
     io.check_units(ds)
-    io.write_netcdf(ds, out / "trajectory.nc")
+    outs.netcdf(ds, "trajectory.nc")
     summary = summarize(sc, ds, result)
     if start_info is not None:
         from dynslip.analysis.release import release_metrics
@@ -215,9 +215,11 @@ def run_forming(sc, out: Path, console=None) -> dict:
         # the sweep's variable (N): the ramped force at tear-out where measured so, else the peak
         summary["release_force"] = (ramp["release_force_N"] if ramp is not None
                                     else summary["release"]["peak_force_N"])
-        plot_release(ds, summary["release"], out)
-    io.write_json(out / "summary.json", summary)
-    make_figures(ds, out)
+        if outs.writes:
+            plot_release(ds, summary["release"], outs.folder)
+    outs.json(summary)
+    if outs.writes:
+        make_figures(ds, outs.folder)
     _print_summary(console, summary)
     return summary
 

@@ -181,9 +181,9 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
 
 
 def _jsonable_summary(summary: dict) -> dict:
-    from dynslip.data.files import _jsonable
+    from dynslip.data.files import jsonable
 
-    return json.loads(json.dumps(_jsonable(summary), default=str))
+    return json.loads(json.dumps(jsonable(summary), default=str))
 
 
 def execute_member(
