@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dynslip.physics.friction import Coulomb
-from dynslip.physics.protocols import BALL_FORCE, Protocol, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, Duration, Protocol, Stage
 from dynslip.physics.simulate import Settings, StageArgs, simulate
 from test_forming import MODEL, PRE, RIM, Z0, residual
 
@@ -47,12 +47,12 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
     speed, depth = 0.2, -1.5
     pull_up = 20.0  # G h0 R, more than the sheet's pull at the end of the push (about 8.8)
     stages = (
-        Stage("push_down", StopRule("duration", duration=(Z0 - depth) / speed), clamp_vz=-speed,
+        Stage("push_down", Duration(duration=(Z0 - depth) / speed), clamp_vz=-speed,
               ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0, support=True),
-        Stage("hold", StopRule("duration", duration=2.0), ball_mode=BALL_FORCE,
+        Stage("hold", Duration(duration=2.0), ball_mode=BALL_FORCE,
               ball_force_start=0.0,
               ball_force_end=0.0, support=True),
-        Stage("lift", StopRule("duration", duration=4.0), ball_mode=BALL_FORCE,
+        Stage("lift", Duration(duration=4.0), ball_mode=BALL_FORCE,
               ball_force_start=0.0,
               ball_force_end=pull_up, support=True),
     )

@@ -25,7 +25,6 @@ FLUSH_FRAMES = 25
 
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
-    from dynslip.physics.friction import make_friction
     from dynslip.physics.protocols import ball_drag_coefficient
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import Settings
@@ -60,14 +59,7 @@ def build_core(sc):
         max_chord_depth=nu.max_chord_depth,
     )
     kwargs = dict(
-        friction=make_friction(
-            p.friction.law,
-            mu=p.friction.mu,
-            mu_s=p.friction.mu_s,
-            mu_k=p.friction.mu_k,
-            d_c=p.friction.d_c_mm / r,
-            eps=nu.friction_smoothing,
-        ),
+        friction=p.friction.core(r, nu.friction_smoothing),
         eps=nu.friction_smoothing,
         drag=nu.drag_time_s,
         ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),

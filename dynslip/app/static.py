@@ -29,6 +29,7 @@ from dynslip.data import files as io
 from dynslip.data.static import cylinder_dataset, family_dataset, figure4_dataset, static_dataset
 from dynslip.errors import ComputationError
 from dynslip.plot.style import MODEL_LABELS as LABEL
+from dynslip.schema.materials import MaterialSpec
 
 __all__ = ["PAPER_MU", "run_static", "run_figure4", "run_family",
            "run_cylinder", "paper_mu"]
@@ -103,14 +104,13 @@ def run_static(sc, out, console) -> dict:
 
 def run_figure4(sc, out, console) -> dict:
     """``kind: figure4``: Hookean, neo-Hookean, Gent in one 3x3 figure."""
-    from dynslip.physics.materials import make_material
     from dynslip.plot.static import save_figure4
 
     outs = Outputs.of(out)
     p = sc.physics
     results, sums, dss = [], [], []
     for model in FIGURE4_MODELS:
-        mat = make_material(model, jm=p.jm)
+        mat = MaterialSpec(model=model, jm=p.jm).core()
         res = compute_static(
             mat,
             model,
@@ -139,13 +139,12 @@ def run_figure4(sc, out, console) -> dict:
 
 def run_family(sc, out, console) -> dict:
     """``kind: family``: mu along the fully mobilised family of the three models."""
-    from dynslip.physics.materials import make_material
     from dynslip.plot.static import save_family
 
     outs = Outputs.of(out)
     p, num = sc.physics, sc.numerics
     values = np.linspace(p.switch_from, p.switch_to, num.n_members)
-    materials = {model: make_material(model, jm=p.jm) for model in FIGURE4_MODELS}
+    materials = {model: MaterialSpec(model=model, jm=p.jm).core() for model in FIGURE4_MODELS}
     cols, selected = family(
         materials,
         values,

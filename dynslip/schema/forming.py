@@ -64,6 +64,19 @@ class FrictionSpec(Strict):
         """The coefficient a reader compares mu_mobilised_max with: mu, or mu_s."""
         return self.mu if self.law == "coulomb" else self.mu_s
 
+    def core(self, ball_radius_mm: float, eps: float):
+        """The core friction law (:data:`dynslip.physics.friction.FRICTION_LAWS`): lengths by
+        the ball radius, ``eps`` the force-space smoothing (G h0 / R)."""
+        import jax.numpy as jnp
+
+        from dynslip.physics.friction import FRICTION_LAWS
+
+        f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+        params = {"coulomb": {"mu": f(self.mu)},
+                  "slip_weakening": {"mu_s": f(self.mu_s), "mu_k": f(self.mu_k),
+                                     "d_c": f(self.d_c_mm / ball_radius_mm)}}[self.law]
+        return FRICTION_LAWS[self.law](**params, eps=f(eps))
+
 
 class StageSpec(Strict):
     """One stage: clamp motion, what holds the ball, and when the stage ends."""
@@ -424,28 +437,20 @@ class FormingScenario(ScenarioBase):
 
 
 def _stop_rule(s, duration: float, r: float, fs: float):
-    """The stop rule object (:mod:`dynslip.physics.protocols`, one final class per ``until``)
-    of stage ``s``, its thresholds made nondimensional (lengths by ``r`` mm, forces by ``fs`` N);
-    a condition rule ends the stage at ``duration`` s at the latest."""
-    from dynslip.physics.protocols import (
-        BallSpeedAbove,
-        ClampForceBelow,
-        Duration,
-        Rest,
-        ThetaMaxBelow,
-    )
+    """The stop rule object of stage ``s`` (:data:`dynslip.physics.protocols.STOPS`, the one
+    registry: one final class per ``until``), its thresholds made nondimensional (lengths by
+    ``r`` mm, forces by ``fs`` N); a condition rule ends the stage at ``duration`` s at the
+    latest."""
+    from dynslip.physics.protocols import STOPS
 
-    build = {
-        "duration": lambda: Duration(duration=duration),
-        "clamp_force_below": lambda: ClampForceBelow(force=(s.force_threshold_N or 0.0) / fs,
-                                                     duration=duration),
-        "theta_max_below": lambda: ThetaMaxBelow(angle=s.theta_stop_rad or 0.0, duration=duration),
-        "ball_speed_above": lambda: BallSpeedAbove(rate=(s.ball_speed_mm_s or 0.0) / r,
-                                                   duration=duration),
-        "rest": lambda: Rest(rate=(s.rest_rate_mm_s or 0.0) / r, hold=s.rest_hold_s or 0.0,
-                             duration=duration),
+    params = {
+        "duration": lambda: {},
+        "clamp_force_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
+        "theta_max_below": lambda: {"angle": s.theta_stop_rad or 0.0},
+        "ball_speed_above": lambda: {"rate": (s.ball_speed_mm_s or 0.0) / r},
+        "rest": lambda: {"rate": (s.rest_rate_mm_s or 0.0) / r, "hold": s.rest_hold_s or 0.0},
     }
-    return build[s.until]()
+    return STOPS[s.until](**params[s.until](), duration=duration)
 
 
 def build_protocol(sc: FormingScenario):
