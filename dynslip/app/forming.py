@@ -18,7 +18,8 @@ from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import ComputationError
 
-__all__ = ["run_forming", "resolve_start", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
+__all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "summarize",
+           "FLUSH_FRAMES"]
 
 FLUSH_FRAMES = 25
 
@@ -137,7 +138,6 @@ def run_forming(sc, out, console=None) -> dict:
 
     from dynslip.errors import MaterialRangeError  # noqa: F401  (documented error type)
     from dynslip.physics.simulate import simulate
-    from dynslip.plot.forming import make_figures
 
     console = console or Console(stderr=True)
     outs = Outputs.of(out)
@@ -193,6 +193,19 @@ def run_forming(sc, out, console=None) -> dict:
         raise ComputationError(
             f"{result.failed}; partial trajectory kept in {outs.where('trajectory.nc')}"
         )
+    summary = finish(sc, model, result, outs, names, start_info)
+    _print_summary(console, summary)
+    return summary
+
+
+def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
+    """What a forming run makes of the driver's finished result (a single run's or a member's
+    of a lockstep batch): the trajectory checked against its contract, the summary (with the
+    release metrics of a ``start_from`` run), the figures where ``outs`` writes; returns the
+    summary."""
+    from dynslip.plot.forming import make_figures
+
+    rbar = np.asarray(model.mesh.rbar)
     ds = to_dataset(sc, result.frames, rbar, result.e0, True, names, start_info)
     io.check_units(ds)
     outs.netcdf(ds, "trajectory.nc")
@@ -212,7 +225,6 @@ def run_forming(sc, out, console=None) -> dict:
     outs.json(summary)
     if outs.writes:
         make_figures(ds, outs.folder)
-    _print_summary(console, summary)
     return summary
 
 
