@@ -171,7 +171,7 @@ def _print_summary(console, s: dict) -> None:
     t.add_column("quantity")
     t.add_column("value", justify="right")
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
-    rows = [("trapped", s["trapped"]), ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
+    rows = [("trapped", s["trapped"]), ("ended at rest", s["end_at_rest"]), ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
             ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
             ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_mobilised_max", s["mu_mobilised_max"]),
             ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
@@ -185,6 +185,9 @@ def _print_summary(console, s: dict) -> None:
     for k, v in rows:
         t.add_row(k, fmt(v))
     console.print(t)
+    console.print(f"outcome: {s['outcome']}", highlight=False)
+    if not s["end_at_rest"]:
+        console.print(f"[bold]{s['end_at_rest_says']}[/bold]", highlight=False)
 
 
 __all__ += ["InputError"]

@@ -3,7 +3,7 @@ difference to the first run (:mod:`dynslip.analysis.compare`)."""
 
 from __future__ import annotations
 
-from dynslip.analysis.compare import difference
+from dynslip.analysis.compare import difference, trapped_text
 from dynslip.data.files import save_figure
 
 __all__ = ["plot_compare"]
@@ -22,11 +22,13 @@ def plot_compare(states: dict, path):
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     for n in names:
         s = states[n]
-        ax0.plot(s["rbar"][s["contact"]], s["theta"][s["contact"]], label=f"{n} (mu_mobilised_max {s['mu_mobilised_max']:.3g})")
+        ax0.plot(s["rbar"][s["contact"]], s["theta"][s["contact"]],
+                 label=f"{n}\ntrapped: {trapped_text(s.get('trapped'))}; theta_max {s['theta_max']:.3g} rad; "
+                       f"mu_mob. max {s['mu_mobilised_max']:.3g}")
     ax0.set_xlabel(r"$\bar r$ (material radius / R)")
     ax0.set_ylabel(r"$\theta$ (rad)")
     ax0.set_title("end states on the contact region")
-    ax0.legend(fontsize=8)
+    ax0.legend(fontsize=7)
     for n in names[1:]:
         d = difference(ref, states[n])
         ax1.plot(d["rbar"], d["dtheta"], label=f"{names[0]} - {n}")
