@@ -158,7 +158,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
                                     else summary["release"]["peak_force_N"])
         plot_release(ds, summary["release"], out)
     io.write_json(out / "summary.json", summary)
-    make_figures(ds, out)
+    make_figures(ds, out, summary.get("outcome"))
     _print_summary(console, summary)
     return summary
 
