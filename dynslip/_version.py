@@ -11,7 +11,7 @@ from pathlib import Path
 __version__ = "0.1.0"
 FORMAT_VERSION = "1"
 
-__all__ = ["__version__", "FORMAT_VERSION", "describe", "commit"]
+__all__ = ["FORMAT_VERSION", "__version__", "commit", "describe"]
 
 
 def commit() -> str | None:

@@ -10,6 +10,7 @@ For a scenario (``run_window``), $\mu$ is the ideal law's ``physics.friction.mu`
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 import tempfile
 from collections.abc import Callable
@@ -234,8 +235,9 @@ def resolution_check(result: dict, depths: dict[float, float], nodes: int | None
         words.append(f"{n_windows} separate windows: a fragmented answer is typical of a mesh too coarse for "
                      "the contact; only windows that persist under refinement are physics")
     n = f"N = {nodes}" if nodes else "one mesh size"
-    cmd = (f"dynslip window {scenario} --nodes {nodes},{2 * nodes},{4 * nodes}" if nodes
-           else f"dynslip window {scenario} --nodes N,2N,4N")
+    finer = f"{nodes},{2 * nodes},{4 * nodes}" if nodes else "N,2N,4N"
+    cmd = (f"dynslip window {scenario} --nodes {finer}" if scenario.endswith((".yaml", ".yml"))
+           else f"the same search at numerics.nodes = {finer}")
     head = ("members resolved" if resolved else "MEMBERS NOT RESOLVED") + f" at {n}"
     says = (f"{head}; windows not checked against refinement (check: {cmd})"
             + ("; " + "; ".join(words) if words else ""))
@@ -249,7 +251,7 @@ def refinement_check(per_n: dict, field_name: str) -> dict:
     are mesh artefacts until a finer pair agrees."""
     nodes = sorted(per_n)
     changes = []
-    for a, b in zip(nodes[:-1], nodes[1:], strict=True):
+    for a, b in itertools.pairwise(nodes):
         wa, wb = per_n[a]["windows"], per_n[b]["windows"]
         tol = per_n[a]["tol"] + per_n[b]["tol"]
         if len(wa) != len(wb):

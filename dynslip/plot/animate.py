@@ -69,7 +69,7 @@ class _Renderer:
     """A figure whose artists are updated in place for each saved frame."""
 
     def __init__(
-        self, ds: xr.Dataset, fronts: xr.Dataset, frames: np.ndarray, size, map_frames=None
+        self, ds: xr.Dataset, fronts: xr.Dataset, frames: np.ndarray, size, map_frames=None, outcome=None
     ):
         import matplotlib
 
@@ -137,7 +137,9 @@ class _Renderer:
 
         mf = sel if map_frames is None else map_frames
         draw_spacetime(self.ax_map, ds.isel(time=mf), fronts.isel(time=mf), legend=False)
-        self.ax_map.set_title("contact state; fronts in black", fontsize=9)
+        from dynslip.plot.forming import outcome_title
+
+        self.ax_map.set_title(f"contact state; fronts in black\n{outcome_title(ds, outcome)}", fontsize=8)
         self.cursor = self.ax_map.axhline(self.t[sel[0]], color="#2ca02c", lw=1.8)
         # blitting: the static parts are drawn once, the moving artists on top for each frame
         self.dynamic = [self.ball, self.sheet, self.clamp, self.front_pts, self.cursor, self.title]
@@ -280,9 +282,11 @@ def save_frame_png(
     time: float | None = None,
     size=DEFAULT_SIZE,
     rest_speed: float | None = None,
+    outcome: str | None = None,
 ) -> Path:
     """Write the animation frame at the saved frame nearest ``time`` (s; default the last)
-    as a PNG. :class:`InputError` for a time outside the run."""
+    as a PNG; ``outcome``: the run's answer in words for the map's title (summary.json's).
+    :class:`InputError` for a time outside the run."""
     ds = open_trajectory(trajectory_path)
     size = _check_size(size)
     t = np.asarray(ds["time"].values, dtype=float)
@@ -292,7 +296,7 @@ def save_frame_png(
         time_indices(ds, (float(time), None))  # InputError for a time outside the run
         k = int(np.argmin(np.abs(t - float(time))))
     fronts = fronts_dataset(ds, rest_speed)
-    renderer = _Renderer(ds, fronts, np.array([k]), size, map_frames=np.arange(t.size))
+    renderer = _Renderer(ds, fronts, np.array([k]), size, map_frames=np.arange(t.size), outcome=outcome)
     try:
         from PIL import Image
 

@@ -47,6 +47,10 @@ def release_force(ds: xr.Dataset, metrics: dict | None = None) -> Figure:
     b.axhline(math.pi / 2, color="0.5", ls=":", lw=0.8)
     b.set_ylabel(r"$\theta_{max}$ (rad)")
     b.set_xlabel("ball displacement along the axis (mm, + toward its pole)")
+    opened = metrics.get("displacement_at_opening_R_mm")
+    fig.suptitle(f"peak {metrics['peak_force_N']:.2f} N (measured {MEASURED_RELEASE_FORCE_N:g} N); "
+                 + ("the ball tears out (opening radius R reached)" if opened is not None
+                    else "the opening radius R is not reached: the ball stays held"), fontsize=9)
     return fig
 
 
