@@ -81,7 +81,10 @@ def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
         fr = ds.isel(time=i)
         rho, z = fr["rho"].values, fr["z"].values
         lw = 2.6 if i == last else max(0.9, 2.2 - 0.4 * width.setdefault(s, len(width)))
-        ax.plot(rho, z, color=c, ls=ls, lw=lw, label=_label(ds, i), zorder=3 if i == last else 2)
+        label = _label(ds, i)
+        if i == 0:  # the flat start: thin grey, whatever its stage
+            c, ls, lw, label = "0.55", "-", 1.0, "t = 0 s (start)"
+        ax.plot(rho, z, color=c, ls=ls, lw=lw, label=label, zorder=3 if i == last else 2)
         ax.plot(-rho, z, color=c, ls=ls, lw=lw, zorder=3 if i == last else 2)
         zb = float(fr["ball_z"])
         if i == last:
@@ -96,10 +99,15 @@ def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
     if zoom:
-        zb = float(ds["ball_z"].values[last])
+        # centred on the ball where the sheet wraps it furthest (the end, when it wraps most there)
+        th = np.asarray(ds["theta_max"].values, dtype=float)[list(indices)]
+        k = indices[int(np.nanargmax(th))] if np.isfinite(th).any() else last
+        k = last if np.isfinite(th[-1]) and th[-1] >= np.nanmax(th) - 1e-9 else k
+        zb = float(ds["ball_z"].values[k])
         ax.set_xlim(-1.8, 1.8)
         ax.set_ylim(zb - 1.6, zb + 1.6)
-        ax.set_title("near the ball (end position filled grey)", fontsize=9)
+        where = "at the end" if k == last else f"at t = {float(ds['time'].values[k]):.0f} s, the widest contact"
+        ax.set_title(f"near the ball {where} (the end position filled grey)", fontsize=9)
     else:
         ax.set_title("whole sheet (clamp: squares; ball outline where it moved)", fontsize=9)
 
