@@ -176,7 +176,7 @@ def plot_window(result: dict, path) -> Path:
     from dynslip.data.files import save_figure
 
     plt = _mpl()
-    fig, ax = plt.subplots(figsize=(6, 2.6))
+    fig, ax = plt.subplots(figsize=(6, 3.4 if result.get("resolution_check") else 2.6))
     ev = [(m, v) for m, v in result["evaluations"]]
     ok = [(m, v) for m, v in ev if v is not None]
     ax.plot([m for m, _ in ok], [1.0 if v else 0.0 for _, v in ok], "ko", ms=4, label="runs")
@@ -189,6 +189,11 @@ def plot_window(result: dict, path) -> Path:
     ax.set_xlim(*result["range"])
     ax.set_title(f"trapping windows (tol {result['tol']:g})", fontsize=9)
     ax.legend(fontsize=7, loc="center right")
+    says = (result.get("resolution_check") or {}).get("says")
+    if says:  # whether the search can be read as physics, beside its windows
+        import textwrap
+
+        ax.set_xlabel(result.get("field", "mu") + "\n" + "\n".join(textwrap.wrap(says, 95)), fontsize=7)
     fig.tight_layout()
     out = save_figure(fig, path, dpi=120)
     plt.close(fig)
