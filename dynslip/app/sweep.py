@@ -392,7 +392,7 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
 
         io.write_netcdf(ds, out / "trajectory.nc")
         io.write_json(out / "summary.json", summary)
-        make_figures(ds, out)
+        make_figures(ds, out, summary.get("outcome"))
     return summary
 
 
