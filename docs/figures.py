@@ -41,7 +41,13 @@ class Run:
         return {**self.set, **(FAST if fast and self.fast else {})}
 
     def command(self, fast: bool = False) -> str:
-        return " ".join(["dynslip run", self.scenario, *(f"--set {k}={v}" for k, v in self.fields(fast).items())])
+        return " ".join(
+            [
+                "dynslip run",
+                self.scenario,
+                *(f"--set {k}={v}" for k, v in self.fields(fast).items()),
+            ]
+        )
 
 
 RUNS = {
@@ -61,22 +67,40 @@ class Figure:
 
 
 FIGURES = {
-    "meridian_method2.png": Figure("method2", "dynslip run scenarios/method2.yaml (DIR/meridian.png)", "copy_meridian"),
-    "state_map_method2.png": Figure("method2", "dynslip run scenarios/method2.yaml (DIR/state_map.png)",
-                                    "copy_state_map"),
-    "fronts_method2_tube.png": Figure("method2", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"),
+    "meridian_method2.png": Figure(
+        "method2", "dynslip run scenarios/method2.yaml (DIR/meridian.png)", "copy_meridian"
+    ),
+    "state_map_method2.png": Figure(
+        "method2", "dynslip run scenarios/method2.yaml (DIR/state_map.png)", "copy_state_map"
+    ),
+    "fronts_method2_tube.png": Figure(
+        "method2", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
+    ),
     "animation_frame_let_go.png": Figure(
-        "method2_let_go", "dynslip.plot.animate.save_frame_png(DIR / 'trajectory.nc', PATH, time=<let_go + 4 s>, "
-        "rest_speed=1e-4)", "animation_frame"),
-    "fronts_let_go.png": Figure("method2_let_go", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"),
-    "fronts_let_go_rest_speed.png": Figure("method2_let_go", "dynslip fronts DIR/trajectory.nc --rest-speed 1e-4",
-                                           "fronts_rest_speed"),
-    "fronts_method1_rest_speed.png": Figure("method1", "dynslip fronts DIR/trajectory.nc --rest-speed 1e-4",
-                                            "fronts_rest_speed"),
-    "meridian_rim_feed.png": Figure("method2_rim_feed", "dynslip run scenarios/method2_rim_feed.yaml "
-                                    "(DIR/meridian.png)", "copy_meridian"),
-    "release_force_tube.png": Figure("release_pull_tube", "dynslip run scenarios/release_pull_tube.yaml "
-                                     "(DIR/release_force.png)", "copy_release_force"),
+        "method2_let_go",
+        "dynslip.plot.animate.save_frame_png(DIR / 'trajectory.nc', PATH, time=<let_go + 4 s>, "
+        "rest_speed=1e-4)",
+        "animation_frame",
+    ),
+    "fronts_let_go.png": Figure(
+        "method2_let_go", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
+    ),
+    "fronts_let_go_rest_speed.png": Figure(
+        "method2_let_go", "dynslip fronts DIR/trajectory.nc --rest-speed 1e-4", "fronts_rest_speed"
+    ),
+    "fronts_method1_rest_speed.png": Figure(
+        "method1", "dynslip fronts DIR/trajectory.nc --rest-speed 1e-4", "fronts_rest_speed"
+    ),
+    "meridian_rim_feed.png": Figure(
+        "method2_rim_feed",
+        "dynslip run scenarios/method2_rim_feed.yaml (DIR/meridian.png)",
+        "copy_meridian",
+    ),
+    "release_force_tube.png": Figure(
+        "release_pull_tube",
+        "dynslip run scenarios/release_pull_tube.yaml (DIR/release_force.png)",
+        "copy_release_force",
+    ),
 }
 
 
@@ -96,8 +120,11 @@ def fronts(run_dir: Path, out: Path, rest_speed: float | None = None) -> None:
     from dynslip.app.fronts import run_fronts
 
     with tempfile.TemporaryDirectory() as tmp:
-        png = next(p for p in run_fronts(run_dir / "trajectory.nc", Path(tmp), rest_speed=rest_speed)
-                   if p.suffix == ".png")
+        png = next(
+            p
+            for p in run_fronts(run_dir / "trajectory.nc", Path(tmp), rest_speed=rest_speed)
+            if p.suffix == ".png"
+        )
         shutil.copyfile(png, out)
 
 
@@ -136,9 +163,13 @@ def make_run(name: str, runs_dir: Path, fast: bool, reuse: bool) -> Path:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--fast", action="store_true", help=f"set {FAST} on every run (a check that all draw)")
+    p.add_argument(
+        "--fast", action="store_true", help=f"set {FAST} on every run (a check that all draw)"
+    )
     p.add_argument("--only", action="append", choices=sorted(FIGURES), help="make only this figure")
-    p.add_argument("--runs", type=Path, default=ROOT / "outputs" / "figures", help="folder of the runs")
+    p.add_argument(
+        "--runs", type=Path, default=ROOT / "outputs" / "figures", help="folder of the runs"
+    )
     p.add_argument("--img", type=Path, default=IMG, help="folder of the figures (default docs/img)")
     p.add_argument("--reuse", action="store_true", help="reuse a run folder of an earlier call")
     args = p.parse_args(argv)

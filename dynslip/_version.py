@@ -19,12 +19,25 @@ def commit() -> str | None:
     run time), or None when it is not a git checkout (an installed copy) or git is absent."""
     here = Path(__file__).resolve().parent
     try:
-        top = subprocess.run(["git", "-C", str(here), "rev-parse", "--show-toplevel"], capture_output=True,
-                             text=True, timeout=5, check=True).stdout.strip()
+        top = subprocess.run(
+            ["git", "-C", str(here), "rev-parse", "--show-toplevel"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        ).stdout.strip()
         if not top or here.parent != Path(top).resolve():
             return None  # the package is not the top-level folder of this checkout
-        return subprocess.run(["git", "-C", top, "describe", "--always", "--dirty", "--tags"], capture_output=True,
-                              text=True, timeout=5, check=True).stdout.strip() or None
+        return (
+            subprocess.run(
+                ["git", "-C", top, "describe", "--always", "--dirty", "--tags"],
+                capture_output=True,
+                text=True,
+                timeout=5,
+                check=True,
+            ).stdout.strip()
+            or None
+        )
     except (OSError, subprocess.SubprocessError):
         return None
 

@@ -14,7 +14,7 @@ Example::
 
 Bad input raises :class:`~dynslip.errors.InputError` (one line naming the field); a
 computation that ran and failed raises :class:`~dynslip.errors.ComputationError` whose
-``partial`` holds what was computed (a :class:`Result`, a sweep's dataset or a window's
+``partial`` holds what was computed (a :class:`RunResult`, a sweep's dataset or a window's
 dictionary). Without ``out`` nothing is kept on disk (the runners write into a temporary
 folder, read back into memory and deleted); with ``out`` the folder follows the same rules
 as the command line (:mod:`dynslip.data.files`): checked before anything is computed,
@@ -32,11 +32,11 @@ from typing import Any
 
 from dynslip.errors import ComputationError, InputError
 
-__all__ = ["Result", "load", "run", "sweep", "window", "InputError", "ComputationError"]
+__all__ = ["RunResult", "load", "run", "sweep", "window", "InputError", "ComputationError"]
 
 
 @dataclass(frozen=True)
-class Result:
+class RunResult:
     """What a run returns: its scenario, summary and datasets, loaded into memory.
 
     ``trajectory``: the trajectory of a forming run (None for the static kinds);
@@ -68,7 +68,7 @@ def _console(console):
     return Console(quiet=True)
 
 
-def _read(scn, folder: Path, out: Path | None) -> Result:
+def _read(scn, folder: Path, out: Path | None) -> RunResult:
     """The files a runner wrote into ``folder``, in memory."""
     import xarray as xr
 
@@ -81,7 +81,7 @@ def _read(scn, folder: Path, out: Path | None) -> Result:
             dataset = xr.load_dataset(folder / name, engine="netcdf4")
             break
     trajectory = dataset if getattr(scn, "kind", None) == "forming" else None
-    return Result(scenario=scn, summary=summary, dataset=dataset, trajectory=trajectory, out=out)
+    return RunResult(scenario=scn, summary=summary, dataset=dataset, trajectory=trajectory, out=out)
 
 
 def _failed(err: Exception, partial, folder: Path | None = None) -> ComputationError:
@@ -90,14 +90,16 @@ def _failed(err: Exception, partial, folder: Path | None = None) -> ComputationE
     new = err if isinstance(err, ComputationError) else ComputationError(str(err))
     if folder is not None:
         with contextlib.suppress(AttributeError, TypeError):
-            new.args = tuple(a.replace(str(folder), "<in memory: err.partial>") if isinstance(a, str) else a
-                             for a in new.args)
+            new.args = tuple(
+                a.replace(str(folder), "<in memory: err.partial>") if isinstance(a, str) else a
+                for a in new.args
+            )
     new.partial = partial
     return new
 
 
-def run(scn, out=None, *, force: bool = False, console=None) -> Result:
-    """Run a scenario (from :func:`load`); return its :class:`Result`.
+def run(scn, out=None, *, force: bool = False, console=None) -> RunResult:
+    """Run a scenario (from :func:`load`); return its :class:`RunResult`.
 
     ``out``: also write the usual run folder there (the command line's rules; ``force``
     replaces a folder that is not a dynslip result). ``console``: a :class:`rich.console.Console`
@@ -174,7 +176,9 @@ def window(scn, *, lo: float | None = None, hi: float | None = None, coarse: int
     console = _console(console)
     data = json.loads(scn.to_json())
     name = scn.name or f"<{scn.kind} scenario>"
-    kw = dict(lo=lo, hi=hi, coarse=coarse, tol=tol, field=field, console=console, force=force, data=data)
+    kw = dict(
+        lo=lo, hi=hi, coarse=coarse, tol=tol, field=field, console=console, force=force, data=data
+    )
 
     def go(folder: Path):
         try:

@@ -8,6 +8,9 @@ SIGINT, 143 terminated by SIGTERM (likewise kept, the marker naming the signal).
 ``--out`` of ``run``, ``sweep`` and ``window`` may be a new folder, an empty one or an
 earlier dynslip result (replaced only once the new run succeeded); a folder that is not
 a dynslip result needs ``--force``; an existing file is never replaced.
+
+Longer than 400 lines: one parser for the eight commands, every option with its help line
+(what, unit, default) and every command with its examples.
 """
 
 from __future__ import annotations
@@ -54,10 +57,14 @@ def _check_file_out(out: str | None) -> None:
         return
     p = Path(out)
     if p.is_dir():
-        raise InputError(f"--out {out!r}: an existing folder; allowed: a file name (e.g. animation.gif)")
+        raise InputError(
+            f"--out {out!r}: an existing folder; allowed: a file name (e.g. animation.gif)"
+        )
     for q in p.parents:
         if q.exists() and not q.is_dir():
-            raise InputError(f"--out {out!r}: {str(q)!r} is a file, not a folder; allowed: a file in a folder")
+            raise InputError(
+                f"--out {out!r}: {str(q)!r} is a file, not a folder; allowed: a file in a folder"
+            )
 
 
 def cmd_run(args) -> int:
@@ -79,7 +86,9 @@ def cmd_run(args) -> int:
             path = animate(traj)
             console.print(f"animation: {path}")
         else:
-            console.print("--animate: this kind of scenario writes no trajectory; nothing to animate")
+            console.print(
+                "--animate: this kind of scenario writes no trajectory; nothing to animate"
+            )
     return 0
 
 
@@ -90,8 +99,10 @@ def cmd_validate(args) -> int:
 
     if is_sweep_file(args.scenario):
         if args.set:
-            raise InputError(f"--set: {args.scenario}: a sweep file; allowed: --set with a scenario file "
-                             "(a sweep sets fields in its 'overrides')")
+            raise InputError(
+                f"--set: {args.scenario}: a sweep file; allowed: --set with a scenario file "
+                "(a sweep sets fields in its 'overrides')"
+            )
         members = validate_sweep(args.scenario)
         print(f"{args.scenario}: valid (sweep of {len(members)} members, every member validated)")
         return 0
@@ -105,8 +116,15 @@ def cmd_schema(args) -> int:
     from dynslip.schema import base as sc
     from dynslip.schema.sweep import Linspace, SweepSpec, WindowSpec
 
-    print(sc.schema_reference({"sweep file": SweepSpec, "sweep grid axis {start, stop, num}": Linspace,
-                               "sweep window (also `dynslip window --lo --hi --coarse --tol`)": WindowSpec}))
+    print(
+        sc.schema_reference(
+            {
+                "sweep file": SweepSpec,
+                "sweep grid axis {start, stop, num}": Linspace,
+                "sweep window (also `dynslip window --lo --hi --coarse --tol`)": WindowSpec,
+            }
+        )
+    )
     print(f"dynslip window: --coarse 2..{MAX_COARSE}; --tol finite, >= 1e-9 max(1, |lo|, |hi|); "
           "lo, hi finite with lo < hi, each a valid value of the friction field")
     return 0
@@ -115,7 +133,12 @@ def cmd_schema(args) -> int:
 def cmd_animate(args) -> int:
     from dynslip.plot.animate import animate, parse_size
 
-    kw = {"fps": args.fps, "fmt": args.format, "max_frames": args.max_frames, "rest_speed": args.rest_speed}
+    kw = {
+        "fps": args.fps,
+        "fmt": args.format,
+        "max_frames": args.max_frames,
+        "rest_speed": args.rest_speed,
+    }
     if args.t_start is not None or args.t_end is not None:
         kw["t_range"] = (args.t_start, args.t_end)
     if args.size:
@@ -130,7 +153,9 @@ def cmd_fronts(args) -> int:
     from dynslip.app.fronts import run_fronts
 
     _check_dir_out(args.out)
-    paths = run_fronts(Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed)
+    paths = run_fronts(
+        Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed
+    )
     for p in paths:
         print(p)
     return 0
@@ -154,9 +179,18 @@ def cmd_window(args) -> int:
     from dynslip.app.window import parse_nodes, run_window, run_window_nodes
 
     if args.nodes:
-        run_window_nodes(Path(args.scenario), parse_nodes(args.nodes), overrides=args.set or [], lo=args.lo,
-                         hi=args.hi, coarse=args.coarse, tol=args.tol, out=Path(args.out) if args.out else None,
-                         console=_console(), force=args.force)
+        run_window_nodes(
+            Path(args.scenario),
+            parse_nodes(args.nodes),
+            overrides=args.set or [],
+            lo=args.lo,
+            hi=args.hi,
+            coarse=args.coarse,
+            tol=args.tol,
+            out=Path(args.out) if args.out else None,
+            console=_console(),
+            force=args.force,
+        )
         return 0
     run_window(
         Path(args.scenario),
@@ -176,7 +210,9 @@ def cmd_compare(args) -> int:
     from dynslip.app.compare import run_compare
 
     _check_dir_out(args.out)
-    run_compare([Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console())
+    run_compare(
+        [Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console()
+    )
     return 0
 
 
@@ -193,74 +229,196 @@ class _Version(argparse.Action):
         parser.exit(0)
 
 
-FORCE_HELP = "replace a folder at --out that is not a dynslip result (never a file)"
-FORCE_IN_PLACE_HELP = "write into a folder at --out that is not a dynslip result (never a file)"
+FORCE_HELP = (
+    "replace a folder at --out that is not a dynslip result (never a file); default: refuse"
+)
+FORCE_IN_PLACE_HELP = (
+    "write into a folder at --out that is not a dynslip result (never a file); default: refuse"
+)
+SET_HELP = (
+    "override a scenario field, SECTION.KEY=VALUE in the file's units (e.g. numerics.nodes=30, "
+    "physics.friction.mu_s=1.2, physics.stages.hold.duration_s=5); repeatable; default: none"
+)
+EPILOGS = {
+    "run": """examples:
+  dynslip run scenarios/method2_let_go.yaml
+  dynslip run scenarios/method2.yaml --set numerics.nodes=30 --out outputs/m2_n30
+  dynslip run scenarios/paper_neohookean.yaml --animate""",
+    "validate": """examples:
+  dynslip validate scenarios/method2.yaml
+  dynslip validate scenarios/method2.yaml --set physics.friction.mu_s=1.2
+  dynslip validate scenarios/sweep_method2.yaml     (a sweep: every member validated)""",
+    "schema": """example:
+  dynslip schema | less""",
+    "animate": """examples:
+  dynslip animate outputs/method2_let_go/trajectory.nc
+  dynslip animate outputs/method2_let_go/trajectory.nc --format mp4 --t-start 100 --t-end 160""",
+    "fronts": """examples:
+  dynslip fronts outputs/method2_let_go/trajectory.nc
+  dynslip fronts outputs/method2_let_go/trajectory.nc --rest-speed 1e-4 --out outputs/fronts""",
+    "sweep": """examples:
+  dynslip sweep scenarios/sweep_method2.yaml
+  dynslip sweep scenarios/sweep_method2.yaml --mode batched --out outputs/study
+  (an interrupted sweep resumes: run the same command again)""",
+    "window": """The searched field is physics.friction.mu for the ideal law, else
+physics.friction.mu_s with mu_k held at its ratio to mu_s. Defaults come from a sweep's
+window section (dynslip schema, "sweep window").
+
+examples:
+  dynslip window scenarios/method2_let_go.yaml --lo 1.0 --hi 1.6 --coarse 4 --tol 0.005
+  dynslip window scenarios/method2_let_go.yaml --set numerics.nodes=30
+  dynslip window scenarios/method2_let_go.yaml --nodes 50,100,200 --lo 1.0 --hi 1.6""",
+    "compare": """example:
+  dynslip compare outputs/method2_let_go outputs/m2_n30 --out outputs/compare""",
+}
+
+
+def _sub(sub, name: str, help: str):  # noqa: A002 - argparse's keyword
+    return sub.add_parser(name, help=help, description=help, epilog=EPILOGS[name],
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="dynslip", description=__doc__.splitlines()[0].replace("``", ""))
-    p.add_argument("--version", action=_Version, help="print the version and the git commit, and exit")
+    p = _Parser(prog="dynslip", description=__doc__.splitlines()[0].replace("``", ""),
+                epilog="dynslip COMMAND --help: the options of a command, with examples")
+    p.add_argument("--version", action=_Version,
+                   help="print the version and the git commit, and exit")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    r = sub.add_parser("run", help="run a scenario file")
-    r.add_argument("scenario")
-    r.add_argument("--out", help="output folder (default outputs/<scenario stem>/)")
-    r.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help="override a field")
-    r.add_argument("--animate", action="store_true", help="also write the animation of the trajectory")
+    r = _sub(sub, "run", "run a scenario file")
+    r.add_argument("scenario", help="scenario file (YAML, physical units: mm, mm/s, s, MPa)")
+    r.add_argument("--out", help="output folder; default outputs/<scenario stem>/")
+    r.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help=SET_HELP)
+    r.add_argument("--animate", action="store_true",
+                   help="also write the animation of the trajectory (forming runs); default: off")
     r.add_argument("--force", action="store_true", help=FORCE_HELP)
     r.set_defaults(fn=cmd_run)
 
-    v = sub.add_parser("validate", help="check a scenario or sweep file without running it")
-    v.add_argument("scenario")
-    v.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
+    v = _sub(sub, "validate", "check a scenario or sweep file without running it")
+    v.add_argument("scenario", help="scenario or sweep file (YAML)")
+    v.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help=SET_HELP)
     v.set_defaults(fn=cmd_validate)
 
-    s = sub.add_parser("schema", help="print every scenario field: type, default, range, unit")
+    s = _sub(sub, "schema", "print every scenario field: type, default, range, unit")
     s.set_defaults(fn=cmd_schema)
 
-    a = sub.add_parser("animate", help="animate a saved trajectory (GIF or MP4)")
-    a.add_argument("trajectory")
-    a.add_argument("--out")
-    a.add_argument("--fps", type=float, default=10.0)
-    a.add_argument("--t-start", type=float, default=None, help="first time shown [s]")
-    a.add_argument("--t-end", type=float, default=None, help="last time shown [s]")
-    a.add_argument("--size", default=None, help="WIDTHxHEIGHT in pixels")
-    a.add_argument("--format", choices=["gif", "mp4"], default="gif")
-    a.add_argument("--max-frames", type=int, default=200, help="thin the saved frames to at most this many")
-    a.add_argument("--rest-speed", type=float, default=None,
-                   help="show nodes slower than this (R/s) as at rest, whatever the force criterion says")
+    a = _sub(sub, "animate", "animate a saved trajectory (GIF or MP4)")
+    a.add_argument("trajectory", help="trajectory.nc of a forming run")
+    a.add_argument("--out", help="animation file; default animation.<format> beside the trajectory")
+    a.add_argument(
+        "--fps", type=float, default=10.0, help="frames per second of the animation; default 10"
+    )
+    a.add_argument(
+        "--t-start", type=float, default=None, help="first time shown [s]; default: the first frame"
+    )
+    a.add_argument(
+        "--t-end", type=float, default=None, help="last time shown [s]; default: the last frame"
+    )
+    a.add_argument(
+        "--size", default=None, help="WIDTHxHEIGHT in pixels, e.g. 1280x576; default 960x432"
+    )
+    a.add_argument(
+        "--format", choices=["gif", "mp4"], default="gif", help="file format; default gif"
+    )
+    a.add_argument("--max-frames", type=int, default=200,
+                   help="thin the saved frames evenly to at most this many; default 200")
+    a.add_argument(
+        "--rest-speed",
+        type=float,
+        default=None,
+        help="show nodes slower than this [R/s] as at rest, whatever the force criterion says; "
+        "default: the state flags as saved",
+    )
     a.set_defaults(fn=cmd_animate)
 
-    f = sub.add_parser("fronts", help="track stick fronts in a saved trajectory")
-    f.add_argument("trajectory")
-    f.add_argument("--out")
-    f.add_argument("--rest-speed", type=float, default=None, help="count nodes slower than this (R/s) as at rest")
+    f = _sub(sub, "fronts", "track stick fronts in a saved trajectory")
+    f.add_argument("trajectory", help="trajectory.nc of a forming run")
+    f.add_argument(
+        "--out",
+        help="folder for fronts.nc, fronts.png, fronts_summary.json; default: the trajectory's",
+    )
+    f.add_argument(
+        "--rest-speed",
+        type=float,
+        default=None,
+        help="count slipping nodes slower than this [R/s] as at rest; default: the state flags as "
+            "saved",
+    )
     f.set_defaults(fn=cmd_fronts)
 
-    w = sub.add_parser("sweep", help="run a study over scenario fields")
-    w.add_argument("sweep")
-    w.add_argument("--out")
-    w.add_argument("--mode", choices=["sequential", "batched", "dask"], default=None)
-    w.add_argument("--scheduler", default=None, help="dask.distributed scheduler address")
+    w = _sub(sub, "sweep", "run a study over scenario fields")
+    w.add_argument(
+        "sweep", help="sweep file (YAML: base, grid or list, window, ...; docs/sweeps.md)"
+    )
+    w.add_argument(
+        "--out",
+        help="sweep folder (resumed if it holds the sweep); default: the file's out, "
+        "else outputs/<sweep stem>/",
+    )
+    w.add_argument("--mode", choices=["sequential", "batched", "dask"], default=None,
+                   help="how members run; default: the file's mode, else sequential")
+    w.add_argument(
+        "--scheduler",
+        default=None,
+        help="dask.distributed scheduler address, e.g. tcp://HOST:8786 (implies --mode dask); "
+        "default: a local cluster",
+    )
     w.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
     w.set_defaults(fn=cmd_sweep)
 
-    n = sub.add_parser("window", help="find the trapping windows of mu for a scenario")
-    n.add_argument("scenario")
-    n.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE")
-    n.add_argument("--lo", type=float, default=None)
-    n.add_argument("--hi", type=float, default=None)
-    n.add_argument("--coarse", type=int, default=None)
-    n.add_argument("--tol", type=float, default=None)
-    n.add_argument("--out")
+    from dynslip.schema.sweep import WindowSpec
+
+    d = {k: f.default for k, f in WindowSpec.model_fields.items()}  # a sweep window's defaults
+    n = _sub(sub, "window", "find the trapping windows of mu for a scenario")
+    n.add_argument("scenario", help="scenario file (YAML)")
+    n.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help=SET_HELP)
+    n.add_argument(
+        "--lo",
+        type=float,
+        default=None,
+        help="lower end of the searched friction coefficient (dimensionless, >= 0); "
+        f"default {d['lo']:g}",
+    )
+    n.add_argument(
+        "--hi",
+        type=float,
+        default=None,
+        help="upper end of the searched friction coefficient (dimensionless, > lo); "
+        f"default {d['hi']:g}",
+    )
+    n.add_argument(
+        "--coarse",
+        type=int,
+        default=None,
+        help="equally spaced scan points on [lo, hi], each a full run (2..1000); "
+        f"default {d['coarse']:g}",
+    )
+    n.add_argument(
+        "--tol",
+        type=float,
+        default=None,
+        help="width of the final bracket of each edge (dimensionless, like mu); "
+        f"default {d['tol']:g}",
+    )
+    n.add_argument(
+        "--out",
+        help="folder for window.json and window.png; default outputs/<scenario stem>_window/",
+    )
     n.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
-    n.add_argument("--nodes", default=None, metavar="N1,N2,N3",
-                   help="search at each mesh size; window.json gets critical_mu per N and its extrapolation")
+    n.add_argument(
+        "--nodes",
+        default=None,
+        metavar="N1,N2,N3",
+        help="search at each mesh size (increasing, each 6..4000); window.json gets critical_mu "
+        "per N and its extrapolation; default: the scenario's numerics.nodes only",
+    )
     n.set_defaults(fn=cmd_window)
 
-    c = sub.add_parser("compare", help="compare the end states of forming runs")
-    c.add_argument("runs", nargs="+")
-    c.add_argument("--out")
+    c = _sub(sub, "compare", "compare the end states of forming runs")
+    c.add_argument("runs", nargs="+", help="run folders (each with trajectory.nc and summary.json)")
+    c.add_argument(
+        "--out", help="folder for compare.json and compare.png; default outputs/compare/"
+    )
     c.set_defaults(fn=cmd_compare)
     return p
 
@@ -296,13 +454,18 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as err:
         name = signal_name(err)
         kept = _kept(err)
-        print(f"dynslip: interrupted by {name}" + (f"; partial results kept in {kept}" if kept else ""),
-              file=sys.stderr)
+        print(
+            f"dynslip: interrupted by {name}"
+            + (f"; partial results kept in {kept}" if kept else ""),
+            file=sys.stderr,
+        )
         return getattr(err, "exit_code", 130)
     except Exception as err:  # a bug: the traceback follows, and where the partial results are
         kept = _kept(err)
         if kept:
-            print(f"dynslip: unexpected error; what was computed is kept in {kept}", file=sys.stderr)
+            print(
+                f"dynslip: unexpected error; what was computed is kept in {kept}", file=sys.stderr
+            )
         raise
 
 

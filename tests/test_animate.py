@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dynslip.plot.animate import animate, describe, frame_indices, parse_size, save_frame_png
-from dynslip.errors import InputError
 from dynslip.data.files import write_netcdf
 from dynslip.data.trajectory import open_trajectory
+from dynslip.errors import InputError
+from dynslip.plot.animate import animate, describe, frame_indices, parse_size, save_frame_png
 from helpers import synthetic_trajectory
 
 NT, NR = 8, 24

@@ -41,7 +41,16 @@ def test_worked_example_of_the_doc_runs(tmp_path, monkeypatch):
 
 
 def test_public_names_are_re_exported():
-    for name in ("load", "run", "sweep", "window", "plot", "InputError", "ComputationError", "Result"):
+    for name in (
+        "load",
+        "run",
+        "sweep",
+        "window",
+        "plot",
+        "InputError",
+        "ComputationError",
+        "RunResult",
+    ):
         assert hasattr(dynslip, name), name
     assert dynslip.InputError is dynslip.errors.InputError
     assert callable(dynslip.plot.meridian) and callable(dynslip.plot.state_map)
@@ -93,7 +102,7 @@ def test_failed_run_carries_the_partial_result(scenarios_dir, tmp_path, monkeypa
     with pytest.raises(dynslip.ComputationError) as exc:
         dynslip.run(scn)
     part = exc.value.partial
-    assert isinstance(part, dynslip.Result)
+    assert isinstance(part, dynslip.RunResult)
     assert part.dataset.attrs["complete"] == 0 and part.summary["status"] == "failed"
     assert "dynslip-run-" not in str(exc.value)  # the deleted temporary folder is not named
     assert list(tmp_path.iterdir()) == []

@@ -9,10 +9,13 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from dynslip.physics.bodies import Disc, Sphere, Torus, contact_energy_density, contact_forces
+from dynslip.physics.bodies.chords import chord_depths
 from dynslip.physics.materials import NeoHookean
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.sheet import chord_depths as sheet_chord_depths
 
 PEN = Penalty(k=1.0e4, w=1.0e-3)
 MESH = make_mesh(30, 2.0)
@@ -113,3 +116,24 @@ def test_force_is_minus_the_gradient_of_the_energy_for_several_bodies():
     np.testing.assert_allclose(-np.asarray(g_z), f[:, 1], atol=1e-12 * scale)
     on_body = -np.sum(np.asarray(MESH.area) * np.asarray(c.pressure) * np.asarray(c.normal[..., 1]), axis=1)
     np.testing.assert_allclose(-np.asarray(g_zs), on_body, atol=1e-12 * scale)
+
+
+def test_chord_depths_against_every_body():
+    """The mesh check against any body: for the ball it is sheet.chord_depths (frames on a
+    leading axis, one ball height per frame); across a torus's tube a horizontal chord at
+    height h above the tube's centre dips r - h deep at the chord's middle; a chord inside the
+    coin under its top face is as deep as it lies under it."""
+    rng = np.random.default_rng(2)
+    th = np.sort(rng.uniform(0.0, 2.5, (3, 12)), axis=-1)
+    r = 1.0 + rng.uniform(-2e-3, 2e-2, (3, 12))
+    zb = np.array([0.0, 0.1, -0.2])
+    rho, z = r * np.sin(th), zb[:, None] + r * np.cos(th)
+    np.testing.assert_allclose(chord_depths(Sphere(), rho, z, zb), sheet_chord_depths(rho, z, zb),
+                               rtol=0, atol=1e-12)
+    ring = Torus(ring_radius=1.5, minor_radius=0.3, centre_z=-0.2)
+    d = chord_depths(ring, np.array([1.1, 1.9]), np.array([-0.1, -0.1]), 0.0)
+    np.testing.assert_allclose(d, [0.2], atol=1e-12)
+    coin = Disc(radius=0.6, thickness=0.09, edge_radius=0.015, centre_z=1.04)
+    d = chord_depths(coin, np.array([0.1, 0.3, 0.9]), np.array([1.075, 1.075, 1.075]), 0.0)
+    np.testing.assert_allclose(d[0], 0.01, atol=1e-12)
+    assert d[1] == pytest.approx(0.01, abs=1e-12)  # the deepest point of the chord into the coin

@@ -76,32 +76,53 @@ def test_subprocess_no_traceback(tmp_path):
     one_line(proc.stderr)
 
 
-@pytest.mark.parametrize("scenario, override, field", [
-    ("paper_gent.yaml", "physics.colour=blue", "physics.colour"),                 # unknown key
-    ("paper_gent.yaml", "numerics.n_nodes=many", "numerics.n_nodes"),             # wrong type
-    ("paper_gent.yaml", "physics.material.jm=0", "physics.material.jm"),          # J_m <= 0
-    ("paper_gent.yaml", "physics.material.jm=-3", "physics.material.jm"),
-    ("paper_gent.yaml", "physics.rbar_max=0", "physics.rbar_max"),                # rbar_max <= 0
-    ("paper_gent.yaml", "physics.rbar_max=-0.9", "physics.rbar_max"),
-    ("paper_gent.yaml", "physics.theta_max=0", "physics.theta_max"),              # outside (0, pi)
-    ("paper_gent.yaml", "physics.theta_max=3.2", "physics.theta_max"),
-    ("paper_gent.yaml", "numerics.mu_bracket=[-1.0, 5.0]", "numerics.mu_bracket"),  # negative mu
-    ("cylinder.yaml", "physics.mu=-0.5", "physics.mu"),
-    ("method2.yaml", "physics.friction.mu_s=-1", "physics.friction.mu_s"),
-    ("method2.yaml", "physics.pre_stretch=0.4", "physics.pre_stretch"),           # below the slack bound 0.5
-])
-def test_bad_field_exits_2_one_line_naming_it_and_writes_nothing(tmp_path, capsys, scenario, override, field):
+@pytest.mark.parametrize(
+    "scenario, override, field",
+    [
+        ("paper_gent.yaml", "physics.colour=blue", "physics.colour"),  # unknown key
+        ("paper_gent.yaml", "numerics.n_nodes=many", "numerics.n_nodes"),  # wrong type
+        ("paper_gent.yaml", "physics.material.jm=0", "physics.material.jm"),  # J_m <= 0
+        ("paper_gent.yaml", "physics.material.jm=-3", "physics.material.jm"),
+        ("paper_gent.yaml", "physics.rbar_max=0", "physics.rbar_max"),  # rbar_max <= 0
+        ("paper_gent.yaml", "physics.rbar_max=-0.9", "physics.rbar_max"),
+        ("paper_gent.yaml", "physics.theta_max=0", "physics.theta_max"),  # outside (0, pi)
+        ("paper_gent.yaml", "physics.theta_max=3.2", "physics.theta_max"),
+        (
+            "paper_gent.yaml",
+            "numerics.mu_bracket=[-1.0, 5.0]",
+            "numerics.mu_bracket",
+        ),  # negative mu
+        ("cylinder.yaml", "physics.mu=-0.5", "physics.mu"),
+        ("method2.yaml", "physics.friction.mu_s=-1", "physics.friction.mu_s"),
+        (
+            "method2.yaml",
+            "physics.pre_stretch=0.4",
+            "physics.pre_stretch",
+        ),  # below the slack bound 0.5
+    ],
+)
+def test_bad_field_exits_2_one_line_naming_it_and_writes_nothing(
+    tmp_path, capsys, scenario, override, field
+):
     out = tmp_path / "out"
-    rc, err = _run(["run", str(ROOT / "scenarios" / scenario), "--out", str(out), "--set", override], capsys)
+    rc, err = _run(
+        ["run", str(ROOT / "scenarios" / scenario), "--out", str(out), "--set", override], capsys
+    )
     assert rc == 2
     line = one_line(err)
     assert field in line, line
     assert not out.exists() and not Path(str(out) + ".staging").exists()
 
 
-@pytest.mark.parametrize("command, case", [
-    (c, k) for c in ("animate", "fronts") for k in ("not_netcdf", "not_trajectory", "format_version")
-] + [("animate", "time_range")])
+@pytest.mark.parametrize(
+    "command, case",
+    [
+        (c, k)
+        for c in ("animate", "fronts")
+        for k in ("not_netcdf", "not_trajectory", "format_version")
+    ]
+    + [("animate", "time_range")],
+)
 def test_trajectory_readers_bad_input_exit_2(tmp_path, capsys, command, case):
     """dynslip animate / fronts: a file that is not a dynslip trajectory, another format
     version, a time range outside the run: exit 2, one line, nothing written."""
@@ -131,3 +152,33 @@ def test_trajectory_readers_bad_input_exit_2(tmp_path, capsys, command, case):
     line = one_line(err)
     assert ("t_start" in line) if case == "time_range" else ("trajectory" in line)
     assert not out.exists()
+
+
+def test_every_option_has_a_help_line_with_its_default_and_every_command_examples():
+    """``dynslip COMMAND --help`` explains every option (what it does, its unit where it has one,
+    its default) and ends with examples (issue 24: ``window --help`` said nothing of --set, --lo,
+    --hi, --coarse and --tol)."""
+    import argparse
+
+    from dynslip.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing = []
+    for name, parser in sub.choices.items():
+        assert parser.epilog and "dynslip " + name in parser.epilog, f"{name}: no examples"
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            text = action.help or ""
+            label = f"{name} {'/'.join(action.option_strings) or action.dest}"
+            if not text:
+                missing.append(f"{label}: no help")
+            elif action.option_strings and "default" not in text:
+                missing.append(f"{label}: help names no default")
+    assert not missing, "\n".join(missing)
+    from dynslip.schema.sweep import WindowSpec
+
+    window = {a.dest: a.help for a in sub.choices["window"]._actions}
+    for opt in ("lo", "hi", "coarse", "tol"):  # the defaults are the sweep window's
+        assert f"default {WindowSpec.model_fields[opt].default:g}" in window[opt], window[opt]
+        assert opt == "coarse" or "dimensionless" in window[opt]

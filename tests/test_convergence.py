@@ -30,8 +30,16 @@ def test_converged_means_two_refinements_within_tol():
 
 
 def test_critical_edge_is_the_lowest_window_lower_edge():
-    detail = [{"lo": {"value": 1.6, "err": 0.01, "open": False, "unresolved": False}, "hi": {"value": 2.0, "err": 0.01}},
-              {"lo": {"value": 1.25, "err": 0.005, "open": False, "unresolved": False}, "hi": {"value": 1.4, "err": 0.01}}]
+    detail = [
+        {
+            "lo": {"value": 1.6, "err": 0.01, "open": False, "unresolved": False},
+            "hi": {"value": 2.0, "err": 0.01},
+        },
+        {
+            "lo": {"value": 1.25, "err": 0.005, "open": False, "unresolved": False},
+            "hi": {"value": 1.4, "err": 0.01},
+        },
+    ]
     assert critical_edge(detail)["value"] == 1.25
     assert critical_edge([]) is None
     assert math.isclose(critical_edge(detail)["err"], 0.005)
@@ -44,16 +52,17 @@ def test_window_nodes_writes_critical_mu_per_mesh_and_extrapolates(tmp_path):
 
     import yaml
 
-    from test_sweep import fake_validate
-
     from dynslip.app.window import run_window_nodes
+    from test_sweep import fake_validate
 
     def member(data, out_dir, console=None):
         s = fake_validate(data)
         n = int(data["numerics"]["nodes"])
         return {"trapped": bool(s.physics.friction.mu > 1.3 - 4.0 / n)}
 
-    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"kind": "fake", "physics": {"protocol": {"depth": 4.0}}}))
+    (tmp_path / "s.yaml").write_text(
+        yaml.safe_dump({"kind": "fake", "physics": {"protocol": {"depth": 4.0}}})
+    )
     res = run_window_nodes(tmp_path / "s.yaml", [25, 50, 100], lo=0.5, hi=2.0, coarse=7, tol=1e-4,
                            out=tmp_path / "w", member_fn=member, validate_fn=fake_validate)
     for n in (25, 50, 100):
@@ -61,5 +70,8 @@ def test_window_nodes_writes_critical_mu_per_mesh_and_extrapolates(tmp_path):
         assert abs(c["value"] - (1.3 - 4.0 / n)) <= c["err"] + 1e-12
     ex = res["extrapolation"]
     assert ex["extrapolable"] and abs(ex["order"] - 1.0) < 0.02 and abs(ex["value"] - 1.3) < 2e-3
-    assert json.loads((tmp_path / "w" / "window.json").read_text())["critical_mu"] == res["critical_mu"]
+    assert (
+        json.loads((tmp_path / "w" / "window.json").read_text())["critical_mu"]
+        == res["critical_mu"]
+    )
     assert (tmp_path / "w" / "critical_mu.png").stat().st_size > 0

@@ -38,7 +38,7 @@ def test_admissible_states_obey_the_capstan_bounds_and_push_off():
         lo, hi = C.capstan_bounds(mu, th)
         assert bool(jnp.all(t >= lo * (1 - 1e-12))) and bool(jnp.all(t <= hi * (1 + 1e-12)))
         assert bool(jnp.all(jnp.abs(ff) <= mu * t * (1 + 1e-12)))
-        fv = jax.vmap(lambda a, b: C.vertical_force(a, b, th))(t, ff)
+        fv = jax.vmap(lambda a, b: C.vertical_force(a, b, th))(t, ff)  # noqa: B023 - called here
         closed = C.vertical_force_closed(t[:, -1], tmax)
         # quadrature error at 801 nodes, relative to the size of the integrand (order: next test)
         np.testing.assert_allclose(fv, closed, rtol=0, atol=1e-4 * float(jnp.max(t)))
@@ -55,7 +55,9 @@ def test_vertical_force_converges_to_the_boundary_term():
         m = mu * jnp.sin(3 * th)
         t = jnp.exp(-mu * (jnp.cos(3 * th) - 1) / 3)  # exact T for this mobilisation
         ff = -m * t
-        errs.append(abs(float(C.vertical_force(t, ff, th)) - float(C.vertical_force_closed(t[-1], tmax))))
+        errs.append(
+            abs(float(C.vertical_force(t, ff, th)) - float(C.vertical_force_closed(t[-1], tmax)))
+        )
         hs.append(float(th[1]))
     order = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert order > 1.8

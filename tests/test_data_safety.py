@@ -22,10 +22,10 @@ import xarray as xr
 import yaml
 
 import dynslip.app.sweep as sweep_mod
-from dynslip.cli import main
-from dynslip.errors import ComputationError
-from dynslip.data.files import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
 from dynslip.app import kinds
+from dynslip.cli import main
+from dynslip.data.files import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
+from dynslip.errors import ComputationError
 from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,7 +90,9 @@ def _incomplete(parent: Path, name: str) -> list[Path]:
 
 def _no_leftovers(parent: Path, name: str) -> None:
     """No staging folder and no hidden folder of the old result remain."""
-    left = [p.name for p in parent.iterdir() if p.name.startswith((f"{name}.staging-", f".{name}.old-"))]
+    left = [
+        p.name for p in parent.iterdir() if p.name.startswith((f"{name}.staging-", f".{name}.old-"))
+    ]
     assert not left, left
 
 
@@ -206,7 +208,9 @@ def test_earlier_result_without_marker_recognised(tmp_path, capsys, monkeypatch)
     assert _tree(other) == before
 
 
-def test_failed_runs_keep_the_good_result_and_every_incomplete_folder(tmp_path, capsys, monkeypatch):
+def test_failed_runs_keep_the_good_result_and_every_incomplete_folder(
+    tmp_path, capsys, monkeypatch
+):
     out = tmp_path / "res"
     _stub_run(monkeypatch, _good("good"))
     assert _cli(["run", CYL, "--out", out], capsys)[0] == 0
@@ -365,7 +369,11 @@ def test_read_only_parent_refused(tmp_path, capsys, monkeypatch):
 
 def _sweep_file(tmp_path: Path) -> Path:
     p = tmp_path / "study.yaml"
-    p.write_text(yaml.safe_dump({"base": str(SCENARIOS / "cylinder.yaml"), "grid": {"physics.mu": [0.5, 0.9]}}))
+    p.write_text(
+        yaml.safe_dump(
+            {"base": str(SCENARIOS / "cylinder.yaml"), "grid": {"physics.mu": [0.5, 0.9]}}
+        )
+    )
     return p
 
 
@@ -408,7 +416,9 @@ def test_sweep_out_file_fronts_out_file_animate_out_dir(tmp_path, capsys, monkey
 # sweep and window folders
 
 
-def test_sweep_folder_marked_resumed_and_force_writes_beside_user_files(tmp_path, capsys, monkeypatch):
+def test_sweep_folder_marked_resumed_and_force_writes_beside_user_files(
+    tmp_path, capsys, monkeypatch
+):
     monkeypatch.setattr(sweep_mod, "default_member_fn", _fake_member)
     study = _sweep_file(tmp_path)
     out = tmp_path / "sw"
@@ -431,7 +441,9 @@ def test_unreachable_scheduler_creates_nothing(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sweep_mod, "default_member_fn", _fake_member)
     monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
     out = tmp_path / "sw"
-    rc, err = _cli(["sweep", _sweep_file(tmp_path), "--out", out, "--scheduler", "tcp://127.0.0.1:9"], capsys)
+    rc, err = _cli(
+        ["sweep", _sweep_file(tmp_path), "--out", out, "--scheduler", "tcp://127.0.0.1:9"], capsys
+    )
     assert rc == 2 and "cannot reach" in one_line(err)
     assert not out.exists()
 
@@ -444,7 +456,9 @@ def test_window_folder_marked(tmp_path, monkeypatch):
         return {"trapped": 0.4 < mu < 0.6}
 
     s = tmp_path / "s.yaml"
-    s.write_text(yaml.safe_dump({"kind": "forming", "physics": {"friction": {"law": "coulomb", "mu": 0.5}}}))
+    s.write_text(
+        yaml.safe_dump({"kind": "forming", "physics": {"friction": {"law": "coulomb", "mu": 0.5}}})
+    )
     out = tmp_path / "w"
     run_window(s, lo=0.0, hi=1.0, coarse=5, tol=0.1, out=out, member_fn=member, console=_quiet())
     assert (out / RESULT_MARKER).is_file() and is_result_folder(out)
@@ -454,7 +468,9 @@ def test_window_folder_marked(tmp_path, monkeypatch):
     from dynslip.errors import InputError
 
     with pytest.raises(InputError, match="--force"):
-        run_window(s, lo=0.0, hi=1.0, coarse=5, tol=0.1, out=mine, member_fn=member, console=_quiet())
+        run_window(
+            s, lo=0.0, hi=1.0, coarse=5, tol=0.1, out=mine, member_fn=member, console=_quiet()
+        )
     assert sorted(p.name for p in mine.iterdir()) == ["a.txt"]
 
 
@@ -489,7 +505,9 @@ def test_sigterm_in_process_exit_143_and_marked(tmp_path, capsys, monkeypatch):
     (kept,) = _incomplete(tmp_path, "res")
     assert "interrupted by SIGTERM" in (kept / INCOMPLETE).read_text()
     assert (kept / "partial.txt").read_text() == "partial"
-    assert signal.getsignal(signal.SIGTERM) == before  # the handler is only there during the command
+    assert (
+        signal.getsignal(signal.SIGTERM) == before
+    )  # the handler is only there during the command
 
 
 def test_sigterm_subprocess_exit_143(tmp_path):
@@ -509,8 +527,13 @@ def test_sigterm_subprocess_exit_143(tmp_path):
         kinds.RUNNERS["cylinder"] = run
         sys.exit(main(["run", {CYL!r}, "--out", {str(out)!r}]))
     """)
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, cwd=tmp_path)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
     try:
         deadline = time.monotonic() + 120
         line = ""

@@ -44,7 +44,10 @@ def _image_refs() -> dict[str, list[tuple[Path, int]]]:
 def test_every_shown_image_is_made_by_the_script_and_every_made_one_is_shown():
     refs = _image_refs()
     assert refs, "no image found in the docs"
-    assert set(refs) == set(FIG.FIGURES), (sorted(set(refs) - set(FIG.FIGURES)), sorted(set(FIG.FIGURES) - set(refs)))
+    assert set(refs) == set(FIG.FIGURES), (
+        sorted(set(refs) - set(FIG.FIGURES)),
+        sorted(set(FIG.FIGURES) - set(refs)),
+    )
     on_disk = {p.name for p in IMG.iterdir()}
     assert on_disk == set(FIG.FIGURES), ("stale or missing:", sorted(on_disk ^ set(FIG.FIGURES)))
     for name, fig in FIG.FIGURES.items():
@@ -57,7 +60,7 @@ def test_every_image_names_the_command_that_makes_it():
     for name, places in _image_refs().items():
         for doc, i in places:
             lines = doc.read_text().splitlines()
-            near = "\n".join(lines[max(0, i - 3): i + 4])
+            near = "\n".join(lines[max(0, i - 3) : i + 4])
             assert "docs/figures.py" in near, f"{doc.name}:{i + 1}: {name} without its command"
 
 
@@ -99,7 +102,12 @@ def test_every_command_in_the_docs_parses_and_its_scenario_validates():
     checked = 0
     for doc, cmd in _commands():
         words = shlex.split(cmd)[1:]
-        if "[" in cmd or len(words) < 2 or words[1].startswith("--") or words[0] in ("--help", "--version"):
+        if (
+            "[" in cmd
+            or len(words) < 2
+            or words[1].startswith("--")
+            or words[0] in ("--help", "--version")
+        ):
             if words and words[0] not in ("--help", "--version"):
                 assert words[0] in parser._subparsers._group_actions[0].choices, (doc, cmd)
             continue
@@ -128,12 +136,16 @@ def test_python_api_page_skips_no_example():
     assert "```python skip" not in text
     blocks = re.findall(r"^```python\n(.*?)^```", text, flags=re.DOTALL | re.MULTILINE)
     failing = [b for b in blocks if "except dynslip.ComputationError" in b]
-    assert failing and all("else:\n    raise AssertionError" in b for b in failing), "the failure example must fail"
+    assert failing and all("else:\n    raise AssertionError" in b for b in failing), (
+        "the failure example must fail"
+    )
 
 
 @pytest.mark.slow
 def test_figures_script_makes_every_figure(tmp_path):
     """``python docs/figures.py --fast``: every figure of the manifest is drawn (about 3 min)."""
-    assert FIG.main(["--fast", "--runs", str(tmp_path / "runs"), "--img", str(tmp_path / "img")]) == 0
+    assert (
+        FIG.main(["--fast", "--runs", str(tmp_path / "runs"), "--img", str(tmp_path / "img")]) == 0
+    )
     made = {p.name: p.stat().st_size for p in (tmp_path / "img").iterdir()}
     assert set(made) == set(FIG.FIGURES) and all(v > 10_000 for v in made.values()), made

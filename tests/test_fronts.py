@@ -19,8 +19,8 @@ from dynslip.analysis.fronts import (
     track_fronts,
 )
 from dynslip.app.fronts import run_fronts, summary_lines
-from dynslip.errors import InputError
 from dynslip.data.files import check_units, write_netcdf
+from dynslip.errors import InputError
 from helpers import synthetic_trajectory
 
 CODES = {".": 0, "S": 1, "p": 2, "e": 3}

@@ -33,7 +33,9 @@ def _cli(argv, capsys) -> tuple[int, str]:
         except SystemExit as err:  # argparse
             rc = err.code
     err = capsys.readouterr().err
-    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [
+        str(w.message) for w in caught
+    ]
     return rc, err
 
 
@@ -82,36 +84,78 @@ INF, NAN = math.inf, math.nan
 # the cases named in the issue
 
 
-@pytest.mark.parametrize("name, field, value, named", [
-    ("method2.yaml", "physics.stages.1.duration_s", INF, "physics.stages.1.duration_s"),   # OverflowError after 20 s
-    ("cylinder.yaml", "numerics.seed", 2**70, "numerics.seed"),                             # seed 2^70
-    ("paper_gent.yaml", "numerics.mu_bracket", [0.1, INF], "numerics.mu_bracket"),          # exit 0 with mu null
-    ("release.yaml", "physics.stages.0.ball_velocity_mm_s", NAN,
-     "physics.stages.0.ball_velocity_mm_s"),                                                # step limit after 22 s
-    ("method2.yaml", "physics.stages.0.clamp_to_z_mm", NAN, "physics.stages.0.clamp_to_z_mm"),  # named a stop rule
-    ("method2.yaml", "physics.ball_radius_mm", INF, "physics.ball_radius_mm"),              # "rim inside the ball"
-    ("paper_gent.yaml", "physics.ball_radius_mm", INF, "physics.ball_radius_mm"),
-    ("method2.yaml", "physics.material.jm", INF, "physics.material.jm"),
-    ("method2.yaml", "physics.thickness_um", -1e300, "physics.thickness_um"),
-    ("method2.yaml", "physics.friction.d_c_mm", 1e300, "physics.friction.d_c_mm"),
-    ("method2.yaml", "numerics.rtol", NAN, "numerics.rtol"),
-    ("method2.yaml", "numerics.drag_time_s", INF, "numerics.drag_time_s"),
-    ("method2.yaml", "numerics.penalty_stiffness", 1e300, "numerics.penalty_stiffness"),
-    ("method2.yaml", "numerics.max_steps", 10**12, "numerics.max_steps"),
-    ("method2.yaml", "numerics.nodes", 10**6, "numerics.nodes"),
-    ("method2.yaml", "physics.stages.0.clamp_speed_mm_s", INF, "physics.stages.0.clamp_speed_mm_s"),
-    ("method2_raise.yaml", "physics.stages.2.force_threshold_N", NAN, "physics.stages.2.force_threshold_N"),
-    ("method2.yaml", "physics.stages.4.rest_rate_mm_s", -INF, "physics.stages.4.rest_rate_mm_s"),
-    ("paper_gent.yaml", "physics.material.jm", 1e300, "physics.material.jm"),
-    ("paper_gent.yaml", "numerics.rest_velocity", INF, "numerics.rest_velocity"),
-    ("paper_gent.yaml", "numerics.fv_tol", NAN, "numerics.fv_tol"),
-    ("paper_gent.yaml", "numerics.switch_guess", [2.2, NAN, 0.25], "numerics.switch_guess"),
-    ("paper_gent.yaml", "physics.youngs_modulus_MPa", -1e300, "physics.youngs_modulus_MPa"),
-    ("paper_family.yaml", "physics.switch_to", INF, "physics.switch_to"),
-    ("paper_figure4.yaml", "physics.jm", NAN, "physics.jm"),
-    ("cylinder.yaml", "numerics.n_nodes", 10**9, "numerics.n_nodes"),
-    ("cylinder.yaml", "physics.mu", NAN, "physics.mu"),
-])
+@pytest.mark.parametrize(
+    "name, field, value, named",
+    [
+        (
+            "method2.yaml",
+            "physics.stages.1.duration_s",
+            INF,
+            "physics.stages.1.duration_s",
+        ),  # OverflowError after 20 s
+        ("cylinder.yaml", "numerics.seed", 2**70, "numerics.seed"),  # seed 2^70
+        (
+            "paper_gent.yaml",
+            "numerics.mu_bracket",
+            [0.1, INF],
+            "numerics.mu_bracket",
+        ),  # exit 0 with mu null
+        (
+            "release.yaml",
+            "physics.stages.0.ball_velocity_mm_s",
+            NAN,
+            "physics.stages.0.ball_velocity_mm_s",
+        ),  # step limit after 22 s
+        (
+            "method2.yaml",
+            "physics.stages.0.clamp_to_z_mm",
+            NAN,
+            "physics.stages.0.clamp_to_z_mm",
+        ),  # named a stop rule
+        (
+            "method2.yaml",
+            "physics.ball_radius_mm",
+            INF,
+            "physics.ball_radius_mm",
+        ),  # "rim inside the ball"
+        ("paper_gent.yaml", "physics.ball_radius_mm", INF, "physics.ball_radius_mm"),
+        ("method2.yaml", "physics.material.jm", INF, "physics.material.jm"),
+        ("method2.yaml", "physics.thickness_um", -1e300, "physics.thickness_um"),
+        ("method2.yaml", "physics.friction.d_c_mm", 1e300, "physics.friction.d_c_mm"),
+        ("method2.yaml", "numerics.rtol", NAN, "numerics.rtol"),
+        ("method2.yaml", "numerics.drag_time_s", INF, "numerics.drag_time_s"),
+        ("method2.yaml", "numerics.penalty_stiffness", 1e300, "numerics.penalty_stiffness"),
+        ("method2.yaml", "numerics.max_steps", 10**12, "numerics.max_steps"),
+        ("method2.yaml", "numerics.nodes", 10**6, "numerics.nodes"),
+        (
+            "method2.yaml",
+            "physics.stages.0.clamp_speed_mm_s",
+            INF,
+            "physics.stages.0.clamp_speed_mm_s",
+        ),
+        (
+            "method2_raise.yaml",
+            "physics.stages.2.force_threshold_N",
+            NAN,
+            "physics.stages.2.force_threshold_N",
+        ),
+        (
+            "method2.yaml",
+            "physics.stages.4.rest_rate_mm_s",
+            -INF,
+            "physics.stages.4.rest_rate_mm_s",
+        ),
+        ("paper_gent.yaml", "physics.material.jm", 1e300, "physics.material.jm"),
+        ("paper_gent.yaml", "numerics.rest_velocity", INF, "numerics.rest_velocity"),
+        ("paper_gent.yaml", "numerics.fv_tol", NAN, "numerics.fv_tol"),
+        ("paper_gent.yaml", "numerics.switch_guess", [2.2, NAN, 0.25], "numerics.switch_guess"),
+        ("paper_gent.yaml", "physics.youngs_modulus_MPa", -1e300, "physics.youngs_modulus_MPa"),
+        ("paper_family.yaml", "physics.switch_to", INF, "physics.switch_to"),
+        ("paper_figure4.yaml", "physics.jm", NAN, "physics.jm"),
+        ("cylinder.yaml", "numerics.n_nodes", 10**9, "numerics.n_nodes"),
+        ("cylinder.yaml", "physics.mu", NAN, "physics.mu"),
+    ],
+)
 def test_non_finite_and_out_of_range_name_the_field(tmp_path, capsys, name, field, value, named):
     line = _bad(["validate", _scenario(tmp_path, name, _put(field, value))], capsys, f"'{named}")
     assert "Traceback" not in line
@@ -119,14 +163,23 @@ def test_non_finite_and_out_of_range_name_the_field(tmp_path, capsys, name, fiel
 
 def test_material_model_names_the_model_field(tmp_path, capsys):
     for name in ("paper_gent.yaml", "method2.yaml"):
-        line = _bad(["validate", _scenario(tmp_path, name, _put("physics.material", {"model": "rubber"}))],
-                    capsys, "'physics.material.model'", "rubber")
+        line = _bad(
+            ["validate", _scenario(tmp_path, name, _put("physics.material", {"model": "rubber"}))],
+            capsys,
+            "'physics.material.model'",
+            "rubber",
+        )
         assert "'kind'" not in line
 
 
 @pytest.mark.parametrize("kind", [["forming"], {"a": 1}, 3, None, "teleport"])
 def test_kind_of_the_wrong_type_in_a_scenario(tmp_path, capsys, kind):
-    _bad(["validate", _scenario(tmp_path, "cylinder.yaml", _put("kind", kind))], capsys, "'kind'", "allowed")
+    _bad(
+        ["validate", _scenario(tmp_path, "cylinder.yaml", _put("kind", kind))],
+        capsys,
+        "'kind'",
+        "allowed",
+    )
 
 
 @pytest.mark.parametrize("value", ["[forming]", "{a: 1}", "[1, [2]]"])
@@ -147,10 +200,18 @@ def test_kind_of_the_wrong_type_in_a_sweep_grid(tmp_path, capsys, values):
 def test_schema_lists_the_bounds(capsys):
     rc, _ = _cli(["schema"], capsys)
     text = schema_reference()
-    for field, bound in [("physics.ball_radius_mm", "<= 10000"), ("numerics.seed", "<= 2147483646"),
-                         ("numerics.nodes", "<= 4000"), ("physics.stages[].duration_s", "<= 1e+06"),
-                         ("numerics.mu_bracket", "each >= 0, <= 100"), ("numerics.n_nodes", "<= 2000")]:
-        assert any(ln.split()[:1] == [field] and bound in ln for ln in text.splitlines()), (field, bound)
+    for field, bound in [
+        ("physics.ball_radius_mm", "<= 10000"),
+        ("numerics.seed", "<= 2147483646"),
+        ("numerics.nodes", "<= 4000"),
+        ("physics.stages[].duration_s", "<= 1e+06"),
+        ("numerics.mu_bracket", "each >= 0, <= 100"),
+        ("numerics.n_nodes", "<= 2000"),
+    ]:
+        assert any(ln.split()[:1] == [field] and bound in ln for ln in text.splitlines()), (
+            field,
+            bound,
+        )
     assert rc == 0
 
 
@@ -205,7 +266,10 @@ def test_every_number_of_every_kind_has_a_stated_range():
 def test_sweep_axis_num_is_bounded(tmp_path, capsys):
     shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
     f = tmp_path / "s.yaml"
-    f.write_text("base: method2.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: 1000000000}\n")
+    f.write_text(
+        "base: method2.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: "
+        "1000000000}\n"
+    )
     line = _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "num", "1000000000", "10000")
     assert "grid" in line
     assert not (tmp_path / "o").exists()
@@ -214,16 +278,25 @@ def test_sweep_axis_num_is_bounded(tmp_path, capsys):
 def test_sweep_members_are_bounded(tmp_path, capsys):
     shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
     f = tmp_path / "s.yaml"
-    f.write_text("base: method2.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: 200}\n"
-                 "  physics.friction.mu_s: {start: 0.3, stop: 2.0, num: 200}\n")
+    f.write_text(
+        "base: method2.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: 200}\n"
+        "  physics.friction.mu_s: {start: 0.3, stop: 2.0, num: 200}\n"
+    )
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "40000 members", "10000")
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.parametrize("window, word", [
-    ("{coarse: 100000000}", "coarse"), ("{tol: .nan}", "tol"), ("{hi: .inf}", "hi"), ("{lo: -1.0}", "lo"),
-    ("{tol: '0.1'}", "tol"), ("{coarse: 5.5}", "coarse"),
-])
+@pytest.mark.parametrize(
+    "window, word",
+    [
+        ("{coarse: 100000000}", "coarse"),
+        ("{tol: .nan}", "tol"),
+        ("{hi: .inf}", "hi"),
+        ("{lo: -1.0}", "lo"),
+        ("{tol: '0.1'}", "tol"),
+        ("{coarse: 5.5}", "coarse"),
+    ],
+)
 def test_sweep_window_is_bounded(tmp_path, capsys, window, word):
     shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
     f = tmp_path / "s.yaml"
@@ -244,8 +317,15 @@ def test_window_arguments_are_bounded(tmp_path, capsys, args, word):
 
 
 def test_clamp_move_and_saved_frames_are_bounded(tmp_path, capsys):
-    _bad(["validate", _scenario(tmp_path, "method2.yaml", _put("physics.stages.0.clamp_speed_mm_s", 1e-6))],
-         capsys, "push_down", "1e6 s")
+    _bad(
+        [
+            "validate",
+            _scenario(tmp_path, "method2.yaml", _put("physics.stages.0.clamp_speed_mm_s", 1e-6)),
+        ],
+        capsys,
+        "push_down",
+        "1e6 s",
+    )
     _bad(["validate", SCENARIOS / "method2.yaml", "--set", "numerics.save_interval_s=1e-4"], capsys,
          "save_interval_s", "frames")
     _bad(["validate", SCENARIOS / "cylinder.yaml", "--set", "numerics.n_profiles=10000",
@@ -272,8 +352,12 @@ def test_stages_are_bounded(tmp_path, capsys):
 def test_binary_and_non_utf8_files(tmp_path, capsys, content, word):
     f = tmp_path / "bad.yaml"
     f.write_bytes(content)
-    for cmd in (["validate", f], ["run", f, "--out", tmp_path / "o"], ["sweep", f, "--out", tmp_path / "o"],
-                ["window", f, "--out", tmp_path / "o"]):
+    for cmd in (
+        ["validate", f],
+        ["run", f, "--out", tmp_path / "o"],
+        ["sweep", f, "--out", tmp_path / "o"],
+        ["window", f, "--out", tmp_path / "o"],
+    ):
         _bad(cmd, capsys, word)
     assert not (tmp_path / "o").exists()
 
@@ -285,11 +369,18 @@ def test_utf8_with_a_bom_and_accents_is_read(tmp_path, capsys):
     assert rc == 0, err
 
 
-@pytest.mark.parametrize("text, key", [
-    ("kind: cylinder\nphysics: {mu: 0.5}\nphysics: {mu: 0.6}\n", "physics"),
-    ("kind: cylinder\nphysics:\n  mu: 0.5\n  mu: 0.6\n", "mu"),
-    ("kind: forming\nphysics:\n  stages:\n    - {name: a, duration_s: 1.0, duration_s: 2.0}\n", "duration_s"),
-])
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ("kind: cylinder\nphysics: {mu: 0.5}\nphysics: {mu: 0.6}\n", "physics"),
+        ("kind: cylinder\nphysics:\n  mu: 0.5\n  mu: 0.6\n", "mu"),
+        (
+            "kind: forming\nphysics:\n  stages:\n    - {name: a, duration_s: 1.0, duration_s: "
+            "2.0}\n",
+            "duration_s",
+        ),
+    ],
+)
 def test_duplicate_keys_in_a_scenario(tmp_path, capsys, text, key):
     f = tmp_path / "dup.yaml"
     f.write_text(text)
@@ -325,7 +416,10 @@ def test_numbers_given_as_text_are_refused_in_sweep_files(tmp_path, capsys):
         f = tmp_path / "s.yaml"
         f.write_text(f"base: method2.yaml\ngrid: {grid}\n")
         _bad(["sweep", f, "--out", tmp_path / "o"], capsys)
-    f.write_text("base: method2.yaml\noverrides: {numerics.nodes: '30'}\ngrid: {physics.friction.mu: [0.5]}\n")
+    f.write_text(
+        "base: method2.yaml\noverrides: {numerics.nodes: '30'}\ngrid: {physics.friction.mu: "
+        "[0.5]}\n"
+    )
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "numerics.nodes")
     assert not (tmp_path / "o").exists()
 
@@ -336,8 +430,16 @@ def test_set_values_are_parsed_as_yaml(capsys):
     rc, err = _cli(["validate", SCENARIOS / "method2.yaml", "--set", "numerics.rtol=1e-5",
                     "--set", "numerics.nodes=30", "--set", "physics.ball_radius_mm=2e1"], capsys)
     assert rc == 0, err
-    _bad(["validate", SCENARIOS / "method2.yaml", "--set", "numerics.nodes='30'"], capsys, "numerics.nodes")
-    _bad(["validate", SCENARIOS / "method2.yaml", "--set", "numerics.rtol=.nan"], capsys, "numerics.rtol")
+    _bad(
+        ["validate", SCENARIOS / "method2.yaml", "--set", "numerics.nodes='30'"],
+        capsys,
+        "numerics.nodes",
+    )
+    _bad(
+        ["validate", SCENARIOS / "method2.yaml", "--set", "numerics.rtol=.nan"],
+        capsys,
+        "numerics.rtol",
+    )
 
 
 def test_exponent_without_a_dot_is_a_number_in_files(tmp_path, capsys):
@@ -345,13 +447,21 @@ def test_exponent_without_a_dot_is_a_number_in_files(tmp_path, capsys):
     f.write_text("kind: forming\nnumerics:\n  rtol: 1e-5\n  atol: 1E-7\n")
     rc, err = _cli(["validate", f], capsys)
     assert rc == 0, err
-    sc = validate_data(yaml.load(f.read_text(), Loader=__import__("dynslip.schema.yamlio").schema.yamlio.Loader))
+    sc = validate_data(
+        yaml.load(f.read_text(), Loader=__import__("dynslip.schema.yamlio").schema.yamlio.Loader)
+    )
     assert sc.numerics.rtol == 1e-5 and sc.numerics.atol == 1e-7
 
 
 def test_a_newline_in_a_value_staysone_line(tmp_path, capsys):
-    stages = [{"name": "a\nb\nc", "clamp_to_z_mm": 20.4, "clamp_speed_mm_s": 2.0}]  # empty stage: named
-    _bad(["validate", _scenario(tmp_path, "method2.yaml", _put("physics.stages", stages))], capsys, "empty stage")
+    stages = [
+        {"name": "a\nb\nc", "clamp_to_z_mm": 20.4, "clamp_speed_mm_s": 2.0}
+    ]  # empty stage: named
+    _bad(
+        ["validate", _scenario(tmp_path, "method2.yaml", _put("physics.stages", stages))],
+        capsys,
+        "empty stage",
+    )
     _bad(["validate", SCENARIOS / "method2.yaml", "--set", 'name=[1, "x\\ny"]'], capsys, "name")
 
 
@@ -361,9 +471,13 @@ def test_no_numpy_warnings_on_the_way(tmp_path, capsys):
                                ("method2.yaml", "physics.stages.1.clamp_velocity_mm_s", -1e308),
                                ("paper_gent.yaml", "physics.thickness_mm", 1e308),
                                ("cylinder.yaml", "physics.theta_max_to", 1e308)]:
-        _bad(["validate", _scenario(tmp_path, name, _put(field, value))], capsys)  # _cli asserts no warnings
+        _bad(
+            ["validate", _scenario(tmp_path, name, _put(field, value))], capsys
+        )  # _cli asserts no warnings
 
 
 def test_messages_quote_what_was_given(tmp_path, capsys):
-    line = _bad(["validate", _scenario(tmp_path, "cylinder.yaml", _put("numerics.seed", 2**70))], capsys)
+    line = _bad(
+        ["validate", _scenario(tmp_path, "cylinder.yaml", _put("numerics.seed", 2**70))], capsys
+    )
     assert json.dumps(2**70) in line and "2147483646" in line

@@ -31,9 +31,18 @@ from dynslip.schema.base import _classes, load
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
 #: one or more shipped scenarios per kind, together using every section of the schemas
-SCENARIO_FILES = ["cylinder.yaml", "paper_gent.yaml", "paper_mooney_rivlin.yaml", "paper_hookean.yaml",
-                  "paper_figure4.yaml", "paper_family.yaml", "method1.yaml", "method2.yaml",
-                  "method2_raise.yaml", "release.yaml"]
+SCENARIO_FILES = [
+    "cylinder.yaml",
+    "paper_gent.yaml",
+    "paper_mooney_rivlin.yaml",
+    "paper_hookean.yaml",
+    "paper_figure4.yaml",
+    "paper_family.yaml",
+    "method1.yaml",
+    "method2.yaml",
+    "method2_raise.yaml",
+    "release.yaml",
+]
 SWEEP_FILES = ["sweep_method2.yaml", "study_loading_path.yaml"]
 BAD_KINDS = [["forming"], {"kind": "forming"}, 3, None, "teleport", "", True]
 UNKNOWN = "no_such_field"
@@ -115,18 +124,23 @@ def _out_of_range(prop: dict) -> list:
     for key in ("maximum", "exclusiveMaximum"):
         if key in prop:
             b = prop[key]
-            out.append(b + 1 if integer else (b + max(1.0, abs(b)) if key == "maximum" else float(b)))
+            out.append(
+                b + 1 if integer else (b + max(1.0, abs(b)) if key == "maximum" else float(b))
+            )
             out.append(10**30 if integer else 1e300)
     for key in ("minimum", "exclusiveMinimum"):
         if key in prop:
             b = prop[key]
-            out.append(b - 1 if integer else (b - max(1.0, abs(b)) if key == "minimum" else float(b)))
+            out.append(
+                b - 1 if integer else (b - max(1.0, abs(b)) if key == "minimum" else float(b))
+            )
             out.append(-(10**30) if integer else -1e300)
     return out
 
 
 def _corruptions(name: str) -> list[tuple]:
-    """(file, path, value, field named in the error) for every leaf of a resolved shipped scenario."""
+    """(file, path, value, field named in the error) for every leaf of a resolved shipped
+    scenario."""
     sc = load(SCENARIOS / name)
     data = json.loads(sc.to_json())
     cases = [(name, ("kind",), k, "kind") for k in BAD_KINDS]
@@ -195,7 +209,10 @@ def stubbed(monkeypatch):
 
 
 def _tree(root: Path) -> dict:
-    return {str(p.relative_to(root)): (p.read_bytes() if p.is_file() else None) for p in sorted(root.rglob("*"))}
+    return {
+        str(p.relative_to(root)): (p.read_bytes() if p.is_file() else None)
+        for p in sorted(root.rglob("*"))
+    }
 
 
 def _cli(argv) -> tuple[int, str]:
@@ -207,7 +224,9 @@ def _cli(argv) -> tuple[int, str]:
             rc = main([str(a) for a in argv])
         except SystemExit as e:  # argparse
             rc = e.code
-    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [
+        str(w.message) for w in caught
+    ]
     return rc, err.getvalue()
 
 
@@ -264,10 +283,16 @@ def test_every_field_non_finite_out_of_range_and_as_text(stubbed):
     cases = []
     for case in CASES:
         name, path, value, named = case
-        if value is True or value == [[1]] or (isinstance(value, (int, float)) and abs(value) >= 1e30):
+        if (
+            value is True
+            or value == [[1]]
+            or (isinstance(value, (int, float)) and abs(value) >= 1e30)
+        ):
             continue  # the extremes (and a second wrong type) are left to the random test below
         kind = RESOLVED[name]["kind"]
-        kind = "static" if kind in ("figure4", "family") else kind  # their sections are static's (Geometry ...)
+        kind = (
+            "static" if kind in ("figure4", "family") else kind
+        )  # their sections are static's (Geometry ...)
         key = (kind, tuple("[]" if isinstance(p, int) and "stages" in path else p for p in path),
                repr(value) if not isinstance(value, float) or not math.isnan(value) else "nan")
         if key not in seen:
@@ -279,7 +304,9 @@ def test_every_field_non_finite_out_of_range_and_as_text(stubbed):
     assert len(cases) > 300  # every field of the five kinds, several corruptions each
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(case=st.sampled_from(CASES))
 def test_a_corrupted_scenario_is_one_line_and_writes_nothing(stubbed, case):
     name, path, value, named = case
@@ -299,11 +326,20 @@ def test_a_corrupted_scenario_is_one_line_and_writes_nothing(stubbed, case):
 def _sweep_corruptions(name: str) -> list[tuple]:
     """(sweep file, path, value) of a corrupted field of a shipped sweep file."""
     data = yaml.safe_load((SCENARIOS / name).read_text())
-    cases = [(name, (UNKNOWN,), 1), (name, ("base",), ["method2.yaml"]), (name, ("base",), 3), (name, ("grid",), {}), (name, ("grid", "kind"), [["forming"], {"a": 1}]),
-             (name, ("grid", "physics.no_such_field"), [1.0, 2.0]), (name, ("overrides", "kind"), ["forming"]),
-             (name, ("overrides", "numerics.nodes"), "30"), (name, ("overrides", "numerics.nodes"), math.nan),
-             (name, ("overrides", "numerics.nodes"), 10**9), (name, ("mode",), "warp"),
-             (name, ("list",), [{"numerics.nodes": 20}])]  # grid and list both
+    cases = [
+        (name, (UNKNOWN,), 1),
+        (name, ("base",), ["method2.yaml"]),
+        (name, ("base",), 3),
+        (name, ("grid",), {}),
+        (name, ("grid", "kind"), [["forming"], {"a": 1}]),
+        (name, ("grid", "physics.no_such_field"), [1.0, 2.0]),
+        (name, ("overrides", "kind"), ["forming"]),
+        (name, ("overrides", "numerics.nodes"), "30"),
+        (name, ("overrides", "numerics.nodes"), math.nan),
+        (name, ("overrides", "numerics.nodes"), 10**9),
+        (name, ("mode",), "warp"),
+        (name, ("list",), [{"numerics.nodes": 20}]),
+    ]  # grid and list both
     if "base" not in data["grid"]:  # (a swept base replaces the sweep's own)
         cases.append((name, ("base",), "missing.yaml"))
     for key, axis in data["grid"].items():
@@ -318,9 +354,13 @@ def _sweep_corruptions(name: str) -> list[tuple]:
         else:
             for v in (math.nan, -math.inf, "0.3", 1e300, -1e300, {"x": 1}):
                 cases.append((name, ("grid", key, 0), v))
-    window = {"lo": (math.nan, -1.0, math.inf, "1.0", 1e300), "hi": (math.nan, -1.0, math.inf, 1e300),
-              "coarse": (10**8, 1, 5.5, "5", math.nan), "tol": (math.nan, 0.0, -1.0, math.inf, 1e-300, "0.1"),
-              UNKNOWN: (1,)}
+    window = {
+        "lo": (math.nan, -1.0, math.inf, "1.0", 1e300),
+        "hi": (math.nan, -1.0, math.inf, 1e300),
+        "coarse": (10**8, 1, 5.5, "5", math.nan),
+        "tol": (math.nan, 0.0, -1.0, math.inf, 1e-300, "0.1"),
+        UNKNOWN: (1,),
+    }
     for key, values in window.items():
         cases += [(name, ("window", key), v) for v in values]
     return cases
@@ -331,7 +371,9 @@ SWEEP_CASES = [c for f in SWEEP_FILES for c in _sweep_corruptions(f)]
 
 def _put_sweep(name, path, value):
     data = yaml.safe_load((SCENARIOS / name).read_text())
-    data.setdefault("window", {"lo": 1.0, "hi": 2.6, "coarse": 3, "tol": 0.2}) if path[0] == "window" else None
+    data.setdefault("window", {"lo": 1.0, "hi": 2.6, "coarse": 3, "tol": 0.2}) if path[
+        0
+    ] == "window" else None
     node = data
     for k in path[:-1]:
         node = node[k]
@@ -339,7 +381,9 @@ def _put_sweep(name, path, value):
     return data
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(case=st.sampled_from(SWEEP_CASES))
 def test_a_corrupted_sweep_is_one_line_and_writes_nothing(stubbed, case):
     name, path, value = case
@@ -350,7 +394,10 @@ def test_a_corrupted_sweep_is_one_line_and_writes_nothing(stubbed, case):
         for argv in (["sweep", f, "--out", d / "o"], ["sweep", f]):
             line = _one_line_exit_2(*_cli(argv))
             assert _tree(d) == before, argv
-        assert any(p in line for p in path if isinstance(p, str)), (case, line)  # the field, or its section
+        assert any(p in line for p in path if isinstance(p, str)), (
+            case,
+            line,
+        )  # the field, or its section
 
 
 @pytest.mark.parametrize("text", [
@@ -364,7 +411,11 @@ def test_odd_files_are_one_line_and_write_nothing(stubbed, text):
         f = d / "odd.yaml"
         f.write_text(text)
         before = _tree(d)
-        for argv in (["validate", f], ["run", f, "--out", d / "out"], ["sweep", f, "--out", d / "o"],
-                     ["window", f, "--out", d / "w"]):
+        for argv in (
+            ["validate", f],
+            ["run", f, "--out", d / "out"],
+            ["sweep", f, "--out", d / "o"],
+            ["window", f, "--out", d / "w"],
+        ):
             _one_line_exit_2(*_cli(argv))
             assert _tree(d) == before, argv

@@ -135,3 +135,64 @@ def test_the_rules_themselves(src, dst, ok):
     """The table above says what the issue says (a check of the checker)."""
     to = _layer(dst)
     assert (to in BASE or to in ALLOWED[_layer(src)]) == ok
+
+
+# --- one concept per room (issue 24) ------------------------------------------------------
+
+#: what an app module may not import: models are the schema's (pydantic), datasets and their
+#: algorithms are data's and analysis's (xarray)
+APP_FORBIDDEN = ("pydantic", "xarray")
+#: the line count above which a module's docstring must say why it is one module
+MAX_LINES = 400
+REASON = "Longer than 400 lines"
+#: modules owned by the issue-23 work at the time of issue 24, to be given their reason at merge
+LENGTH_PENDING = {"dynslip.physics.simulate"}
+
+
+def _third_party(path: Path) -> set[str]:
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            out.add(node.module.split(".")[0])
+    return out
+
+
+def test_app_defines_no_model_and_no_dataset_algorithm():
+    """``app/`` only orchestrates: no module there imports pydantic (so defines no model) or
+    xarray (so builds no dataset and runs no algorithm over one), and no class there derives
+    from a pydantic model of the schema."""
+    bad = []
+    for name, path in _modules().items():
+        if _layer(name) != "app":
+            continue
+        for lib in sorted(_third_party(path) & set(APP_FORBIDDEN)):
+            bad.append(f"{name} imports {lib}")
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef):
+                bases = {ast.unparse(b).split(".")[-1] for b in node.bases}
+                models = {"BaseModel", "_Strict", "_Model"}
+                if bases & models or any(b.endswith("Spec") for b in bases):
+                    bad.append(f"{name}.{node.name} is a model")
+    assert not bad, "app/ does more than orchestrate:\n" + "\n".join(bad)
+
+
+def test_no_long_module_without_a_reason():
+    """A module over 400 lines says in its docstring why it is one module ("Longer than 400
+    lines: ..."); the rest are split by concept."""
+    bad = []
+    for name, path in _modules().items():
+        n = len(path.read_text().splitlines())
+        doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+        if n > MAX_LINES and REASON not in doc and name not in LENGTH_PENDING:
+            bad.append(f"{name}: {n} lines, no stated reason")
+    assert not bad, "\n".join(bad)
+
+
+def test_the_room_checks_find_what_they_look_for(tmp_path):
+    """A check of the checkers: a pydantic import is found, a long module without a reason too."""
+    f = tmp_path / "m.py"
+    f.write_text('"""x"""\nfrom pydantic import BaseModel\nimport xarray as xr\n')
+    assert _third_party(f) & set(APP_FORBIDDEN) == {"pydantic", "xarray"}
+    assert REASON not in (ast.get_docstring(ast.parse(f.read_text())) or "")

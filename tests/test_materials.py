@@ -56,7 +56,9 @@ def test_gent_tends_to_neo_hookean():
 def test_mooney_rivlin_c2_zero_is_neo_hookean():
     lt = np.linspace(0.7, 4.0, 9)
     lp = np.linspace(1.3, 0.8, 9)
-    np.testing.assert_allclose(_t(MooneyRivlin(c1=0.5, c2=0.0), lt, lp), _t(NeoHookean(), lt, lp), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        _t(MooneyRivlin(c1=0.5, c2=0.0), lt, lp), _t(NeoHookean(), lt, lp), rtol=0, atol=1e-13
+    )
 
 
 L = np.array([1.1, 1.5, 2.0, 3.0, 4.5])
@@ -76,7 +78,8 @@ def _uniaxial(mat):
     ids=["neo_hookean", "mooney_rivlin", "gent"],
 )
 def test_uniaxial_closed_form(mat, sigma):
-    """Uniaxial tension: T = sigma * h / h0 with h/h0 = l^-1/2 and T_phi = 0 at the natural width."""
+    """Uniaxial tension: T = sigma * h / h0 with h/h0 = l^-1/2 and T_phi = 0 at the natural
+    width."""
     tt, tp = _uniaxial(mat)
     np.testing.assert_allclose(tt, sigma(L) * L**-0.5, rtol=1e-12)
     np.testing.assert_allclose(tp, 0.0, atol=1e-12)
@@ -85,7 +88,9 @@ def test_uniaxial_closed_form(mat, sigma):
 def test_hookean_uniaxial_closed_form():
     w = 1 - (L - 1) / 2
     tt, tp = _t(Hookean(), L[:3], w[:3])
-    np.testing.assert_allclose(tt, 3 * (L[:3] - 1) / w[:3], rtol=1e-12)  # E = 3G, per deformed length
+    np.testing.assert_allclose(
+        tt, 3 * (L[:3] - 1) / w[:3], rtol=1e-12
+    )  # E = 3G, per deformed length
     np.testing.assert_allclose(tp, 0.0, atol=1e-12)
 
 

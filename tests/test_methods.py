@@ -11,11 +11,10 @@ import math
 
 import pytest
 
+from conftest import SCENARIOS, assert_energy_closes
 from dynslip.analysis.compare import difference, end_state
 from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load
-
-from conftest import SCENARIOS, assert_energy_closes
 
 
 @pytest.mark.slow
@@ -23,14 +22,20 @@ def test_method1_and_method2_at_default_settings(tmp_path):
     import xarray as xr
 
     ends, sums = {}, {}
-    for m, f in (("method1", "method1.yaml"), ("method2", "method2_let_go.yaml")):  # method 2: the path that traps
+    for m, f in (
+        ("method1", "method1.yaml"),
+        ("method2", "method2_let_go.yaml"),
+    ):  # method 2: the path that traps
         sc = load(SCENARIOS / f)
         s = run_scenario(sc, tmp_path / m, None)
         sums[m] = s
         with xr.open_dataset(tmp_path / m / "trajectory.nc") as ds:
             ends[m] = end_state(ds.load())
     d = difference(ends["method1"], ends["method2"])
-    report = {m: {k: sums[m][k] for k in ("trapped", "theta_max", "rbar_max", "mu_mobilised_max")} for m in sums}
+    report = {
+        m: {k: sums[m][k] for k in ("trapped", "theta_max", "rbar_max", "mu_mobilised_max")}
+        for m in sums
+    }
     report["max_abs_dtheta"] = d["max_abs_dtheta"]
     report["common_rbar_max"] = d["common_rbar_max"]
     print("method 1 vs method 2:", json.dumps(report, indent=1))

@@ -8,10 +8,10 @@ import yaml
 
 from dynslip.app.members import resolve
 from dynslip.app.sweep import expand
-from dynslip.schema.sweep import friction_field, load_spec, member_at
 from dynslip.errors import InputError
 from dynslip.schema.base import load, load_data
 from dynslip.schema.paths import get_path, set_path
+from dynslip.schema.sweep import friction_field, load_spec, member_at
 
 STAGE = "physics.stages.push_down.clamp_speed_mm_s"
 BY_INDEX = "physics.stages.0.clamp_speed_mm_s"
@@ -25,8 +25,12 @@ def test_lists_by_index_or_by_name():
     assert data["a"]["items"] == [{"name": "x", "v": 5}, {"name": "z"}]
     set_path(data, "b.c.d", 1)  # missing sections are created
     assert data["b"] == {"c": {"d": 1}}
-    for bad, needle in [("a.items.w.v", "'a.items.w' not found"), ("a.items.7", "'7' is not an item"),
-                        ("a.items.x.v.q", "'v' is not a section"), ("a..b", "not a dotted path")]:
+    for bad, needle in [
+        ("a.items.w.v", "'a.items.w' not found"),
+        ("a.items.7", "'7' is not an item"),
+        ("a.items.x.v.q", "'v' is not a section"),
+        ("a..b", "not a dotted path"),
+    ]:
         with pytest.raises(InputError, match=needle):
             set_path(data, bad, 0, "src")
     with pytest.raises(KeyError):
@@ -41,7 +45,11 @@ def test_the_same_path_sets_the_same_field_everywhere(path, tmp_path):
     base.write_text(yaml.safe_dump({"kind": "forming", "physics": {"stages": stages}}))
 
     def speed(scn_or_resolved) -> float:
-        d = scn_or_resolved if isinstance(scn_or_resolved, dict) else json.loads(scn_or_resolved.to_json())
+        d = (
+            scn_or_resolved
+            if isinstance(scn_or_resolved, dict)
+            else json.loads(scn_or_resolved.to_json())
+        )
         return d["physics"]["stages"][0]["clamp_speed_mm_s"]
 
     # --set and dynslip.load(set=)
@@ -49,7 +57,11 @@ def test_the_same_path_sets_the_same_field_everywhere(path, tmp_path):
     assert speed(load(base, values={path: 1.25})) == 1.25
     # a sweep: grid and overrides
     sweep = tmp_path / "s.yaml"
-    sweep.write_text(yaml.safe_dump({"base": str(base), "overrides": {path: 1.5}, "grid": {"numerics.nodes": [20]}}))
+    sweep.write_text(
+        yaml.safe_dump(
+            {"base": str(base), "overrides": {path: 1.5}, "grid": {"numerics.nodes": [20]}}
+        )
+    )
     assert speed(expand(load_spec(sweep), sweep)[0].resolved) == 1.5
     sweep.write_text(yaml.safe_dump({"base": str(base), "grid": {path: [1.25, 1.75]}}))
     assert [speed(m.resolved) for m in expand(load_spec(sweep), sweep)] == [1.25, 1.75]

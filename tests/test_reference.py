@@ -2,6 +2,7 @@
 with them and the schema's descriptions quote them, so no copy can drift."""
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -11,8 +12,14 @@ from dynslip.physics import reference as ref
 def test_analysis_paper_is_the_reference():
     from dynslip.analysis import paper
 
-    for name in ("PAPER_MU", "PAPER_JM", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S",
-                 "MEASURED_MU_K"):
+    for name in (
+        "PAPER_MU",
+        "PAPER_JM",
+        "ROUGH_END_STATE",
+        "MEASURED_RELEASE_FORCE_N",
+        "MEASURED_MU_S",
+        "MEASURED_MU_K",
+    ):
         assert getattr(paper, name) is getattr(ref, name)
     assert paper.paper_mu("gent", ref.PAPER_JM) == ref.PAPER_MU["gent"]
     assert paper.paper_mu("gent", 2 * ref.PAPER_JM) is None
@@ -33,19 +40,17 @@ def test_schema_descriptions_quote_the_reference(module, cls, field, quoted):
 
 
 def test_release_analysis_uses_the_runs_ball_drag():
-    """One eta_b formula (physics.protocols), used by the schema to build the run and by the
-    release analysis to read it back: eta_b = tau 4 pi ball_drag."""
+    """One eta_b formula (physics.protocols), used by the forming runner to build the run and by
+    the release analysis to read it back: eta_b = tau 4 pi ball_drag."""
     from dynslip.analysis import release
-    from dynslip.schema import forming
+    from dynslip.app import forming
+    from dynslip.physics import protocols
 
-    assert release.ball_drag_coefficient is forming.ball_drag_coefficient
+    assert release.ball_drag_coefficient is protocols.ball_drag_coefficient
+    assert "protocols import ball_drag_coefficient" in Path(forming.__file__).read_text()
     for drag_time_s, ball_drag in [(0.1, 1.0), (0.02, 3.5), (1.0, 0.0)]:
-        assert release.ball_drag_coefficient(drag_time_s, ball_drag) == \
-            forming.ball_drag_coefficient(drag_time_s, ball_drag) == drag_time_s * 4 * math.pi * ball_drag
-
-
-def test_release_figure_is_in_the_python_api():
-    import dynslip
-    from dynslip.plot.release import release_force
-
-    assert dynslip.plot.release_force is release_force
+        assert (
+            release.ball_drag_coefficient(drag_time_s, ball_drag)
+            == protocols.ball_drag_coefficient(drag_time_s, ball_drag)
+            == drag_time_s * 4 * math.pi * ball_drag
+        )

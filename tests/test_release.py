@@ -32,9 +32,14 @@ def _forming(nodes=40, mu=0.8):
 
 def _release(start, nodes=40, v=0.2, dur=20.0, mu=0.8):
     return {
-        "kind": "forming", "start_from": str(start),
-        "physics": {"friction": {"law": "coulomb", "mu": mu},
-                    "stages": [{"name": "pull", "ball": "hold", "ball_velocity_mm_s": v, "duration_s": dur}]},
+        "kind": "forming",
+        "start_from": str(start),
+        "physics": {
+            "friction": {"law": "coulomb", "mu": mu},
+            "stages": [
+                {"name": "pull", "ball": "hold", "ball_velocity_mm_s": v, "duration_s": dur}
+            ],
+        },
         "numerics": {"nodes": nodes, "save_interval_s": 1.0},
     }
 
@@ -104,10 +109,15 @@ def test_release_force_converges_under_mesh_refinement(tmp_path):
     for n in (20, 40, 80):
         _, s0, _ = _run(_forming(nodes=n), tmp_path / f"form{n}")
         assert s0["status"] == "ok"
-        _, s1, ds = _run(_release(tmp_path / f"form{n}" / "trajectory.nc", nodes=n), tmp_path / f"pull{n}")
+        _, s1, ds = _run(
+            _release(tmp_path / f"form{n}" / "trajectory.nc", nodes=n), tmp_path / f"pull{n}"
+        )
         peaks[n] = s1["release"]["peak_force_N"]
     d1, d2 = abs(peaks[20] - peaks[40]), abs(peaks[40] - peaks[80])
-    print(f"release peak force (N) by nodes: {peaks}; differences {d1:.4f}, {d2:.4f}, order {math.log2(d1 / d2):.2f}")
+    print(
+        f"release peak force (N) by nodes: {peaks}; differences {d1:.4f}, {d2:.4f}, order "
+        f"{math.log2(d1 / d2):.2f}"
+    )
     assert d2 < d1
 
 
@@ -115,7 +125,9 @@ def test_release_force_converges_under_mesh_refinement(tmp_path):
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "dynslip.cli", *args], capture_output=True, text=True, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, "-m", "dynslip.cli", *args], capture_output=True, text=True, cwd=cwd
+    )
 
 
 def _write(path, data):
@@ -166,8 +178,8 @@ def test_bad_weakening_parameters_exit_2(tmp_path, friction, needle):
 
 def test_release_geometry_fields_are_checked_by_name(pocket):
     """The start's resolved scenario is compared field by field (material too)."""
-    from dynslip.errors import InputError
     from dynslip.app.release import load_start
+    from dynslip.errors import InputError
 
     data = _release(pocket)
     data["physics"]["material"] = {"model": "neo_hookean"}

@@ -34,8 +34,12 @@ def test_cap_depth_falls_at_second_order_and_a_piercing_element_reads_near_one()
     order = np.log2(np.array(depths[:-1]) / np.array(depths[1:]))
     assert np.all(np.abs(order - 2.0) < 0.02), order
     th = np.array([0.0, 3.12, 3.13])
-    assert float(np.max(chord_depths(np.sin(th), np.cos(th), 0.0))) == pytest.approx(1 - np.sin(0.01), abs=1e-3)
-    flat = chord_depths(np.linspace(0, 2, 5), np.full(5, 1.5), 0.0)  # a flat sheet 0.5 R above the ball
+    assert float(np.max(chord_depths(np.sin(th), np.cos(th), 0.0))) == pytest.approx(
+        1 - np.sin(0.01), abs=1e-3
+    )
+    flat = chord_depths(
+        np.linspace(0, 2, 5), np.full(5, 1.5), 0.0
+    )  # a flat sheet 0.5 R above the ball
     assert np.all(flat <= -0.5 + 1e-12)
 
 
@@ -45,10 +49,20 @@ def test_chord_check_reports_the_worst_frame_and_element():
     good = np.linspace(0.0, 1.2, 4)  # a cap, 0.4 rad per element
     bad = np.array([0.0, 3.1, 3.12, 3.14])  # the pole element through the ball
     th = np.stack([good, bad, good])
-    ds = xr.Dataset({"rho": (("time", "rbar"), np.sin(th)), "z": (("time", "rbar"), np.cos(th) + 0.1),
-                     "ball_z": ("time", np.full(3, 0.1))}, coords={"time": [0.0, 2.0, 4.0], "rbar": rbar})
+    ds = xr.Dataset(
+        {
+            "rho": (("time", "rbar"), np.sin(th)),
+            "z": (("time", "rbar"), np.cos(th) + 0.1),
+            "ball_z": ("time", np.full(3, 0.1)),
+        },
+        coords={"time": [0.0, 2.0, 4.0], "rbar": rbar},
+    )
     c = chord_check(ds, 0.1)
-    assert not c["resolved"] and c["time_s"] == 2.0 and c["element_rbar"] == [0.0, pytest.approx(1 / 3)]
+    assert (
+        not c["resolved"]
+        and c["time_s"] == 2.0
+        and c["element_rbar"] == [0.0, pytest.approx(1 / 3)]
+    )
     assert c["end_max_chord_depth"] == pytest.approx(1 - np.cos(0.2), rel=1e-10)
     assert chord_check(ds.isel(time=[0, 2]), 0.1)["resolved"]
     assert not c["pole_crossed_ball"]
@@ -63,8 +77,14 @@ def test_a_pole_that_passed_through_the_ball_between_frames_is_caught():
     above = np.stack([np.sin(th), np.cos(th) + 0.01])  # a cap on the ball
     below = np.stack([rbar, np.full(4, -5.0)])  # flat, 5 R below the centre
     frames = np.stack([above, above, below])
-    ds = xr.Dataset({"rho": (("time", "rbar"), frames[:, 0]), "z": (("time", "rbar"), frames[:, 1]),
-                     "ball_z": ("time", np.zeros(3))}, coords={"time": [0.0, 2.0, 4.0], "rbar": rbar})
+    ds = xr.Dataset(
+        {
+            "rho": (("time", "rbar"), frames[:, 0]),
+            "z": (("time", "rbar"), frames[:, 1]),
+            "ball_z": ("time", np.zeros(3)),
+        },
+        coords={"time": [0.0, 2.0, 4.0], "rbar": rbar},
+    )
     c = chord_check(ds, 0.1)
     assert c["pole_crossed_ball"] and not c["resolved"]
     assert c["max_chord_depth"] == 1.0 and c["time_s"] == 4.0 and c["end_max_chord_depth"] < -3.9
@@ -84,9 +104,15 @@ def test_a_window_search_counts_an_unresolved_run_as_failed_not_as_an_answer(tmp
     def member(data, out_dir, console=None):
         mu = data["physics"]["friction"]["mu_s"]
         unresolved = mu < 0.45
-        return {"trapped": None if unresolved else mu > 0.7,
-                "mesh_check": {"resolved": not unresolved, "max_chord_depth": 0.97 if unresolved else 0.02,
-                               "time_s": 98.0, "limit": 0.1}}
+        return {
+            "trapped": None if unresolved else mu > 0.7,
+            "mesh_check": {
+                "resolved": not unresolved,
+                "max_chord_depth": 0.97 if unresolved else 0.02,
+                "time_s": 98.0,
+                "limit": 0.1,
+            },
+        }
 
     s = tmp_path / "s.yaml"
     s.write_text(yaml.safe_dump({"kind": "forming", "physics": {"friction": {
@@ -100,7 +126,9 @@ def test_a_window_search_counts_an_unresolved_run_as_failed_not_as_an_answer(tmp
 
 
 @pytest.mark.slow
-def test_the_low_friction_neo_hookean_tube_path_pierces_the_ball_and_stops_without_an_answer(tmp_path):
+def test_the_low_friction_neo_hookean_tube_path_pierces_the_ball_and_stops_without_an_answer(
+    tmp_path,
+):
     """The rim-feed tube path at mu_s = 0.3 on 40 nodes: the neo-Hookean pole stretches without
     bound in the push-down, and its element's chord sinks into the ball (at the end of that
     run, unchecked, it joins the pole to the far side and reads "trapped" with no friction
@@ -109,8 +137,8 @@ def test_the_low_friction_neo_hookean_tube_path_pierces_the_ball_and_stops_witho
     import json
 
     import xarray as xr
-    from conftest import SCENARIOS
 
+    from conftest import SCENARIOS
     from dynslip.app.kinds import run as run_scenario
     from dynslip.errors import ComputationError
     from dynslip.schema.base import load
@@ -122,7 +150,10 @@ def test_the_low_friction_neo_hookean_tube_path_pierces_the_ball_and_stops_witho
     s = json.loads((tmp_path / "summary.json").read_text())
     c = s["mesh_check"]
     assert s["status"] == "failed" and s["trapped"] is None and not c["resolved"]
-    assert c["max_chord_depth"] > sc.numerics.max_chord_depth and c["end_max_chord_depth"] == c["max_chord_depth"]
+    assert (
+        c["max_chord_depth"] > sc.numerics.max_chord_depth
+        and c["end_max_chord_depth"] == c["max_chord_depth"]
+    )
     with xr.open_dataset(tmp_path / "trajectory.nc") as ds:
         assert int(ds.attrs["complete"]) == 0
         before = chord_check(ds.isel(time=slice(0, -1)), sc.numerics.max_chord_depth)

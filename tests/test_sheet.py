@@ -9,7 +9,14 @@ from hypothesis import strategies as st
 
 from dynslip.physics.friction import Coulomb, soft_threshold
 from dynslip.physics.materials import make_material, relaxed_tensions
-from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh, penalty_energy, penalty_pressure
+from dynslip.physics.sheet import (
+    Penalty,
+    SheetModel,
+    element_stretches,
+    make_mesh,
+    penalty_energy,
+    penalty_pressure,
+)
 
 MAT = make_material("gent", jm=50.0)
 
@@ -37,15 +44,22 @@ def test_forces_are_the_exact_gradient_of_the_energy():
             q[i] -= h
             args_p = (p, z) if arr is rho else (rho, p)
             args_q = (q, z) if arr is rho else (rho, q)
-            fd = (m.energy(*map(jnp.asarray, args_p), zb) - m.energy(*map(jnp.asarray, args_q), zb)) / (2 * h)
+            fd = (
+                m.energy(*map(jnp.asarray, args_p), zb) - m.energy(*map(jnp.asarray, args_q), zb)
+            ) / (2 * h)
             assert float(g[i]) == pytest.approx(float(fd), rel=1e-6, abs=1e-6)
-    fd_b = (m.energy(jnp.asarray(rho), jnp.asarray(z), zb + h) - m.energy(jnp.asarray(rho), jnp.asarray(z), zb - h)) / (2 * h)
+    fd_b = (
+        m.energy(jnp.asarray(rho), jnp.asarray(z), zb + h)
+        - m.energy(jnp.asarray(rho), jnp.asarray(z), zb - h)
+    ) / (2 * h)
     assert float(g_zb) == pytest.approx(float(fd_b), rel=1e-6, abs=1e-6)
 
 
 @pytest.mark.parametrize("grading", [1.0, 2.5])
 @pytest.mark.parametrize("lam", [0.8, 1.0, 1.05, 1.4])
-def test_uniform_radial_stretch_is_a_discrete_equilibrium_with_the_closed_form_edge_force(lam, grading):
+def test_uniform_radial_stretch_is_a_discrete_equilibrium_with_the_closed_form_edge_force(
+    lam, grading
+):
     """rho = lambda rbar, flat: no force on any free node; the clamp's radial force is
     2 pi r_edge lambda T(lambda) with T the equibiaxial tension (zero at lambda = 1). A slack
     disc (lambda < 1, the schema's `pre_stretch` below 1) is wrinkled both ways: zero energy
@@ -109,7 +123,9 @@ def test_penalty_pressure_is_zero_off_the_ball_and_is_the_energy_derivative():
     dphi = jax.vmap(jax.grad(lambda x: penalty_energy(pen, x)))(d)
     assert np.allclose(np.asarray(dphi), np.asarray(p), rtol=1e-12, atol=1e-12)
     # C^1 at the ends of the smoothing band, linear (stiffness k) beyond it
-    dp = jax.vmap(jax.grad(lambda x: penalty_pressure(pen, x)))(jnp.asarray([1e-3 - 1e-12, 1e-3 + 1e-12]))
+    dp = jax.vmap(jax.grad(lambda x: penalty_pressure(pen, x)))(
+        jnp.asarray([1e-3 - 1e-12, 1e-3 + 1e-12])
+    )
     assert np.allclose(np.asarray(dp), 1e4, rtol=1e-6)
 
 
@@ -124,7 +140,9 @@ def test_soft_threshold_ideal_law_and_force_space_smoothing():
         e = eps * c / (c + eps)
         # exactly zero below c - e, exact beyond c + e
         assert float(jnp.max(jnp.abs(jnp.where(jnp.abs(f) <= c - e, s, 0.0)))) == 0.0
-        assert np.allclose(np.asarray(jnp.where(jnp.abs(f) >= c + e, s - ideal, 0.0)), 0.0, atol=1e-14)
+        assert np.allclose(
+            np.asarray(jnp.where(jnp.abs(f) >= c + e, s - ideal, 0.0)), 0.0, atol=1e-14
+        )
         errs.append(float(jnp.max(jnp.abs(s - ideal))))
     rates = np.log10(np.array(errs[:-1]) / np.array(errs[1:]))
     assert np.all(np.abs(rates - 1.0) < 0.05), (errs, rates)  # error = e/4: first order in eps
@@ -154,19 +172,26 @@ def test_kinematics_stuck_and_free_nodes():
     t_dir = k["theta_dir"]
     u_scale = float(jnp.max(jnp.abs(k["u"])))
     assert float(jnp.max(jnp.abs(jnp.sum(k["u"] * t_dir, axis=0)[:-1]))) < 1e-13 * u_scale
-    k0 = m.kinematics(rho + 0.0, z + 3.0, 0.0, Coulomb(mu=jnp.asarray(50.0)), 0.0, 0.3)  # lifted off
+    k0 = m.kinematics(
+        rho + 0.0, z + 3.0, 0.0, Coulomb(mu=jnp.asarray(50.0)), 0.0, 0.3
+    )  # lifted off
     g_rho, g_z, _ = k0["grads"]
     u_expect = -jnp.stack([g_rho, g_z]) / (0.3 * m.mesh.area)
-    assert np.allclose(np.asarray(k0["u"][:, 1:-1]), np.asarray(u_expect[:, 1:-1]), rtol=1e-12, atol=1e-14)
+    assert np.allclose(
+        np.asarray(k0["u"][:, 1:-1]), np.asarray(u_expect[:, 1:-1]), rtol=1e-12, atol=1e-14
+    )
 
 
 @pytest.mark.parametrize("grading", [1.0, 1.5, 3.0])
 def test_graded_mesh_radii_and_areas(grading):
     """rbar_i = r_edge (i/(n-1))^g; the lumped node areas and the element areas each add up to
-    the disc's area pi r_edge^2 exactly (areas 2 pi rmid dr telescope); grading below 1 is refused."""
+    the disc's area pi r_edge^2 exactly (areas 2 pi rmid dr telescope); grading below 1 is
+    refused."""
     n, r_edge = 21, 2.8
     mesh = make_mesh(n, r_edge, grading)
-    assert np.allclose(np.asarray(mesh.rbar), r_edge * (np.arange(n) / (n - 1)) ** grading, rtol=0, atol=1e-15)
+    assert np.allclose(
+        np.asarray(mesh.rbar), r_edge * (np.arange(n) / (n - 1)) ** grading, rtol=0, atol=1e-15
+    )
     assert float(mesh.dr[0]) == pytest.approx(r_edge / (n - 1) ** grading, rel=1e-12)
     for a in (mesh.area, mesh.area_el):
         assert float(jnp.sum(a)) == pytest.approx(np.pi * r_edge**2, rel=1e-13)

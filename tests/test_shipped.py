@@ -6,15 +6,16 @@ from pathlib import Path
 import pytest
 import yaml
 
-from dynslip.app.release import GEOMETRY_FIELDS
+from conftest import SCENARIOS, assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
-from dynslip.schema.base import load, validate_data
+from dynslip.app.release import GEOMETRY_FIELDS
 from dynslip.app.sweep import expand
+from dynslip.schema.base import load, validate_data
 from dynslip.schema.sweep import load_spec
 
-from conftest import SCENARIOS, assert_energy_closes
-
-SCENARIO_FILES = sorted(p for p in SCENARIOS.glob("*.yaml") if "kind" in (yaml.safe_load(p.read_text()) or {}))
+SCENARIO_FILES = sorted(
+    p for p in SCENARIOS.glob("*.yaml") if "kind" in (yaml.safe_load(p.read_text()) or {})
+)
 STUDY_FILES = sorted(p for p in SCENARIOS.glob("*.yaml") if p not in SCENARIO_FILES)
 
 
@@ -39,8 +40,10 @@ def _get(d, dotted):
     return d
 
 
-@pytest.mark.parametrize("name", ["release.yaml", "release_toward_opening.yaml", "release_pull.yaml",
-                                  "release_pull_tube.yaml"])
+@pytest.mark.parametrize(
+    "name",
+    ["release.yaml", "release_toward_opening.yaml", "release_pull.yaml", "release_pull_tube.yaml"],
+)
 def test_release_scenarios_share_the_geometry_of_their_start(name):
     """start_from: method2_let_go.yaml must be reusable: every geometry field agrees."""
     rel = load(SCENARIOS / name)

@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import sphere as S
-from dynslip.errors import ComputationError
 from dynslip.analysis.paper import PAPER_MU
+from dynslip.errors import ComputationError
+from dynslip.physics import sphere as S
 from dynslip.physics.materials import Gent, Hookean, NeoHookean
 
 RMAX, TMAX, N = 0.9, 1.8, 100
@@ -78,13 +78,21 @@ def test_f_m_matches_the_exact_derivative():
 
 
 def test_f_v_identity_converges_at_second_order(members):
-    """F_v (eq. Fz, F_f = -F_m) minus 2 pi T_theta(theta_max) sin^2 theta_max -> 0 at order >= 1.5."""
+    """F_v (eq. Fz, F_f = -F_m) minus 2 pi T_theta(theta_max) sin^2 theta_max -> 0 at order >=
+    1.5."""
     for name, (m, _) in members.items():
         res, hs = [], []
         for n in (51, 101, 201, 401):
             r = S.grid(n, RMAX)
             th = jnp.asarray(S.sample_member(MATS[name], m, RMAX, r)[0])
-            res.append(abs(float(S.vertical_force(MATS[name], th, r[1]) - S.vertical_force_identity(MATS[name], th, r[1]))))
+            res.append(
+                abs(
+                    float(
+                        S.vertical_force(MATS[name], th, r[1])
+                        - S.vertical_force_identity(MATS[name], th, r[1])
+                    )
+                )
+            )
             hs.append(r[1])
         order = np.polyfit(np.log(hs), np.log(res), 1)[0]
         assert order > 1.5, (name, order, res)
@@ -107,11 +115,13 @@ def test_members_are_fully_mobilised_on_the_grid(members):
 
 
 def test_mu_ordering_and_paper_values(members):
-    """Hookean needs the most friction, neo-Hookean the least (paper); report the gap to 1.47/0.99/1.1."""
+    """Hookean needs the most friction, neo-Hookean the least (paper); report the gap to
+    1.47/0.99/1.1."""
     mu = {k: v[0].mu for k, v in members.items()}
     assert mu["hookean"] > mu["gent"] > mu["neo_hookean"]
     gaps = {k: mu[k] / PAPER[k] - 1 for k in mu}
-    # Hookean and neo-Hookean within 5%; Gent is 6.2% high under the same rule (docs/static-model.md)
+    # Hookean and neo-Hookean within 5%; Gent is 6.2% high under the same rule (docs/static-
+    # model.md)
     assert abs(gaps["hookean"]) < 0.05 and abs(gaps["neo_hookean"]) < 0.05
     assert 0.05 < gaps["gent"] < 0.08
 
@@ -142,7 +152,8 @@ def test_march_from_member_stays_put_and_returns_its_mu(members, name):
 
 
 def test_explicit_and_diffrax_marches_agree(members):
-    """Forward Euler in a jitted loop and diffrax Euler at the same step reach the same rest state."""
+    """Forward Euler in a jitted loop and diffrax Euler at the same step reach the same rest
+    state."""
     m, th = members["neo_hookean"]
     h = RMAX / (N - 1)
     mu = 0.99 * m.mu
@@ -165,7 +176,9 @@ def test_no_root_is_a_computation_error_with_both_ends():
         S.search_mu(NeoHookean(), th, r[1], 1.0, 3.0, max_steps=20_000)
     lo, hi = exc.value.partial["fv"]
     assert lo > 0 and hi > 0
-    ident = float(S.vertical_force_identity(NeoHookean(), jnp.asarray(exc.value.partial["theta"][1]), r[1]))
+    ident = float(
+        S.vertical_force_identity(NeoHookean(), jnp.asarray(exc.value.partial["theta"][1]), r[1])
+    )
     assert ident > 0  # T_theta(theta_max) > 0: the sheet pulls off
 
 

@@ -10,9 +10,9 @@ import pytest
 import xarray as xr
 from rich.console import Console
 
+from dynslip.app.kinds import run as run_scenario
 from dynslip.data import files as io
 from dynslip.errors import ComputationError, InputError
-from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load
 
 SMALL = ["numerics.n_nodes=40"]
@@ -41,8 +41,18 @@ def _check_units(ds):
 def test_static_run_writes_result_summary_and_figure(neo):
     out, summary = neo
     ds = xr.open_dataset(out / "result.nc")
-    for v in ("theta", "lambda_theta", "lambda_phi", "T_theta", "T_phi", "F_m", "F_N", "mu_mobilised",
-              "friction_direction", "mu"):
+    for v in (
+        "theta",
+        "lambda_theta",
+        "lambda_phi",
+        "T_theta",
+        "T_phi",
+        "F_m",
+        "F_N",
+        "mu_mobilised",
+        "friction_direction",
+        "mu",
+    ):
         assert v in ds, v
     assert "rbar" in ds.coords
     _check_units(ds)
@@ -53,10 +63,19 @@ def test_static_run_writes_result_summary_and_figure(neo):
     assert ds.attrs["complete"] == 1
     assert json.loads(ds.attrs["scenario"])["kind"] == "static"
     s = json.loads((out / "summary.json").read_text())
-    for k in ("mu", "F_v", "lambda_theta_max", "lambda_theta_max_rbar", "lambda_phi_max", "saturated_fraction",
-              "selection_rule"):
+    for k in (
+        "mu",
+        "F_v",
+        "lambda_theta_max",
+        "lambda_theta_max_rbar",
+        "lambda_phi_max",
+        "saturated_fraction",
+        "selection_rule",
+    ):
         assert k in s, k
-    assert s == json.loads(json.dumps(summary, default=float)) or s["mu"] == pytest.approx(summary["mu"])
+    assert s == json.loads(json.dumps(summary, default=float)) or s["mu"] == pytest.approx(
+        summary["mu"]
+    )
     assert (out / "figure4_row.png").stat().st_size > 10_000
     # the result is an equilibrium at its mu, with the mobilised friction at most mu
     mu = float(ds["mu"])

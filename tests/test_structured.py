@@ -5,12 +5,18 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics.linalg import extract_blocks, to_dense
-from dynslip.app.forming import build_core
-from dynslip.schema.base import load
-from dynslip.physics.simulate import Layout, _stage_args, initial_state, segment_solver, sheet_structure, vector_field
-
 from conftest import SCENARIOS
+from dynslip.app.forming import build_core
+from dynslip.physics.linalg import extract_blocks, to_dense
+from dynslip.physics.simulate import (
+    Layout,
+    _stage_args,
+    initial_state,
+    segment_solver,
+    sheet_structure,
+    vector_field,
+)
+from dynslip.schema.base import load
 
 N = 12
 
@@ -19,8 +25,21 @@ def _setup(name="method2_let_go"):
     sc = load(SCENARIOS / f"{name}.yaml", [f"numerics.nodes={N}"])
     model, protocol, kw = build_core(sc)
     layout = Layout(N, kw["friction"].n_internal())  # slip weakening, one state per node
-    stage_args = [_stage_args(st, 0.0, float(protocol.ball_z0), 0.0, 0.0, kw["friction"], kw["eps"], kw["drag"],
-                              kw["ball_drag"], kw["weight"]) for st in protocol.stages]
+    stage_args = [
+        _stage_args(
+            st,
+            0.0,
+            float(protocol.ball_z0),
+            0.0,
+            0.0,
+            kw["friction"],
+            kw["eps"],
+            kw["drag"],
+            kw["ball_drag"],
+            kw["weight"],
+        )
+        for st in protocol.stages
+    ]
     y0 = initial_state(model, layout, kw["pre_stretch"], kw["z_sheet"], protocol.ball_z0)
     return model, layout, stage_args, y0, kw["settings"]
 

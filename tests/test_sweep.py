@@ -21,11 +21,11 @@ import xarray as xr
 import yaml
 from pydantic import Field, ValidationError
 
-import dynslip.schema.base as scenario_mod
 import dynslip.app.sweep as sweep_mod
+import dynslip.schema.base as scenario_mod
+from dynslip.app.sweep import run_sweep
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.base import Strict, format_validation_error
-from dynslip.app.sweep import run_sweep
 from dynslip.schema.sweep import load_spec
 
 HERE = Path(__file__).resolve().parent
@@ -234,7 +234,8 @@ def test_killed_sweep_resumes_with_every_member_once(tmp_path):
     script = (
         "from test_sweep import slow_member, fake_validate\n"
         "from dynslip.app.sweep import run_sweep\n"
-        f"run_sweep({str(path)!r}, out={str(out)!r}, member_fn=slow_member, validate_fn=fake_validate, plot=False)\n"
+        f"run_sweep({str(path)!r}, out={str(out)!r}, member_fn=slow_member, "
+        f"validate_fn=fake_validate, plot=False)\n"
     )
     env = {
         **os.environ,
@@ -463,7 +464,10 @@ def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     base = scenarios_dir / "method2_let_go.yaml"
     if not base.exists():
         pytest.skip("scenarios/method2_let_go.yaml not shipped yet")
-    sets = ["numerics.nodes=20", "physics.friction.law=coulomb"]  # the ideal law's mu (method2_let_go.yaml: static/kinetic)
+    sets = [
+        "numerics.nodes=20",
+        "physics.friction.law=coulomb",
+    ]  # the ideal law's mu (method2_let_go.yaml: static/kinetic)
     # coarse step 0.2: a prototype's window (trapped at 0.8 only) and the shipped one near
     # mu = 1 are narrower than 0.4
     res = run_window(base, sets, lo=0.4, hi=1.6, coarse=7, tol=0.1, out=tmp_path / "w")

@@ -43,7 +43,9 @@ def test_pinned_verychord_still_has_the_bug():
 
 def _robertson(t, y, args):
     y1, y2, y3 = y
-    return jnp.stack([-0.04 * y1 + 1e4 * y2 * y3, 0.04 * y1 - 1e4 * y2 * y3 - 3e7 * y2**2, 3e7 * y2**2])
+    return jnp.stack(
+        [-0.04 * y1 + 1e4 * y2 * y3, 0.04 * y1 - 1e4 * y2 * y3 - 3e7 * y2**2, 3e7 * y2**2]
+    )
 
 
 @pytest.mark.parametrize("t1", [40.0])
@@ -55,7 +57,11 @@ def test_kvaerno5_rejects_fewer_steps_and_matches_radau(t1):
         sol = diffrax.diffeqsolve(diffrax.ODETerm(_robertson), solver, 0.0, t1, 1e-6, y0,
                                   stepsize_controller=diffrax.PIDController(rtol=1e-6, atol=1e-10),
                                   max_steps=100000)
-        out[name] = (np.asarray(sol.ys[-1]), int(sol.stats["num_rejected_steps"]), int(sol.stats["num_steps"]))
+        out[name] = (
+            np.asarray(sol.ys[-1]),
+            int(sol.stats["num_rejected_steps"]),
+            int(sol.stats["num_steps"]),
+        )
     ref = solve_ivp(lambda t, y: np.asarray(_robertson(t, jnp.asarray(y), None)), (0.0, t1),
                     np.asarray(y0), method="Radau", rtol=1e-10, atol=1e-14).y[:, -1]
     for name in out:

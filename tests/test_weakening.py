@@ -16,7 +16,6 @@ import pytest
 
 from dynslip.physics.friction import Coulomb, SlipWeakening, make_friction
 from dynslip.physics.simulate import Settings, simulate
-
 from test_forming import MAT, MODEL, PRE, Z0, push_protocol, residual
 
 MU_S, MU_K, D_C = 0.99, 0.82, 0.02
@@ -54,8 +53,17 @@ def _ramp(fr, legs, seg=0.05, stiff=10.0, normal=1.0, eta=0.1, heal_rate=0.0):
     out = [(0.0, 0.0, 0.0, 0.0, 0.0)]
     for dur, v in legs:
         for _ in range(int(round(dur / seg))):
-            y, f, s = _node_segment(fr, y, jnp.asarray(t), jnp.asarray(t + seg), jnp.asarray(xd), jnp.asarray(v),
-                                    stiff, normal, eta)
+            y, f, s = _node_segment(
+                fr,
+                y,
+                jnp.asarray(t),
+                jnp.asarray(t + seg),
+                jnp.asarray(xd),
+                jnp.asarray(v),
+                stiff,
+                normal,
+                eta,
+            )
             y = y.at[1].set(fr.reset(y[1], s / eta, normal, heal_rate))
             t, xd = t + seg, xd + v * seg
             out.append((t, float(y[0]), float(y[1]), float(f), float(s)))
@@ -110,8 +118,13 @@ def test_settling_node_heals_and_needs_mu_s_again(heal_rate):
         t, x, delta, force, slip = _ramp(fr, legs, heal_rate=h)
         settle = (t > 20.5) & (t <= 21.0 + 1e-9)
         reload = t > 21.0
-        out[h] = dict(delta_end=delta[settle][-1], slip_end=slip[settle][-1], peak=force[reload].max(),
-                      moved=np.ptp(x[settle]), x_reload=x[reload])
+        out[h] = dict(
+            delta_end=delta[settle][-1],
+            slip_end=slip[settle][-1],
+            peak=force[reload].max(),
+            moved=np.ptp(x[settle]),
+            x_reload=x[reload],
+        )
     bare, healed = out[0.0], out[heal_rate]
     # the bare criterion: still weakened (slip distance > d_c), still creeping (S > 0)
     assert bare["delta_end"] > D_C and bare["slip_end"] > 0.0
@@ -119,8 +132,11 @@ def test_settling_node_heals_and_needs_mu_s_again(heal_rate):
     # healed: slip distance 0 and exactly stuck after it healed
     assert healed["delta_end"] == 0.0 and healed["slip_end"] == 0.0
     assert abs(healed["peak"] - MU_S) / MU_S < 1e-2, healed["peak"]
-    print(f"settling node: bare criterion delta = {bare['delta_end']:.4g} R, reload peak {bare['peak']:.4f}; "
-          f"healed at {heal_rate:g} R/s: reload peak {healed['peak']:.4f} (mu_s N = {MU_S})")
+    print(
+        f"settling node: bare criterion delta = {bare['delta_end']:.4g} R, reload peak "
+        f"{bare['peak']:.4f}; "
+        f"healed at {heal_rate:g} R/s: reload peak {healed['peak']:.4f} (mu_s N = {MU_S})"
+    )
 
 
 def test_one_node_without_weakening_is_coulomb():
@@ -143,7 +159,9 @@ def _sheet_run(friction, factor=1.0, model=MODEL, save=1.0, rtol=1e-5):
 
 
 def _sw(mu_s=MU_S, mu_k=MU_K, d_c=D_C):
-    return SlipWeakening(mu_s=jnp.asarray(mu_s), mu_k=jnp.asarray(mu_k), d_c=jnp.asarray(d_c), eps=jnp.asarray(1e-3))
+    return SlipWeakening(
+        mu_s=jnp.asarray(mu_s), mu_k=jnp.asarray(mu_k), d_c=jnp.asarray(d_c), eps=jnp.asarray(1e-3)
+    )
 
 
 @pytest.fixture(scope="module")
@@ -198,8 +216,11 @@ def test_weakening_rate_independence(sw_base):
     th = float(quarter.frames[-1]["theta_max"])
     d1 = _contact_dtheta(sw_base.frames[-1], half.frames[-1])
     d2 = _contact_dtheta(half.frames[-1], quarter.frames[-1])
-    print(f"weakening rate independence: |dtheta| 1x->2x {d1:.2e}, 2x->4x {d2:.2e}, ratio {d1 / max(d2, 1e-300):.2f},"
-          f" theta_max {th:.4f}")
+    print(
+        f"weakening rate independence: |dtheta| 1x->2x {d1:.2e}, 2x->4x {d2:.2e}, ratio "
+        f"{d1 / max(d2, 1e-300):.2f},"
+        f" theta_max {th:.4f}"
+    )
     assert d1 < 1e-2 * th and d2 < 1e-2 * th
     assert d2 < 0.75 * d1
 
@@ -212,7 +233,9 @@ def test_weakening_mesh_convergence_at_fixed_dc_and_trend_in_dc():
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 
     def model(n):
-        return SheetModel(make_mesh(n, 2.54 / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
+        return SheetModel(
+            make_mesh(n, 2.54 / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
+        )
 
     ends = {}
     for n in (20, 40, 80):

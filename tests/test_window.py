@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from dynslip.errors import ComputationError, InputError
 from dynslip.analysis.windows import find_windows
+from dynslip.errors import ComputationError, InputError
 from dynslip.schema.sweep import friction_field, member_at
 
 TWO = [(0.31, 0.47), (1.23, 1.61)]
@@ -92,8 +92,13 @@ def test_a_window_bounded_by_failed_runs_is_bisected_against_them_and_flagged(ed
         assert e.failed_side and not e.open and not e.unresolved
         assert abs(e.value - true) <= e.err <= 0.5e-3
     # a not-trapped run on the way makes it an ordinary edge
-    res = find_windows(lambda m: True if m > edge else (False if m > edge - 0.01 else None), 0.0, 1.0,
-                       coarse=6, tol=1e-3)
+    res = find_windows(
+        lambda m: True if m > edge else (False if m > edge - 0.01 else None),
+        0.0,
+        1.0,
+        coarse=6,
+        tol=1e-3,
+    )
     assert not res.windows[0].lo.failed_side and abs(res.windows[0].lo.value - edge) <= 1e-3
 
 
@@ -160,4 +165,7 @@ def test_critical_mu_of_a_weakening_law_reports_the_tied_mu_k(tmp_path):
     mu_c = res["critical_mu"]["value"]
     assert abs(mu_c - 1.25) <= 1e-3
     assert res["critical_mu_tied"] == {"physics.friction.mu_k": pytest.approx(0.8 * mu_c)}
-    assert json.loads((tmp_path / "w" / "window.json").read_text())["critical_mu_tied"] == res["critical_mu_tied"]
+    assert (
+        json.loads((tmp_path / "w" / "window.json").read_text())["critical_mu_tied"]
+        == res["critical_mu_tied"]
+    )

@@ -48,7 +48,12 @@ def difference(a: dict, b: dict) -> dict:
     """
     rb = b["rbar"][b["contact"]]
     if rb.size < 2 or not a["contact"].any():
-        return {"max_abs_dtheta": float("nan"), "common_rbar_max": float("nan"), "rbar": [], "dtheta": []}
+        return {
+            "max_abs_dtheta": float("nan"),
+            "common_rbar_max": float("nan"),
+            "rbar": [],
+            "dtheta": [],
+        }
     sel = a["contact"] & (a["rbar"] <= rb.max()) & (a["rbar"] >= rb.min())
     tb = np.interp(a["rbar"][sel], rb, b["theta"][b["contact"]])
     d = a["theta"][sel] - tb
@@ -62,14 +67,16 @@ def difference(a: dict, b: dict) -> dict:
 
 def compare(states: dict) -> dict:
     """``{"runs": ..., "differences": ...}`` of end states (name -> :func:`end_state`, the
-    first the reference): each run's trapped (None: no answer), theta_max, rbar_max, mu_mobilised_max, and the
-    difference of the reference to each other run (``"A - B"``)."""
+    first the reference): each run's trapped (None: no answer), theta_max, rbar_max,
+    mu_mobilised_max, and the difference of the reference to each other run (``"A - B"``)."""
     names = list(states)
     ref = states[names[0]]
     result = {"runs": {}, "differences": {}}
     for n in names:
         s = states[n]
-        result["runs"][n] = {k: s.get(k) for k in ("trapped", "theta_max", "rbar_max", "mu_mobilised_max")}
+        result["runs"][n] = {
+            k: s.get(k) for k in ("trapped", "theta_max", "rbar_max", "mu_mobilised_max")
+        }
     for n in names[1:]:
         d = difference(ref, states[n])
         result["differences"][f"{names[0]} - {n}"] = {

@@ -30,7 +30,9 @@ def critical_edge(windows_detail: list[dict]) -> dict | None:
     return dict(low["lo"])
 
 
-def richardson(ns: list[int], values: list[float], errs: list[float] | None = None, tol: float = 0.02) -> dict:
+def richardson(
+    ns: list[int], values: list[float], errs: list[float] | None = None, tol: float = 0.02
+) -> dict:
     """Richardson extrapolation of ``values`` at mesh sizes ``ns`` (module docstring).
 
     Example::
@@ -51,11 +53,21 @@ def richardson(ns: list[int], values: list[float], errs: list[float] | None = No
     v1, v2, v3 = values
     r1, r2 = n2 / n1, n3 / n2
     if abs(r1 - r2) > 1e-9 * r1 or r1 <= 1:
-        return {**out, "extrapolable": False, "reason": f"refinement ratios differ ({r1:g}, {r2:g})"}
+        return {
+            **out,
+            "extrapolable": False,
+            "reason": f"refinement ratios differ ({r1:g}, {r2:g})",
+        }
     d1, d2 = v2 - v1, v3 - v2
     if d1 == 0 or d2 == 0 or (d1 > 0) != (d2 > 0) or abs(d2) >= abs(d1):
         return {**out, "extrapolable": False,
                 "reason": "values not monotone with shrinking changes: the order is not measurable"}
     p = math.log(abs(d1 / d2)) / math.log(r1)
     v_inf = v3 + d2 / (r1**p - 1.0)
-    return {**out, "extrapolable": True, "order": p, "value": v_inf, "err": abs(v_inf - v3) + errs[-1]}
+    return {
+        **out,
+        "extrapolable": True,
+        "order": p,
+        "value": v_inf,
+        "err": abs(v_inf - v3) + errs[-1],
+    }

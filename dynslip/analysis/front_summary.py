@@ -12,7 +12,13 @@ import json
 import numpy as np
 import xarray as xr
 
-from dynslip.analysis.fronts import BIRTH_EVENTS, DEATH_EVENTS, STUCK_SIDES, motion_state, track_fronts
+from dynslip.analysis.fronts import (
+    BIRTH_EVENTS,
+    DEATH_EVENTS,
+    STUCK_SIDES,
+    motion_state,
+    track_fronts,
+)
 from dynslip.data.files import provenance, variable
 from dynslip.data.trajectory import FREE, SLIP_EQUATOR, SLIP_POLE, STUCK, stage_names
 
@@ -144,7 +150,8 @@ def fronts_dataset(ds: xr.Dataset, rest_speed: float | None = None) -> xr.Datase
             rest,
             st,
             "s",
-            "time the node comes to rest for the last time in the stage (NaN: did not slip then stick)",
+            "time the node comes to rest for the last time in the stage (NaN: did not slip then "
+            "stick)",
         ),
     }
     coords = {
@@ -166,7 +173,8 @@ def fronts_dataset(ds: xr.Dataset, rest_speed: float | None = None) -> xr.Datase
     out.attrs["classification"] = (
         "state flags (force criterion)"
         if rest_speed is None
-        else f"state flags, slipping nodes with |slip_velocity| <= {float(rest_speed):g} R/s counted stuck"
+        else f"state flags, slipping nodes with |slip_velocity| <= {float(rest_speed):g} R/s "
+            f"counted stuck"
     )
     out.attrs["stage_summary"] = json.dumps(stage_summary(ds, out))
     return out

@@ -22,7 +22,8 @@ sheet moves by more than its width between frames). Among the allowed pairings a
 order-preserving one (fronts cannot cross in 1D) with the most links and then the least
 cost is chosen by dynamic programming; the cost is the displacement in nodes, plus 0.5 if
 the slip direction beside the front changed, plus 0.25 per side linked only by reach.
-Apart from ``reach``, no speed limit is assumed. Speeds are finite differences along a track (``numpy.gradient``, second order inside).
+Apart from ``reach``, no speed limit is assumed. Speeds are finite differences along a track
+(``numpy.gradient``, second order inside).
 
 Events: a track is born ``run_start`` (present in the first frame), ``nucleated`` (a new
 domain appeared inside another), ``nucleated_at_contact_edge`` (a new domain at the outer
@@ -47,7 +48,6 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from dynslip.errors import InputError
 from dynslip.data.trajectory import (
     FREE,
     SLIP_EQUATOR,
@@ -55,6 +55,7 @@ from dynslip.data.trajectory import (
     STUCK,
     state_array,
 )
+from dynslip.errors import InputError
 
 BIRTH_EVENTS = (
     "run_start",

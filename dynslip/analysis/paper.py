@@ -21,8 +21,16 @@ from dynslip.physics.reference import (
     ROUGH_END_STATE,
 )
 
-__all__ = ["PAPER_MU", "PAPER_JM", "paper_mu", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N", "MEASURED_MU_S",
-           "MEASURED_MU_K", "MODEL_LABELS"]
+__all__ = [
+    "PAPER_MU",
+    "PAPER_JM",
+    "paper_mu",
+    "ROUGH_END_STATE",
+    "MEASURED_RELEASE_FORCE_N",
+    "MEASURED_MU_S",
+    "MEASURED_MU_K",
+    "MODEL_LABELS",
+]
 
 
 def paper_mu(model: str, jm: float | None = None) -> float | None:
@@ -32,5 +40,10 @@ def paper_mu(model: str, jm: float | None = None) -> float | None:
     return PAPER_MU.get(model)
 
 
-MODEL_LABELS = {"hookean": "Hookean", "neo_hookean": "neo-Hookean", "gent": "Gent", "mooney_rivlin": "Mooney-Rivlin"}
+MODEL_LABELS = {
+    "hookean": "Hookean",
+    "neo_hookean": "neo-Hookean",
+    "gent": "Gent",
+    "mooney_rivlin": "Mooney-Rivlin",
+}
 """The material models (``model`` of a material section) as figures and tables name them."""

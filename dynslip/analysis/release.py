@@ -65,8 +65,14 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     measured force). None when the run has no such stage."""
     sc = json.loads(ds.attrs["scenario"])
     stages = sc["physics"]["stages"]
-    idx = next((i for i, st in enumerate(stages) if st.get("ball") == "pull" and st.get("until") == "ball_speed_above"),
-               None)
+    idx = next(
+        (
+            i
+            for i, st in enumerate(stages)
+            if st.get("ball") == "pull" and st.get("until") == "ball_speed_above"
+        ),
+        None,
+    )
     if idx is None:
         return None
     fs = float(ds.attrs["force_scale_N"])
@@ -76,7 +82,8 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     in_stage = ds["stage"].values == idx
     threshold = float(stages[idx]["ball_speed_mm_s"])
     slow = np.flatnonzero(in_stage & (speed_mm_s < threshold))
-    # torn out: a saved frame past the threshold, or the stage's stop rule ended it early (the rule sees
+    # torn out: a saved frame past the threshold, or the stage's stop rule ended it early (the rule
+    # sees
     # the instantaneous speed; the saved frames only their differences)
     ts = t[in_stage]
     ended_early = bool(ts.size and ts[-1] - t[max(int(np.flatnonzero(in_stage)[0]) - 1, 0)]
@@ -136,7 +143,8 @@ def sheet_force(ds: xr.Dataset):
 def free_span_check(ds: xr.Dataset, model) -> dict:
     """Per frame, the axial force 2 pi rho T_theta sin(psi) on the free elements (both ends out
     of contact): its spread relative to its mean, and its mean against the hold force less the
-    ball's small drag (a regularisation; the rest is what the sheet exerts on the ball). Frames where the hold force is
+    ball's small drag (a regularisation; the rest is what the sheet exerts on the ball). Frames
+    where the hold force is
     below 1% of its largest value (slack span) are skipped."""
     import jax.numpy as jnp
 
@@ -149,9 +157,13 @@ def free_span_check(ds: xr.Dataset, model) -> dict:
         el = free_nodes[:-1] & free_nodes[1:]
         if el.sum() < 2:
             continue
-        p = np.asarray(model.free_span_axial_force(jnp.asarray(f["rho"].values), jnp.asarray(f["z"].values)))[el]
+        p = np.asarray(
+            model.free_span_axial_force(jnp.asarray(f["rho"].values), jnp.asarray(f["z"].values))
+        )[el]
         hold = float(static[i])
-        if scale == 0 or abs(hold) < 1e-2 * scale:  # a slack span: relative measures are meaningless
+        if (
+            scale == 0 or abs(hold) < 1e-2 * scale
+        ):  # a slack span: relative measures are meaningless
             continue
         mean = float(np.mean(p))
         spreads.append(float(np.ptp(p) / abs(mean)))

@@ -36,7 +36,9 @@ def chord_check(ds: xr.Dataset, limit: float) -> dict:
     (``pole_crossed_ball``)."""
     rho, z, zb, times, rbar = (ds[v].values for v in ("rho", "z", "ball_z", "time", "rbar"))
     depth, k, crossed = deepest_chord(rho, z, zb, np.sign(z[0, 0] - zb[0]))
-    f = int(np.argmax(depth))  # the first frame of the deepest (a crossing: the first on the other side)
+    f = int(
+        np.argmax(depth)
+    )  # the first frame of the deepest (a crossing: the first on the other side)
     worst = float(depth[f])
     return {
         "max_chord_depth": worst,
@@ -46,7 +48,11 @@ def chord_check(ds: xr.Dataset, limit: float) -> dict:
         "pole_crossed_ball": bool(crossed.any()),
         "limit": float(limit),
         "resolved": bool(worst <= limit),
-        "means": ("largest depth (units R) that a straight element between two nodes reaches inside the ball, "
-                  "over the saved frames; contact acts at nodes only, so a deep chord is sheet passing through "
-                  "the ball and trapped is then unknown"),
+        "means": (
+            "largest depth (units R) that a straight element between two nodes reaches inside the "
+            "ball, "
+            "over the saved frames; contact acts at nodes only, so a deep chord is sheet passing "
+            "through "
+            "the ball and trapped is then unknown"
+        ),
     }

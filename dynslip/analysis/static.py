@@ -17,14 +17,14 @@ from dynslip.analysis.paper import MODEL_LABELS as LABEL
 from dynslip.analysis.paper import paper_mu
 from dynslip.errors import ComputationError
 
-
 SAT_REL = 0.02  # |F_m| = mu F_N within 2% counts as saturated
 
 
 def _rule_text(sel) -> str:
     if sel.rule == "switch_radius":
         return f"fully mobilised member whose F_m changes sign at rbar_s = {sel.value:g} R"
-    return f"fully mobilised member whose F_m changes sign (and lambda_theta peaks) at theta_s = {sel.value:g} rad"
+    return (f"fully mobilised member whose F_m changes sign (and lambda_theta peaks) at "
+            f"theta_s = {sel.value:g} rad")
 
 
 def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, selection, num,
@@ -52,9 +52,15 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
     out["theta_member"] = th_m
     if initial_shape == "fully_mobilised":
         if not member.converged:
-            out.update(status="failed", theta=th_m, theta_initial=th_m,
-                       error=f"{LABEL.get(model, model)}: the fully mobilised boundary-value problem did not "
-                       f"converge for {out['rule']} (largest end-condition residual {member.residual:.3g})")
+            out.update(
+                status="failed",
+                theta=th_m,
+                theta_initial=th_m,
+                error=f"{LABEL.get(model, model)}: the fully mobilised boundary-value problem did "
+                    f"not "
+                f"converge for {out['rule']} (largest end-condition residual "
+                f"{member.residual:.3g})",
+            )
             return out
         theta0 = th_m
     else:
@@ -65,18 +71,41 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
                     dt=float(S.stable_dt(material, jnp.asarray(theta0), h, num.dt_safety)))
     t0 = time.perf_counter()
     try:
-        sr = S.search_mu(material, theta0, h, num.mu_bracket[0], num.mu_bracket[1], mu_tol=num.mu_tol,
-                         fv_tol=num.fv_tolerance(), **march_kw)
+        sr = S.search_mu(
+            material,
+            theta0,
+            h,
+            num.mu_bracket[0],
+            num.mu_bracket[1],
+            mu_tol=num.mu_tol,
+            fv_tol=num.fv_tolerance(),
+            **march_kw,
+        )
     except ComputationError as err:
         part = err.partial
-        out.update(status="failed", error=f"{LABEL.get(model, model)}: {err}", theta=np.asarray(part["theta"][0]),
-                   mu=float("nan"), fv_bracket=part["fv"], mu_bracket=part["mu"],
-                   theta_bracket_ends=part["theta"], t_search_s=time.perf_counter() - t0)
+        out.update(
+            status="failed",
+            error=f"{LABEL.get(model, model)}: {err}",
+            theta=np.asarray(part["theta"][0]),
+            mu=float("nan"),
+            fv_bracket=part["fv"],
+            mu_bracket=part["mu"],
+            theta_bracket_ends=part["theta"],
+            t_search_s=time.perf_counter() - t0,
+        )
         _add_fields(out, material, np.asarray(part["theta"][0]), h, num.mu_bracket[0], num)
         return out
     out["t_search_s"] = time.perf_counter() - t0
-    out.update(status="ok", mu=sr.mu, theta=sr.theta, fv_bracket=sr.fv_bracket, mu_bracket=num.mu_bracket,
-               evaluations=sr.evaluations, march_steps=int(sr.march.steps), march_converged=bool(sr.march.converged))
+    out.update(
+        status="ok",
+        mu=sr.mu,
+        theta=sr.theta,
+        fv_bracket=sr.fv_bracket,
+        mu_bracket=num.mu_bracket,
+        evaluations=sr.evaluations,
+        march_steps=int(sr.march.steps),
+        march_converged=bool(sr.march.converged),
+    )
     _add_fields(out, material, sr.theta, h, sr.mu, num)
     try:
         S.check_static_range(material, out["lambda_theta"], out["lambda_phi"], "in the final state")
@@ -99,18 +128,24 @@ def _add_fields(out, material, theta, h, mu, num):
     # Direction of friction F_f = -F_m: +1 toward the equator (increasing theta), -1 toward the
     # pole, 0 where F_m vanishes (the pole) to round-off.
     scale = np.max(np.abs(fm)) if np.all(np.isfinite(fm)) else 1.0
-    out["friction_direction"] = np.where(np.abs(fm) <= 1e-12 * scale, 0, -np.sign(fm)).astype(np.int8)
+    out["friction_direction"] = np.where(np.abs(fm) <= 1e-12 * scale, 0, -np.sign(fm)).astype(
+        np.int8
+    )
     chk = S.check_equilibrium(material, theta, h, mu, vtol=num.rest_velocity, force_tol=1e-8)
     out["check"] = chk
-    out["saturated_fraction"] = S.saturation_fraction(fm, fn, mu, SAT_REL) if np.isfinite(mu) else float("nan")
+    out["saturated_fraction"] = (
+        S.saturation_fraction(fm, fn, mu, SAT_REL) if np.isfinite(mu) else float("nan")
+    )
     rbar = out["rbar"]
     th = np.asarray(theta)
     i_t, i_p = int(np.nanargmax(out["lambda_theta"])), int(np.nanargmax(out["lambda_phi"]))
     i_s, i_i = S.sign_change_index(fm), S.inflection_index(th)
     out["extrema"] = {
-        "lambda_theta_max": float(out["lambda_theta"][i_t]), "lambda_theta_max_rbar": float(rbar[i_t]),
+        "lambda_theta_max": float(out["lambda_theta"][i_t]),
+        "lambda_theta_max_rbar": float(rbar[i_t]),
         "lambda_theta_max_theta": float(th[i_t]),
-        "lambda_phi_max": float(out["lambda_phi"][i_p]), "lambda_phi_max_rbar": float(rbar[i_p]),
+        "lambda_phi_max": float(out["lambda_phi"][i_p]),
+        "lambda_phi_max_rbar": float(rbar[i_p]),
         "lambda_phi_max_theta": float(th[i_p]),
         "F_m_sign_change_rbar": float(rbar[i_s]) if i_s >= 0 else None,
         "theta_inflection_rbar": float(rbar[i_i]) if i_i >= 0 else None,
@@ -137,10 +172,19 @@ def _summary(res: dict) -> dict:
         s["mu_family_vs_paper_percent"] = 100.0 * (member.mu / res["paper_mu"] - 1.0)
     chk = res.get("check")
     if chk:
-        s.update(F_v=chk["F_v"], F_v_identity=chk["F_v_identity"], F_v_identity_residual=chk["F_v_residual"],
-                 T_theta_edge=chk["T_theta_edge"], coulomb_excess=chk["coulomb_excess"],
-                 max_velocity=chk["vmax"], min_F_N=chk["min_F_N"], equilibrium_ok=chk["ok"],
-                 saturated_fraction=res["saturated_fraction"], saturation_tolerance=SAT_REL, **res["extrema"])
+        s.update(
+            F_v=chk["F_v"],
+            F_v_identity=chk["F_v_identity"],
+            F_v_identity_residual=chk["F_v_residual"],
+            T_theta_edge=chk["T_theta_edge"],
+            coulomb_excess=chk["coulomb_excess"],
+            max_velocity=chk["vmax"],
+            min_F_N=chk["min_F_N"],
+            equilibrium_ok=chk["ok"],
+            saturated_fraction=res["saturated_fraction"],
+            saturation_tolerance=SAT_REL,
+            **res["extrema"],
+        )
     for k in ("evaluations", "march_steps", "march_converged", "t_bvp_s", "t_search_s"):
         if k in res:
             s[k] = res[k]
@@ -151,3 +195,72 @@ def _summary(res: dict) -> dict:
     if res["status"] != "ok":
         s["error"] = res.get("error", "")
     return s
+
+
+#: the material models of the paper's Fig. 4 and of the family, in their order
+FIGURE4_MODELS = ("hookean", "neo_hookean", "gent")
+
+
+def figure4_summary(sums: list[dict], complete: bool) -> dict:
+    """``summary.json`` of ``kind: figure4``: each model's static summary, and mu by model."""
+    return {
+        "status": "ok" if complete else "failed",
+        "models": sums,
+        "mu": {s["model"]: s.get("mu") for s in sums},
+        "selection_rule": sums[0]["selection_rule"],
+    }
+
+
+def family(materials: dict, values, theta_max, rbar_max, guess, rtol, switch_by, selection):
+    """The fully mobilised family of each material (``{model: material}``) over the family
+    parameter ``values`` (``switch_by``: switch radius or angle), by continuation from the
+    middle of the range outward, both ways; and the member the selection rule picks.
+
+    Returns (``{"mu", "pole_stretch", "switch_rbar", "switch_theta"}`` arrays (model, member),
+    NaN where a member did not converge; the selected members)."""
+    from dynslip.physics import sphere as S
+
+    cols = {
+        k: np.full((len(materials), len(values)), np.nan)
+        for k in ("mu", "pole_stretch", "switch_rbar", "switch_theta")
+    }
+    selected = []
+    for i, mat in enumerate(materials.values()):
+        # Continuation from the middle of the range outward, both ways.
+        mid = len(values) // 2
+        up = S.solve_family(mat, values[mid:], theta_max, rbar_max, guess, by=switch_by, rtol=rtol)
+        g = (up[0].lam0, up[0].mu, up[0].rbar_s) if up[0].converged else guess
+        down = S.solve_family(mat, values[:mid][::-1], theta_max, rbar_max, g, by=switch_by,
+                              rtol=rtol)[::-1]
+        for j, m in enumerate(down + up):
+            if m.converged:
+                cols["mu"][i, j], cols["pole_stretch"][i, j] = m.mu, m.lam0
+                cols["switch_rbar"][i, j], cols["switch_theta"][i, j] = m.rbar_s, m.theta_s
+        sel = S.solve_member(mat, selection.value, theta_max, rbar_max, guess, by=selection.rule,
+                             rtol=rtol)
+        selected.append(sel)
+    return cols, selected
+
+
+def family_summary(cols: dict, selected: list, models: list[str], jm, selection):
+    """The table rows (one per model: the selected member against the paper's mu) and
+    ``summary.json`` of ``kind: family``."""
+    rows = []
+    for i, model in enumerate(models):
+        pm = paper_mu(model, jm)
+        rows.append(
+            {
+                "model": model,
+                "mu": selected[i].mu,
+                "mu_family": selected[i].mu,
+                "paper_mu": pm,
+                "mu_vs_paper_percent": 100 * (selected[i].mu / pm - 1) if pm else None,
+                "status": "ok" if selected[i].converged else "failed",
+                "selection_rule": _rule_text(selection),
+                "members_converged": int(np.isfinite(cols["mu"][i]).sum()),
+            }
+        )
+    summary = {"status": "ok", "selection_rule": _rule_text(selection), "selected": rows,
+               "mu_range": {m: [float(np.nanmin(cols["mu"][i])), float(np.nanmax(cols["mu"][i]))]
+                            for i, m in enumerate(models)}}
+    return rows, summary

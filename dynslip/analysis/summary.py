@@ -16,6 +16,7 @@ import math
 import numpy as np
 import xarray as xr
 
+from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.analysis.resolution import chord_check
 
 
@@ -33,7 +34,9 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     mu_mob = np.asarray(end["mu_mobilised"])
     mu_mobilised_max = float(np.nanmax(mu_mob[contact])) if contact.any() else float("nan")
     stage_names = [s.name for s in p.stages]
-    slack = next((s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None)
+    slack = next(
+        (s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None
+    )
     work = np.abs(ds["work_clamp"].values) + np.abs(ds["work_ball"].values)
     work_scale = float(np.max(work)) if work.size else float("nan")
     resid = ds["energy_residual"].values
@@ -60,8 +63,10 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "sin_theta_max": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
             "rbar_max": rbar_max,
             "holds": bool(np.isfinite(theta_max) and math.sin(theta_max) <= rbar_max),
-            "hoop_stretch_at_lift_off": (math.sin(theta_max) / rbar_max) if rbar_max > 0 else float("nan"),
-            "paper_rough": {"theta_max": 1.8, "rbar_max": 0.9},
+            "hoop_stretch_at_lift_off": (math.sin(theta_max) / rbar_max)
+            if rbar_max > 0
+            else float("nan"),
+            "paper_rough": dict(ROUGH_END_STATE),
         },
         "largest_stretch": {
             "lambda_theta": float(lt[i_t]),
@@ -73,13 +78,18 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         },
         "friction_law": p.friction.law,
         "mu": p.friction.nominal_mu,
-        **({"mu_s": p.friction.mu_s, "mu_k": p.friction.mu_k, "d_c_mm": p.friction.d_c_mm}
-           if p.friction.law == "slip_weakening" else {}),
+        **(
+            {"mu_s": p.friction.mu_s, "mu_k": p.friction.mu_k, "d_c_mm": p.friction.d_c_mm}
+            if p.friction.law == "slip_weakening"
+            else {}
+        ),
         "mu_mobilised_max": mu_mobilised_max,
-        "mu_mobilised_max_means": ("largest |friction| / normal force over the contact of the end state: the "
-                                   "friction this state mobilises, not the least friction the path needs (a "
-                                   "fully mobilised end state returns the input mu); the path's critical mu is "
-                                   "found by `dynslip window` (window.json)"),
+        "mu_mobilised_max_means": (
+            "largest |friction| / normal force over the contact of the end state: the "
+            "friction this state mobilises, not the least friction the path needs (a "
+            "fully mobilised end state returns the input mu); the path's critical mu is "
+            "found by `dynslip window` (window.json)"
+        ),
         "contact_nodes": int(contact.sum()),
         "slack_rim_height": {
             "reached": bool(slack["condition_met"]) if slack else None,
@@ -95,15 +105,23 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "residual_end": float(resid[-1]),
             "residual_max_abs": float(np.max(np.abs(resid))),
             "work_scale": work_scale,
-            "relative_residual": float(np.max(np.abs(resid)) / work_scale) if work_scale > 0 else float("nan"),
+            "relative_residual": float(np.max(np.abs(resid)) / work_scale)
+            if work_scale > 0
+            else float("nan"),
             "initial_energy": float(ds.attrs["energy_initial"]),
         },
         "stages": result.stage_end,
         "solver": {
-            "steps": st["steps"], "accepted": st["accepted"], "rejected": st["rejected"],
-            "segments": st["segments"], "compile_s": st["compile_s"], "run_s": st["run_s"],
-            "time_per_step_ms": st["time_per_step_ms"], "wall_s": st.get("wall_s"),
-            "method": st.get("method"), "newton_iterations": st.get("newton_iterations"),
+            "steps": st["steps"],
+            "accepted": st["accepted"],
+            "rejected": st["rejected"],
+            "segments": st["segments"],
+            "compile_s": st["compile_s"],
+            "run_s": st["run_s"],
+            "time_per_step_ms": st["time_per_step_ms"],
+            "wall_s": st.get("wall_s"),
+            "method": st.get("method"),
+            "newton_iterations": st.get("newton_iterations"),
         },
         "nodes": sc.numerics.nodes,
     }
@@ -117,20 +135,22 @@ def rest_words(p, ds: xr.Dataset, result, at_rest: bool) -> str:
     stopped, not a rest state)."""
     last = result.stage_end[-1] if result.stage_end else None
     if at_rest:
-        return f"at rest: stage {last['name']!r} met its rest condition at t = {last['t_end']:.4g} s"
+        return (f"at rest: stage {last['name']!r} met its rest condition at "
+                f"t = {last['t_end']:.4g} s")
     if last is None:
         return "not at rest: the run ended before its first stage did"
     if _stage_until(p, last["name"]) != "rest":
-        return (f"no rest stage: the run ends with stage {last['name']!r} at t = {last['t_end']:.4g} s "
-                "(its end state is not checked for rest)")
+        return (f"no rest stage: the run ends with stage {last['name']!r} at "
+                f"t = {last['t_end']:.4g} s (its end state is not checked for rest)")
     z = ds["ball_z"].values
     in_stage = np.flatnonzero(ds["stage"].values == len(result.stage_end) - 1)
-    moved = (f"; the ball moved from z = {z[in_stage[0]]:.3g} to {z[in_stage[-1]]:.3g} R over the stage"
-             if in_stage.size else "")
-    why = ("ended at its time limit" if len(result.stage_end) == len(p.stages) and not last["condition_met"]
-           else "did not finish")
-    return (f"NOT AT REST: stage {last['name']!r} {why} (t = {last['t_end']:.4g} s) before the sheet and ball "
-            f"came to rest{moved}; the end state is where the run stopped, not a rest state")
+    moved = (f"; the ball moved from z = {z[in_stage[0]]:.3g} to {z[in_stage[-1]]:.3g} R over "
+             "the stage" if in_stage.size else "")
+    limit = len(result.stage_end) == len(p.stages) and not last["condition_met"]
+    why = "ended at its time limit" if limit else "did not finish"
+    return (f"NOT AT REST: stage {last['name']!r} {why} (t = {last['t_end']:.4g} s) before the "
+            f"sheet and ball came to rest{moved}; the end state is where the run stopped, not a "
+            "rest state")
 
 
 def outcome_words(s: dict) -> str:

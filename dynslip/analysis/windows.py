@@ -18,7 +18,8 @@ missed: the coarse step is reported as the search's resolution.
 
 The predicate ``trapped(mu)`` returns ``True``/``False``, or ``None`` for a failed run;
 it may also raise :class:`~dynslip.errors.ComputationError` (a scenario run whose contact
-the mesh does not resolve, ``summary.json`` ``mesh_check``, counts as failed). A failed point is never
+the mesh does not resolve, ``summary.json`` ``mesh_check``, counts as failed). A failed point is
+never
 read as "not trapped": a failed coarse point is replaced by the points a quarter step
 either side of it (a bracket spans what still fails), and
 a failed bisection point is retried at the quarter points of the bracket; when those
@@ -107,7 +108,7 @@ MIN_REL_TOL = 1e-9
 MAX_ABS_RANGE = 1e6
 
 
-def check_range(lo: float, hi: float, coarse: int, tol: float, source: str = "window") -> None:
+def check_search(lo: float, hi: float, coarse: int, tol: float, source: str = "window") -> None:
     """Raise :class:`InputError` unless ``lo < hi`` (finite), ``2 <= coarse <= MAX_COARSE`` and
     ``tol`` finite and at least ``MIN_REL_TOL * max(1, |lo|, |hi|)`` (a finer bracket than the
     floats can resolve would bisect for ever)."""
@@ -116,7 +117,9 @@ def check_range(lo: float, hi: float, coarse: int, tol: float, source: str = "wi
             f"{source}: range [lo, hi] = [{lo}, {hi}]: need finite lo < hi (an empty range)"
         )
     if max(abs(lo), abs(hi)) > MAX_ABS_RANGE:
-        raise InputError(f"{source}: range [lo, hi] = [{lo}, {hi}]: allowed: |lo|, |hi| <= {MAX_ABS_RANGE:g}")
+        raise InputError(
+            f"{source}: range [lo, hi] = [{lo}, {hi}]: allowed: |lo|, |hi| <= {MAX_ABS_RANGE:g}"
+        )
     if not 2 <= coarse <= MAX_COARSE:
         raise InputError(f"{source}: coarse = {coarse}: allowed: 2..{MAX_COARSE} scan points")
     tol_min = MIN_REL_TOL * max(1.0, abs(lo), abs(hi))
@@ -142,7 +145,7 @@ def find_windows(
         >>> [[round(a, 2), round(b, 2)] for a, b in (w.as_list() for w in r.windows)]
         [[0.3, 0.5], [1.2, 1.4]]
     """
-    check_range(lo, hi, coarse, tol)
+    check_search(lo, hi, coarse, tol)
     res = WindowResult(lo=float(lo), hi=float(hi), coarse=int(coarse), tol=float(tol))
 
     def ev(mu: float) -> bool | None:
@@ -230,7 +233,9 @@ def find_windows(
     return res
 
 
-def _bisect_against_failed(ev: Callable[[float], bool | None], failed: float, trapped: float, tol: float) -> Edge:
+def _bisect_against_failed(
+    ev: Callable[[float], bool | None], failed: float, trapped: float, tol: float
+) -> Edge:
     """The edge between a failed point and a trapped one, bisected to ``tol`` on "trapped".
     A not-trapped point met on the way makes it an ordinary edge (``failed_side`` false)."""
     f, t = failed, trapped

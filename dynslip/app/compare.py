@@ -65,9 +65,18 @@ def _print(console, result: dict) -> None:
     for c in ("trapped", "theta_max", "rbar_max", "mu_mobilised_max"):
         t.add_column(c, justify="right", overflow="fold")
     for n, v in result["runs"].items():
-        t.add_row(n, trapped_text(v["trapped"]), f"{v['theta_max']:.4f}", f"{v['rbar_max']:.4f}",
-                  f"{v['mu_mobilised_max']:.4f}")
+        t.add_row(
+            n,
+            trapped_text(v["trapped"]),
+            f"{v['theta_max']:.4f}",
+            f"{v['rbar_max']:.4f}",
+            f"{v['mu_mobilised_max']:.4f}",
+        )
     console.print(t, crop=False)
     for k, v in result["differences"].items():
-        console.print(f"max |delta theta| ({k}) = {v['max_abs_dtheta']:.4g} rad on rbar <= {v['common_rbar_max']:.3f}",
-                      crop=False, soft_wrap=True)
+        console.print(
+            f"max |delta theta| ({k}) = {v['max_abs_dtheta']:.4g} rad on rbar <= "
+            f"{v['common_rbar_max']:.3f}",
+            crop=False,
+            soft_wrap=True,
+        )

@@ -1,4 +1,5 @@
-"""Runner of ``kind: forming`` scenarios: core objects, progress bar, trajectory.nc, summary, figures.
+"""Runner of ``kind: forming`` scenarios: core objects, progress bar, trajectory.nc, summary,
+figures.
 
 The CLI hands :func:`run_forming` its staging folder and swaps it in on success. The
 trajectory is rewritten (atomically, ``complete = 0``) at every stage end and every
@@ -12,14 +13,13 @@ from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
-import xarray as xr
 
 from dynslip.analysis.summary import summarize
 from dynslip.data import files as io
 from dynslip.data import trajectory
-from dynslip.errors import ComputationError, InputError
+from dynslip.errors import ComputationError
 
-__all__ = ["run_forming", "preflight", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
+__all__ = ["run_forming", "resolve_start", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
 
 FLUSH_FRAMES = 25
 
@@ -27,9 +27,10 @@ FLUSH_FRAMES = 25
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
     from dynslip.physics.friction import make_friction
-    from dynslip.schema.forming import ball_drag_coefficient, build_protocol
+    from dynslip.physics.protocols import ball_drag_coefficient
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import Settings
+    from dynslip.schema.forming import build_protocol
 
     p, nu = sc.physics, sc.numerics
     r = p.ball_radius_mm
@@ -37,50 +38,97 @@ def build_core(sc):
     material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
-    model = SheetModel(mesh, material, Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width)))
+    model = SheetModel(
+        mesh, material, Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width))
+    )
     protocol = build_protocol(sc)
     weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0
-    settings = Settings(solver=nu.solver, rtol=nu.rtol, atol=nu.atol, pcoeff=nu.pid_pcoeff, icoeff=nu.pid_icoeff,
-                        max_steps=nu.max_steps, save_interval=nu.save_interval_s, linear_solver=nu.linear_solver,
-                        contact_threshold=nu.contact_threshold, heal_rate=nu.heal_rate_mm_s / r,
-                        max_increment=nu.max_increment, max_increment_free=nu.max_increment_free,
-                        newton_max_iter=nu.newton_max_iter, newton_backtrack=nu.newton_backtrack,
-                        max_chord_depth=nu.max_chord_depth)
+    settings = Settings(
+        solver=nu.solver,
+        rtol=nu.rtol,
+        atol=nu.atol,
+        pcoeff=nu.pid_pcoeff,
+        icoeff=nu.pid_icoeff,
+        max_steps=nu.max_steps,
+        save_interval=nu.save_interval_s,
+        linear_solver=nu.linear_solver,
+        contact_threshold=nu.contact_threshold,
+        heal_rate=nu.heal_rate_mm_s / r,
+        max_increment=nu.max_increment,
+        max_increment_free=nu.max_increment_free,
+        newton_max_iter=nu.newton_max_iter,
+        newton_backtrack=nu.newton_backtrack,
+        max_chord_depth=nu.max_chord_depth,
+    )
     kwargs = dict(
-        friction=make_friction(p.friction.law, mu=p.friction.mu, mu_s=p.friction.mu_s, mu_k=p.friction.mu_k,
-                               d_c=p.friction.d_c_mm / r, eps=nu.friction_smoothing),
-        eps=nu.friction_smoothing, drag=nu.drag_time_s, ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
-        pre_stretch=p.pre_stretch, z_sheet=(r + p.sheet_gap_mm) / r, weight=weight, settings=settings,
+        friction=make_friction(
+            p.friction.law,
+            mu=p.friction.mu,
+            mu_s=p.friction.mu_s,
+            mu_k=p.friction.mu_k,
+            d_c=p.friction.d_c_mm / r,
+            eps=nu.friction_smoothing,
+        ),
+        eps=nu.friction_smoothing,
+        drag=nu.drag_time_s,
+        ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
+        pre_stretch=p.pre_stretch,
+        z_sheet=(r + p.sheet_gap_mm) / r,
+        weight=weight,
+        settings=settings,
         support_stiffness=nu.support_stiffness,
     )
     return model, protocol, kwargs
 
 
-def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None) -> xr.Dataset:
-    """The trajectory contract from the driver's frames (:func:`dynslip.data.trajectory.to_dataset`),
-    handed the scenario's values as plain data."""
+def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None):
+    """The trajectory contract from the driver's frames
+    (:func:`dynslip.data.trajectory.frames_to_dataset`), handed the scenario's values as plain
+    data."""
     p = sc.physics
     f = p.friction
     weakening = f.law == "slip_weakening"
-    return trajectory.to_dataset(
-        frames, rbar, e0, complete, stage_names, scenario_json=sc.to_json(),
-        scales={"R_m": p.ball_radius_mm * 1e-3, "G_Pa": p.youngs_modulus_MPa * 1e6 / 3.0,
-                "h0_m": p.thickness_um * 1e-6, "force_scale_N": p.force_scale_N},
+    return trajectory.frames_to_dataset(
+        frames,
+        rbar,
+        e0,
+        complete,
+        stage_names,
+        scenario_json=sc.to_json(),
+        scales={
+            "R_m": p.ball_radius_mm * 1e-3,
+            "G_Pa": p.youngs_modulus_MPa * 1e6 / 3.0,
+            "h0_m": p.thickness_um * 1e-6,
+            "force_scale_N": p.force_scale_N,
+        },
         contact_threshold=sc.numerics.contact_threshold,
-        friction={"mu": f.nominal_mu, "friction_law": f.law, "mu_s": f.mu_s if weakening else f.mu,
-                  "mu_k": f.mu_k if weakening else f.mu, "d_c": f.d_c_mm / p.ball_radius_mm if weakening else 0.0},
-        friction_smoothing=sc.numerics.friction_smoothing, extra_attrs=extra_attrs)
+        friction={
+            "mu": f.nominal_mu,
+            "friction_law": f.law,
+            "mu_s": f.mu_s if weakening else f.mu,
+            "mu_k": f.mu_k if weakening else f.mu,
+            "d_c": f.d_c_mm / p.ball_radius_mm if weakening else 0.0,
+        },
+        friction_smoothing=sc.numerics.friction_smoothing,
+        extra_attrs=extra_attrs,
+    )
 
 
 def _progress(console, total):
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    prog = Progress(TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("t = {task.fields[t]:.1f} s"),
-                    TimeElapsedColumn(), console=console, transient=False)
+    prog = Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("t = {task.fields[t]:.1f} s"),
+        TimeElapsedColumn(),
+        console=console,
+        transient=False,
+    )
     return prog, prog.add_task("compiling", total=total, t=0.0)
 
 
-def preflight(sc, console=None):
+def resolve_start(sc, console=None):
     """Resolve and check ``sc.start_from`` (running its scenario first when needed) before any
     output is written; bad input raises :class:`dynslip.errors.InputError`. Returns (start
     state, provenance), or None without ``start_from``; kept on the scenario for the run."""
@@ -92,18 +140,19 @@ def preflight(sc, console=None):
 
 
 def run_forming(sc, out: Path, console=None) -> dict:
-    """Run a forming scenario into ``out``; return the summary (raises ComputationError on failure)."""
+    """Run a forming scenario into ``out``; return the summary (raises ComputationError on
+    failure)."""
     from rich.console import Console
 
     from dynslip.errors import MaterialRangeError  # noqa: F401  (documented error type)
-    from dynslip.plot.forming import make_figures
     from dynslip.physics.simulate import simulate
+    from dynslip.plot.forming import make_figures
 
     console = console or Console(stderr=True)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     model, protocol, kw = build_core(sc)
-    start, start_info = preflight(sc, console) or (None, None)
+    start, start_info = resolve_start(sc, console) or (None, None)
     names = protocol.names
     rbar = np.asarray(model.mesh.rbar)
     total = sum(s.max_duration for s in protocol.stages)
@@ -114,7 +163,11 @@ def run_forming(sc, out: Path, console=None) -> dict:
     def flush(frames, complete=False):
         if not frames:
             return
-        e0 = state["e0"] if state["e0"] is not None else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
+        e0 = (
+            state["e0"]
+            if state["e0"] is not None
+            else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
+        )
         ds = to_dataset(sc, frames, rbar, e0, complete, names, start_info)
         io.write_netcdf(ds, out / "trajectory.nc")
         return ds
@@ -123,8 +176,12 @@ def run_forming(sc, out: Path, console=None) -> dict:
         frames_seen.append(rec)
         if len(frames_seen) == 1:
             state["e0"] = float(rec["energy_elastic"] + rec["energy_penalty"])
-        prog.update(task, completed=min(rec["time"], total), t=rec["time"],
-                    description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})")
+        prog.update(
+            task,
+            completed=min(rec["time"], total),
+            t=rec["time"],
+            description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})",
+        )
         if len(frames_seen) % FLUSH_FRAMES == 0:
             flush(frames_seen)
 
@@ -141,7 +198,9 @@ def run_forming(sc, out: Path, console=None) -> dict:
         ds = flush(result.frames)
         if ds is not None:
             io.write_json(out / "summary.json", summarize(sc, ds, result))
-        raise ComputationError(f"{result.failed}; partial trajectory kept in {out / 'trajectory.nc'}")
+        raise ComputationError(
+            f"{result.failed}; partial trajectory kept in {out / 'trajectory.nc'}"
+        )
     ds = to_dataset(sc, result.frames, rbar, result.e0, True, names, start_info)
     io.check_units(ds)
     io.write_netcdf(ds, out / "trajectory.nc")
@@ -171,17 +230,27 @@ def _print_summary(console, s: dict) -> None:
     t.add_column("quantity")
     t.add_column("value", justify="right")
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
-    rows = [("trapped", s["trapped"]), ("ended at rest", s["end_at_rest"]), ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
-            ("theta_max (rad)", s["theta_max"]), ("rbar_max (R)", s["rbar_max"]),
-            ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]), ("mu_mobilised_max", s["mu_mobilised_max"]),
-            ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
-            ("energy residual / work", s["energy_balance"]["relative_residual"])]
+    rows = [
+        ("trapped", s["trapped"]),
+        ("ended at rest", s["end_at_rest"]),
+        ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
+        ("theta_max (rad)", s["theta_max"]),
+        ("rbar_max (R)", s["rbar_max"]),
+        ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]),
+        ("mu_mobilised_max", s["mu_mobilised_max"]),
+        ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
+        ("energy residual / work", s["energy_balance"]["relative_residual"]),
+    ]
     if "release" in s:
         rows += [("release: peak force (N)", s["release"]["peak_force_N"]),
                  ("release: opening reached R", s["release"]["opening_reached_R"])]
     sv = s["solver"]
-    rows += [("steps (rejected)", f"{sv['steps']} ({sv['rejected']})"), ("compile (s)", sv["compile_s"]),
-             ("run (s)", sv["run_s"]), ("ms per step", sv["time_per_step_ms"])]
+    rows += [
+        ("steps (rejected)", f"{sv['steps']} ({sv['rejected']})"),
+        ("compile (s)", sv["compile_s"]),
+        ("run (s)", sv["run_s"]),
+        ("ms per step", sv["time_per_step_ms"]),
+    ]
     for k, v in rows:
         t.add_row(k, fmt(v))
     console.print(t)
@@ -189,5 +258,3 @@ def _print_summary(console, s: dict) -> None:
     if not s["end_at_rest"]:
         console.print(f"[bold]{s['end_at_rest_says']}[/bold]", highlight=False)
 
-
-__all__ += ["InputError"]

@@ -25,7 +25,7 @@ RUNNERS: dict[str, Callable] = {
     "forming": forming.run_forming,
 }
 PREFLIGHTS: dict[str, Callable] = {
-    "forming": forming.preflight,
+    "forming": forming.resolve_start,
 }
 
 
@@ -58,7 +58,9 @@ def _inside(path, folder: Path) -> bool:
         return False
 
 
-def run_into(scn, out, console, *, force: bool = False, source=None, header: str | None = None) -> dict:
+def run_into(
+    scn, out, console, *, force: bool = False, source=None, header: str | None = None
+) -> dict:
     """Run ``scn`` into the run folder ``out`` under the rules of :mod:`dynslip.data.files`:
     ``out`` is checked before anything is computed or created; the run writes into a staging
     folder that replaces ``out`` only on success; a failed or interrupted run is kept as
@@ -70,8 +72,10 @@ def run_into(scn, out, console, *, force: bool = False, source=None, header: str
     staged = StagedRun(out, force=force)
     staged.check()  # before anything is computed or created
     if source is not None and out.is_dir() and _inside(source, out):
-        raise InputError(f"--out {str(out)!r}: holds the scenario file {str(source)!r}, which replacing "
-                         "the folder would delete; allowed: a folder that does not hold the scenario")
+        raise InputError(
+            f"--out {str(out)!r}: holds the scenario file {str(source)!r}, which replacing "
+            "the folder would delete; allowed: a folder that does not hold the scenario"
+        )
     preflight(scn, console)  # bad input found before anything is written (e.g. a start_from file)
     with staged as staging:
         if header is not None:

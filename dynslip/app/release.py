@@ -22,16 +22,21 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import xarray as xr
-
 from dynslip.errors import InputError
 from dynslip.schema.paths import get_path
 
 __all__ = ["load_start", "GEOMETRY_FIELDS"]
 
 GEOMETRY_FIELDS = (
-    "physics.ball_radius_mm", "physics.thickness_um", "physics.youngs_modulus_MPa", "physics.material.model",
-    "physics.material.jm", "physics.material.c1", "physics.rim_radius_mm", "physics.pre_stretch", "numerics.nodes",
+    "physics.ball_radius_mm",
+    "physics.thickness_um",
+    "physics.youngs_modulus_MPa",
+    "physics.material.model",
+    "physics.material.jm",
+    "physics.material.c1",
+    "physics.rim_radius_mm",
+    "physics.pre_stretch",
+    "numerics.nodes",
     "numerics.mesh_grading",
 )
 
@@ -43,7 +48,7 @@ def _resolve(path: str, base: Path | None) -> Path:
     return base / p
 
 
-def _start_dataset(sc, console, run) -> tuple[xr.Dataset, Path]:
+def _start_dataset(sc, console, run) -> tuple:
     from dynslip.data.trajectory import open_trajectory
 
     src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))
@@ -51,20 +56,28 @@ def _start_dataset(sc, console, run) -> tuple[xr.Dataset, Path]:
         return open_trajectory(src), src
     if src.suffix not in (".yaml", ".yml"):
         raise InputError(f"start_from: {str(src)!r}: expected a trajectory.nc or a scenario .yaml")
-    from dynslip.schema import base as scn
     from dynslip.data.files import StagedRun
+    from dynslip.schema import base as scn
 
     start_sc = scn.load(src)
     if getattr(start_sc, "kind", None) != "forming":
-        raise InputError(f"start_from: {str(src)!r} is a '{start_sc.kind}' scenario; allowed: a forming scenario")
+        raise InputError(
+            f"start_from: {str(src)!r} is a '{start_sc.kind}' scenario; allowed: a forming scenario"
+        )
     if getattr(start_sc, "start_from", None):
-        raise InputError(f"start_from: {str(src)!r} itself starts from another run; allowed: a scenario that forms")
+        raise InputError(
+            f"start_from: {str(src)!r} itself starts from another run; allowed: a scenario that "
+            f"forms"
+        )
     out = Path("outputs") / src.stem
     traj = out / "trajectory.nc"
     if traj.is_file():
         try:
             ds = open_trajectory(traj)
-            if ds.attrs.get("scenario") == start_sc.to_json() and int(ds.attrs.get("complete", 0)) == 1:
+            if (
+                ds.attrs.get("scenario") == start_sc.to_json()
+                and int(ds.attrs.get("complete", 0)) == 1
+            ):
                 if console is not None:
                     console.print(f"start_from: reusing {traj} (same resolved scenario)")
                 return ds, traj
@@ -87,7 +100,9 @@ def load_start(sc, console=None, run=None) -> tuple[dict, dict]:
     only when ``start_from`` names a scenario)."""
     ds, src = _start_dataset(sc, console, run)
     if int(ds.attrs.get("complete", 0)) != 1:
-        raise InputError(f"start_from: {str(src)!r} is an incomplete run (complete = 0); allowed: a finished run")
+        raise InputError(
+            f"start_from: {str(src)!r} is an incomplete run (complete = 0); allowed: a finished run"
+        )
     try:
         start_res = json.loads(ds.attrs["scenario"])
     except (KeyError, json.JSONDecodeError):
@@ -96,12 +111,19 @@ def load_start(sc, console=None, run=None) -> tuple[dict, dict]:
     for field in GEOMETRY_FIELDS:
         a, b = get_path(mine, field), get_path(start_res, field)
         if a != b:
-            raise InputError(f"start_from: field '{field}' = {json.dumps(a)} differs from the start state's "
-                             f"{json.dumps(b)} ({src}); allowed: the start's value")
+            raise InputError(
+                f"start_from: field '{field}' = {json.dumps(a)} differs from the start state's "
+                f"{json.dumps(b)} ({src}); allowed: the start's value"
+            )
     end = ds.isel(time=-1)
     start = {"rho": end["rho"].values, "z": end["z"].values, "zb": float(end["ball_z"])}
     if "slip_distance" in ds:
         start["slip_distance"] = end["slip_distance"].values
-    info = {"start_from": str(src), "start_time_s": float(end["time"]), "start_theta_max": float(end["theta_max"]),
-            "start_rbar_max": float(end["rbar_max"]), "start_trapped_ball_z": float(end["ball_z"])}
+    info = {
+        "start_from": str(src),
+        "start_time_s": float(end["time"]),
+        "start_theta_max": float(end["theta_max"]),
+        "start_rbar_max": float(end["rbar_max"]),
+        "start_trapped_ball_z": float(end["ball_z"]),
+    }
     return start, info

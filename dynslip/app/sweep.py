@@ -1,13 +1,19 @@
-"""Studies over scenario fields: sweep files, members, runners, resume and the dataset.
+"""Studies over scenario fields: members, runners and resume (the sweep file is
+:mod:`dynslip.schema.sweep`, the dataset :mod:`dynslip.data.sweep`).
+
+Longer than 400 lines: the three runners (sequential, batched in lockstep, dask) are still
+here beside the entry point; they are to move to a module of their own (issue 24).
 
 A sweep file is a small YAML file of its own (validated strictly, like a scenario)::
 
-    base: method2.yaml                 # the scenario every member starts from (relative to this file)
+    base: method2.yaml                 # the scenario every member starts from (relative to this
+    file)
     overrides: {numerics.nodes: 30}    # applied to every member
     grid:                              # a dimension per field, named by dotted path ...
       physics.protocol.depth: [4, 5, 6]
       physics.friction.mu: {start: 0.4, stop: 1.2, num: 5}
-    # list: [{physics.friction.mu: 0.8}, {physics.friction.mu: 1.0, numerics.nodes: 40}]  # ... or a list
+    # list: [{physics.friction.mu: 0.8}, {physics.friction.mu: 1.0, numerics.nodes: 40}]  # ... or
+    a list
     window: {lo: 0.2, hi: 2.5, coarse: 12, tol: 0.02}   # optional: each member's trapping window
     out: outputs/my_study                               # default outputs/<sweep file stem>/
 
@@ -265,7 +271,8 @@ def _connect(scheduler: str | None):
     except Exception as err:  # noqa: BLE001 - OSError, TimeoutError, ValueError for a bad address
         reason = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise InputError(
-            f"--scheduler {scheduler!r}: cannot reach a dask scheduler within {CONNECT_TIMEOUT_S:g} s "
+            f"--scheduler {scheduler!r}: cannot reach a dask scheduler within "
+            f"{CONNECT_TIMEOUT_S:g} s "
             f"({reason[:120]}); give an address like tcp://HOST:8786"
         ) from None
 
@@ -396,7 +403,9 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
     return summary
 
 
-def run_forming_batch(datas: list[dict], run_dirs: list[str | None], batch_size: int | None = None) -> list[dict]:
+def run_forming_batch(
+    datas: list[dict], run_dirs: list[str | None], batch_size: int | None = None
+) -> list[dict]:
     """Forming members (scenario data) of one shape run in lockstep: one member record each,
     as :func:`execute_member` writes it (module level: it travels to worker processes).
     Members whose compiled solves differ (a float setting of the increment control, say)
@@ -426,7 +435,11 @@ def run_forming_batch(datas: list[dict], run_dirs: list[str | None], batch_size:
                                      [c[2] for _, _, c in batch])
         except Exception as err:  # noqa: BLE001 - the whole batch failed (e.g. out of memory)
             for i, _, _ in batch:
-                recs[i] = {"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}
+                recs[i] = {
+                    "status": "error",
+                    "error": f"{type(err).__name__}: {err}",
+                    "summary": {},
+                }
             continue
         for (i, sc, core), result in zip(batch, results, strict=True):
             rec: dict[str, Any] = {"status": "ok", "error": "", "summary": {}}
@@ -465,29 +478,44 @@ def _run_batched(groups: dict[str, list[Member]], run_dir, done) -> str:
         sizes.append("+".join(str(len(p)) for p in parts))
         dirs = {m.fingerprint: run_dir(m) for m in forming}
         if n_work == 1:
-            recs = run_forming_batch([m.data for m in forming], [dirs[m.fingerprint] for m in forming], batch_size)
+            recs = run_forming_batch(
+                [m.data for m in forming], [dirs[m.fingerprint] for m in forming], batch_size
+            )
             for m, rec in zip(forming, recs, strict=True):
                 done(m, rec)
             continue
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
-        with ProcessPoolExecutor(max_workers=n_work, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = {pool.submit(run_forming_batch, [m.data for m in part], [dirs[m.fingerprint] for m in part],
-                                   batch_size): part for part in parts}
+        with ProcessPoolExecutor(
+            max_workers=n_work, mp_context=multiprocessing.get_context("spawn")
+        ) as pool:
+            futures = {
+                pool.submit(
+                    run_forming_batch,
+                    [m.data for m in part],
+                    [dirs[m.fingerprint] for m in part],
+                    batch_size,
+                ): part
+                for part in parts
+            }
             for fut in as_completed(futures):
                 part = futures[fut]
                 try:
                     recs = fut.result()
                 except Exception as err:  # noqa: BLE001 - a lost worker: its members are errors
-                    recs = [{"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}] * len(part)
+                    recs = [
+                        {"status": "error", "error": f"{type(err).__name__}: {err}", "summary": {}}
+                    ] * len(part)
                 for m, rec in zip(part, recs, strict=True):
                     done(m, rec)
     if sizes:
-        notes.append(f"lockstep batches (simulate_batch, one vmapped segment solve per save segment) of "
-                     f"{', '.join(sizes)} forming members in {len(sizes)} shape groups"
-                     + (f", at most {batch_size} per batch" if batch_size else "")
-                     + (f" on up to {BATCH_WORKERS} worker processes" if BATCH_WORKERS > 1 else ""))
+        notes.append(
+            f"lockstep batches (simulate_batch, one vmapped segment solve per save segment) of "
+            f"{', '.join(sizes)} forming members in {len(sizes)} shape groups"
+            + (f", at most {batch_size} per batch" if batch_size else "")
+            + (f" on up to {BATCH_WORKERS} worker processes" if BATCH_WORKERS > 1 else "")
+        )
     if other:
         notes.append(f"{other} members (not forming, or with start_from) ran member after member")
     return "batched: " + "; ".join(notes) if notes else "batched: nothing to run"

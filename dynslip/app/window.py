@@ -14,13 +14,12 @@ import itertools
 import math
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
-from dynslip.analysis.windows import WindowResult, check_range, find_windows
+from dynslip.analysis.windows import WindowResult, check_search, find_windows
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.paths import get_path
-from dynslip.schema.sweep import friction_field, member_at
+from dynslip.schema.sweep import WindowSpec, friction_field, member_at
 
 # ---------------------------------------------------------------------------------------
 # A scenario's window: the predicate from running the scenario at each mu.
@@ -54,22 +53,18 @@ def scenario_window(
         check = summary.get("mesh_check") or {}
         if depths is not None and check.get("max_chord_depth") is not None:
             depths[float(mu)] = float(check["max_chord_depth"])
-        if check.get("resolved") is False:  # no answer: recorded with the reason among the failed points
-            raise ComputationError(f"contact not resolved by the mesh: a chord {check['max_chord_depth']:.3g} R "
-                                   f"inside the ball at t = {check['time_s']:.4g} s (limit {check['limit']:g})")
+        if (
+            check.get("resolved") is False
+        ):  # no answer: recorded with the reason among the failed points
+            raise ComputationError(
+                f"contact not resolved by the mesh: a chord {check['max_chord_depth']:.3g} R "
+                f"inside the ball at t = {check['time_s']:.4g} s (limit {check['limit']:g})"
+            )
         if t is None or (isinstance(t, float) and math.isnan(t)):
             return None
         return bool(t)
 
     return find_windows(trapped, lo, hi, coarse=coarse, tol=tol, known=known, progress=progress)
-
-
-@dataclass(frozen=True)
-class WindowDefaults:
-    lo: float = 0.0
-    hi: float = 3.0
-    coarse: int = 13
-    tol: float = 0.02
 
 
 def run_window(
@@ -114,16 +109,16 @@ def run_window(
         data["start_from"] = str((path.parent / start).resolve())
     resolved = resolve(data, str(path), validate_fn)
     field_name, tied = friction_field(resolved, field)
-    d = WindowDefaults()
-    lo = d.lo if lo is None else float(lo)
-    hi = d.hi if hi is None else float(hi)
-    coarse = d.coarse if coarse is None else int(coarse)
-    tol = d.tol if tol is None else float(tol)
+    d = WindowSpec.model_fields  # the defaults of a sweep's window search
+    lo = d["lo"].default if lo is None else float(lo)
+    hi = d["hi"].default if hi is None else float(hi)
+    coarse = d["coarse"].default if coarse is None else int(coarse)
+    tol = d["tol"].default if tol is None else float(tol)
     # Check the range and the scenario at both ends before running anything.
     for mu in (lo, hi):
         if mu < 0:
             raise InputError(f"{path}: window range: {field_name} = {mu}: must be >= 0")
-    check_range(lo, hi, coarse, tol, str(path))
+    check_search(lo, hi, coarse, tol, str(path))
     for mu in (lo, hi):
         resolve(
             member_at(data, resolved, field_name, tied, mu),
@@ -176,8 +171,11 @@ def run_window(
     result["critical_mu"] = critical_edge(result["windows_detail"])
     if tied:
         base = float(get_path(resolved, field_name))
-        result["critical_mu_tied"] = ({t: float(get_path(resolved, t)) / base * result["critical_mu"]["value"]
-                                       for t in tied} if result["critical_mu"] and base else None)
+        result["critical_mu_tied"] = (
+            {t: float(get_path(resolved, t)) / base * result["critical_mu"]["value"] for t in tied}
+            if result["critical_mu"] and base
+            else None
+        )
     nodes, limit = _mesh_of(resolved)
     result["resolution_check"] = resolution_check(result, depths, nodes, limit, str(path))
     write_json(out / "window.json", result)
@@ -199,7 +197,8 @@ def run_window(
 
 
 def _mesh_of(resolved: dict) -> tuple[int | None, float]:
-    """The scenario's mesh size and chord-depth limit (``numerics.nodes``, ``numerics.max_chord_depth``)."""
+    """The scenario's mesh size and chord-depth limit (``numerics.nodes``,
+    ``numerics.max_chord_depth``)."""
     try:
         nodes = int(get_path(resolved, "numerics.nodes"))
     except (InputError, KeyError, TypeError, ValueError):
@@ -220,20 +219,23 @@ def resolution_check(result: dict, depths: dict[float, float], nodes: int | None
     element's angle, so a refinement by 1.4 is what halves it: such a member's answer may
     change with the mesh). A search at one mesh size does not know whether its windows
     survive a refinement: it says so, and names the command that checks it."""
-    failed_mesh = [m for m, why in result.get("failed", []) if "not resolved by the mesh" in str(why)]
+    failed_mesh = [m for m, why in result.get("failed", [])
+                   if "not resolved by the mesh" in str(why)]
     marginal = sorted(m for m, d in depths.items() if 0.5 * limit < d <= limit)
     n_windows = len(result.get("windows", []))
     words = []
     if failed_mesh:
-        words.append(f"{len(failed_mesh)} members did not resolve the contact (no answer at mu = "
-                     + ", ".join(f"{m:.4g}" for m in failed_mesh) + ")")
+        at = ", ".join(f"{m:.4g}" for m in failed_mesh)
+        words.append(f"{len(failed_mesh)} members did not resolve the contact "
+                     f"(no answer at mu = {at})")
     if marginal:
-        words.append(f"{len(marginal)} of {len(depths)} members reach a chord depth over half the limit "
-                     f"({0.5 * limit:g} R): a finer mesh may change their answers")
+        words.append(f"{len(marginal)} of {len(depths)} members reach a chord depth over half the "
+                     f"limit ({0.5 * limit:g} R): a finer mesh may change their answers")
     resolved = not failed_mesh and not marginal
     if n_windows > 1:
-        words.append(f"{n_windows} separate windows: a fragmented answer is typical of a mesh too coarse for "
-                     "the contact; only windows that persist under refinement are physics")
+        words.append(f"{n_windows} separate windows: a fragmented answer is typical of a mesh "
+                     "too coarse for the contact; only windows that persist under refinement "
+                     "are physics")
     n = f"N = {nodes}" if nodes else "one mesh size"
     finer = f"{nodes},{2 * nodes},{4 * nodes}" if nodes else "N,2N,4N"
     cmd = (f"dynslip window {scenario} --nodes {finer}" if scenario.endswith((".yaml", ".yml"))
@@ -241,8 +243,9 @@ def resolution_check(result: dict, depths: dict[float, float], nodes: int | None
     head = ("members resolved" if resolved else "MEMBERS NOT RESOLVED") + f" at {n}"
     says = (f"{head}; windows not checked against refinement (check: {cmd})"
             + ("; " + "; ".join(words) if words else ""))
-    return {"members_resolved": resolved, "nodes": nodes, "max_chord_depth": dict(sorted(depths.items())),
-            "marginal": marginal, "failed_on_mesh": failed_mesh, "refinement_checked": False, "says": says}
+    return {"members_resolved": resolved, "nodes": nodes,
+            "max_chord_depth": dict(sorted(depths.items())), "marginal": marginal,
+            "failed_on_mesh": failed_mesh, "refinement_checked": False, "says": says}
 
 
 def refinement_check(per_n: dict, field_name: str) -> dict:
@@ -257,16 +260,21 @@ def refinement_check(per_n: dict, field_name: str) -> dict:
         if len(wa) != len(wb):
             changes.append(f"N = {a} -> {b}: {len(wa)} -> {len(wb)} windows")
             continue
-        moved = max((abs(x - y) for u, v in zip(wa, wb, strict=True) for x, y in zip(u, v, strict=True)),
-                    default=0.0)
+        moved = max((abs(x - y) for u, v in zip(wa, wb, strict=True)
+                     for x, y in zip(u, v, strict=True)), default=0.0)
         if moved > tol:
             changes.append(f"N = {a} -> {b}: an edge moves by {moved:.3g} (> {tol:.3g})")
-    unresolved = [n for n in nodes if not per_n[n].get("resolution_check", {}).get("members_resolved", True)]
-    says = ("windows of " + field_name + (" CHANGE WITH REFINEMENT (" + "; ".join(changes) + "): read only the "
-            "finest, and only what persists" if changes else " agree across N = " + ", ".join(map(str, nodes))))
+    unresolved = [n for n in nodes
+                  if not per_n[n].get("resolution_check", {}).get("members_resolved", True)]
+    if changes:
+        says = (f"windows of {field_name} CHANGE WITH REFINEMENT ({'; '.join(changes)}): read "
+                "only the finest, and only what persists")
+    else:
+        says = f"windows of {field_name} agree across N = " + ", ".join(map(str, nodes))
     if unresolved:
         says += "; members not resolved at N = " + ", ".join(map(str, unresolved))
-    return {"windows_change": bool(changes), "changes": changes, "unresolved_at": unresolved, "says": says}
+    return {"windows_change": bool(changes), "changes": changes, "unresolved_at": unresolved,
+            "says": says}
 
 
 def parse_nodes(text: str) -> list[int]:
@@ -274,14 +282,24 @@ def parse_nodes(text: str) -> list[int]:
     try:
         ns = [int(x) for x in str(text).split(",") if x.strip()]
     except ValueError:
-        raise InputError(f"--nodes = {text!r}: allowed: comma-separated mesh sizes, e.g. 50,100,200") from None
+        raise InputError(
+            f"--nodes = {text!r}: allowed: comma-separated mesh sizes, e.g. 50,100,200"
+        ) from None
     if not ns or any(not 6 <= n <= 4000 for n in ns) or sorted(set(ns)) != ns:
         raise InputError(f"--nodes = {text!r}: allowed: increasing mesh sizes, each in 6..4000")
     return ns
 
 
-def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | None = None, console=None,
-                     force: bool = False, **kw) -> dict:
+def run_window_nodes(
+    scenario,
+    nodes: list[int],
+    overrides=(),
+    *,
+    out: Path | None = None,
+    console=None,
+    force: bool = False,
+    **kw,
+) -> dict:
     """``dynslip window SCENARIO --nodes 50,100,200``: the window search at each mesh size
     (``<out>/N<n>/``), then ``<out>/window.json`` with ``critical_mu`` per N (value, err),
     its Richardson extrapolation with the measured order
@@ -299,8 +317,14 @@ def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | No
     per_n = {}
     for n in nodes:
         console.print(f"[bold]N = {n}[/bold]")
-        per_n[n] = run_window(scenario, [*overrides, f"numerics.nodes={n}"], out=out / f"N{n}", console=console,
-                              force=force, **kw)
+        per_n[n] = run_window(
+            scenario,
+            [*overrides, f"numerics.nodes={n}"],
+            out=out / f"N{n}",
+            console=console,
+            force=force,
+            **kw,
+        )
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
     crit = {str(n): per_n[n]["critical_mu"] for n in nodes}
@@ -309,17 +333,33 @@ def run_window_nodes(scenario, nodes: list[int], overrides=(), *, out: Path | No
                          [per_n[n]["critical_mu"]["err"] for n in found])
               if found else {"extrapolable": False, "reason": "no window at any mesh size"})
     first = per_n[nodes[0]]
-    result = {"scenario": str(path), "overrides": list(overrides), "field": first["field"], "tied": first["tied"],
-              "nodes": list(nodes), "critical_mu": crit, "extrapolation": extrap,
-              "windows": {str(n): per_n[n]["windows"] for n in nodes},
-              "upper_edges": "reported as found; an upper edge is an artefact unless it survives refinement"}
+    result = {
+        "scenario": str(path),
+        "overrides": list(overrides),
+        "field": first["field"],
+        "tied": first["tied"],
+        "nodes": list(nodes),
+        "critical_mu": crit,
+        "extrapolation": extrap,
+        "windows": {str(n): per_n[n]["windows"] for n in nodes},
+        "upper_edges": "reported as found; an upper edge is an artefact unless it survives "
+            "refinement",
+    }
     result["refinement_check"] = refinement_check(per_n, first["field"])
     write_json(out / "window.json", result)
     plot_critical_mu(result, out / "critical_mu.png")
-    console.print(f"critical {result['field']} per N: "
-                  + ", ".join(f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c else f"{n}: none" for n, c in crit.items()))
+    console.print(
+        f"critical {result['field']} per N: "
+        + ", ".join(
+            f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c else f"{n}: none"
+            for n, c in crit.items()
+        )
+    )
     if extrap.get("extrapolable"):
-        console.print(f"extrapolated: {extrap['value']:.4g} +- {extrap['err']:.2g} (order {extrap['order']:.2f})")
+        console.print(
+            f"extrapolated: {extrap['value']:.4g} +- {extrap['err']:.2g} (order "
+            f"{extrap['order']:.2f})"
+        )
     else:
         console.print(f"not extrapolable: {extrap.get('reason')}")
     console.print(f"[bold]{result['refinement_check']['says']}[/bold]", highlight=False)

@@ -1,5 +1,9 @@
 """Files: atomic writes, staged run folders, dataset provenance and unit checks.
 
+Longer than 400 lines: the one set of rules for writing results (atomic files, which
+folders a run may replace, staging, the markers of incomplete and interrupted runs) is
+kept in one place, so that every command follows the same rules.
+
 Every file is written whole or not at all (written beside its target, then renamed).
 
 Output folders (:func:`check_out`, checked before anything is computed or created): a
@@ -147,7 +151,8 @@ class Terminated(KeyboardInterrupt):
 
 
 def signal_name(exc) -> str:
-    """The signal an interruption came from: ``SIGTERM`` for :class:`Terminated`, else ``SIGINT``."""
+    """The signal an interruption came from: ``SIGTERM`` for :class:`Terminated`, else
+    ``SIGINT``."""
     return getattr(exc, "signal_name", "SIGINT")
 
 
@@ -275,7 +280,9 @@ def check_out(out, *, force: bool = False, in_place: bool = False, what: str = "
         anc = anc.parent
     if os.path.lexists(anc) and not anc.is_dir():
         raise InputError(
-            f"{name}: {str(anc)!r} is a file, not a folder; allowed: a path whose parents are folders")
+            f"{name}: {str(anc)!r} is a file, not a folder; allowed: a path whose parents are "
+            f"folders"
+        )
     if out.is_symlink():
         if in_place and out.is_dir():
             pass  # written through the link
@@ -283,7 +290,9 @@ def check_out(out, *, force: bool = False, in_place: bool = False, what: str = "
             raise InputError(f"{name}: a symbolic link; {_ALLOWED} (a link is never replaced)")
     if os.path.lexists(out) and not out.is_dir():
         raise InputError(
-            f"{name}: an existing file; {_ALLOWED} (a file is never replaced, not even with --force)")
+            f"{name}: an existing file; {_ALLOWED} (a file is never replaced, not even with "
+            f"--force)"
+        )
     exists = out.is_dir()
     # in place: files are written into the folder; swapped: it is renamed (its parent and,
     # when it exists, the folder itself must be writable)
@@ -306,7 +315,9 @@ def check_out(out, *, force: bool = False, in_place: bool = False, what: str = "
         return "forced"
     shown = ", ".join(repr(e) for e in entries[:3]) + (", ..." if len(entries) > 3 else "")
     raise InputError(
-        f"{name}: a folder that is not a dynslip result (it holds {shown}); {_ALLOWED}, {force_word}")
+        f"{name}: a folder that is not a dynslip result (it holds {shown}); {_ALLOWED}, "
+        f"{force_word}"
+    )
 
 
 def annotate_kept(exc, folder) -> None:
@@ -332,7 +343,8 @@ class StagedRun:
     ``<out>`` is checked (:func:`check_out`) on entering, before anything is created. On
     failure or interruption the staging folder is renamed ``<out>.incomplete-<UTC time>/``
     (``kept``), with the reason in ``INCOMPLETE``; the exception names it
-    (``dynslip_kept``). A staging folder the run wrote nothing into is removed. ``force``: a folder at ``<out>`` that is not a dynslip result may
+    (``dynslip_kept``). A staging folder the run wrote nothing into is removed. ``force``: a folder
+    at ``<out>`` that is not a dynslip result may
     be replaced (a file never).
     """
 
@@ -352,7 +364,9 @@ class StagedRun:
     def __enter__(self) -> Path:
         self.check()
         self.out.parent.mkdir(parents=True, exist_ok=True)
-        self.staging = Path(tempfile.mkdtemp(prefix=f"{self.out.name}.staging-", dir=self.out.parent))
+        self.staging = Path(
+            tempfile.mkdtemp(prefix=f"{self.out.name}.staging-", dir=self.out.parent)
+        )
         os.chmod(self.staging, 0o777 & ~_umask())
         write_text(self.staging / INCOMPLETE, "run in progress\n")
         write_result_marker(self.staging, self.kind)
@@ -381,7 +395,9 @@ class StagedRun:
                 if self.kept != self.staging:  # messages name the folder where the files now are
                     with contextlib.suppress(AttributeError, TypeError):
                         exc.args = tuple(
-                            a.replace(str(self.staging), str(self.kept)) if isinstance(a, str) else a
+                            a.replace(str(self.staging), str(self.kept))
+                            if isinstance(a, str)
+                            else a
                             for a in exc.args
                         )
                 annotate_kept(exc, self.kept)
@@ -434,4 +450,6 @@ def _umask() -> int:
 
 def variable(data, dims, units: str, long_name: str, **attrs) -> xr.Variable:
     """An xarray variable with the ``units`` and ``long_name`` every variable carries."""
-    return xr.Variable(dims, np.asarray(data), attrs={"units": units, "long_name": long_name, **attrs})
+    return xr.Variable(
+        dims, np.asarray(data), attrs={"units": units, "long_name": long_name, **attrs}
+    )

@@ -32,7 +32,10 @@ WINDOW_DIM = "window"
 
 #: units and long names of the summary keys the forming runner returns
 KNOWN_VARIABLES: dict[str, tuple[str, str]] = {
-    "trapped": ("1", "ball ends trapped (1 yes, 0 no, NaN failed member or contact not resolved by the mesh)"),
+    "trapped": (
+        "1",
+        "ball ends trapped (1 yes, 0 no, NaN failed member or contact not resolved by the mesh)",
+    ),
     "theta_max": ("rad", "polar angle of the contact edge at the end"),
     "rbar_max": ("1", "material radius reaching the contact edge, by R"),
     "opening_radius": ("1", "radius of the pocket's opening R sin(theta_max), by R"),

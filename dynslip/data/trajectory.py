@@ -2,7 +2,7 @@
 the contract, time ranges, state codes.
 
 The contract is ``docs/trajectory-contract.md`` (format version :data:`dynslip.FORMAT_VERSION`).
-The runner builds the dataset with :func:`to_dataset` (plain data in: frames, mesh and the
+The runner builds the dataset with :func:`frames_to_dataset` (plain data in: frames, mesh and the
 scenario's values; no schema object). Readers (animations, fronts, comparisons) open a
 file with :func:`open_trajectory`, which refuses anything that is not a dynslip trajectory
 of the supported format version with a one-line :class:`~dynslip.errors.InputError` (exit 2).
@@ -48,12 +48,28 @@ PER_NODE = {
     "T_theta": ("1", "relaxed meridional tension per deformed length", "G*h0"),
     "T_phi": ("1", "relaxed hoop tension per deformed length", "G*h0"),
     "pressure": ("1", "contact pressure F_N", "G*h0/R"),
-    "friction": ("1", "meridional friction force density on the sheet, + toward the equator", "G*h0/R"),
-    "slip_velocity": ("1/s", "meridional slip speed relative to the ball, + toward the equator (R/s)", "R"),
+    "friction": (
+        "1",
+        "meridional friction force density on the sheet, + toward the equator",
+        "G*h0/R",
+    ),
+    "slip_velocity": (
+        "1/s",
+        "meridional slip speed relative to the ball, + toward the equator (R/s)",
+        "R",
+    ),
     "mu_mobilised": ("1", "|friction| / pressure where in contact", None),
-    "mu_current": ("1", "friction coefficient of the law at the node (mu; or mu(slip distance) between mu_s and "
-                   "mu_k) where in contact", None),
-    "slip_distance": ("1", "slip distance since the node last stuck (slip_weakening; 0 for coulomb)", "R"),
+    "mu_current": (
+        "1",
+        "friction coefficient of the law at the node (mu; or mu(slip distance) between mu_s and "
+        "mu_k) where in contact",
+        None,
+    ),
+    "slip_distance": (
+        "1",
+        "slip distance since the node last stuck (slip_weakening; 0 for coulomb)",
+        "R",
+    ),
 }
 """Per-node variables (time, rbar) of the contract: name -> (units, long_name, scale)."""
 PER_TIME = {
@@ -81,9 +97,20 @@ def _attrs_scale(scale):
     return {"scale": scale} if scale else {}
 
 
-def to_dataset(frames, rbar, e0, complete: bool, stage_names, *, scenario_json: str, scales: dict,
-               contact_threshold: float, friction: dict, friction_smoothing: float,
-               extra_attrs=None) -> xr.Dataset:
+def frames_to_dataset(
+    frames,
+    rbar,
+    e0,
+    complete: bool,
+    stage_names,
+    *,
+    scenario_json: str,
+    scales: dict,
+    contact_threshold: float,
+    friction: dict,
+    friction_smoothing: float,
+    extra_attrs=None,
+) -> xr.Dataset:
     """The trajectory contract (docs/trajectory-contract.md) from the driver's frames.
 
     Plain data only: ``frames`` (the driver's records), ``rbar`` (the material radii),
@@ -101,7 +128,11 @@ def to_dataset(frames, rbar, e0, complete: bool, stage_names, *, scenario_json: 
     data["state"] = io.variable(state, ("time", "rbar"), "1", "contact and slip state of the node",
                                 flag_values=np.array([0, 1, 2, 3], np.int8),
                                 flag_meanings=" ".join(STATE_MEANINGS))
-    scal = {k: np.array([float(f[k]) for f in frames]) for k in PER_TIME if k not in ("energy_residual", "stage")}
+    scal = {
+        k: np.array([float(f[k]) for f in frames])
+        for k in PER_TIME
+        if k not in ("energy_residual", "stage")
+    }
     scal["stage"] = np.array([int(f["stage"]) for f in frames], np.int16)
     scal["energy_residual"] = (scal["work_clamp"] + scal["work_ball"]
                                - (scal["energy_elastic"] + scal["energy_penalty"] - e0)
@@ -110,7 +141,9 @@ def to_dataset(frames, rbar, e0, complete: bool, stage_names, *, scenario_json: 
         data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
     coords = {
         "time": io.variable(time, ("time",), "s", "physical time of the saved frame"),
-        "rbar": io.variable(np.asarray(rbar), ("rbar",), "1", "undeformed (material) radius / R", scale="R"),
+        "rbar": io.variable(
+            np.asarray(rbar), ("rbar",), "1", "undeformed (material) radius / R", scale="R"
+        ),
     }
     attrs = io.provenance(scenario_json, "trajectory")
     attrs["kind"] = "trajectory"
@@ -153,7 +186,8 @@ def open_trajectory(path) -> xr.Dataset:
 
 
 def validate_trajectory(ds: xr.Dataset, source: str = "<dataset>") -> None:
-    """Raise :class:`InputError` unless ``ds`` follows the trajectory contract (format version 1)."""
+    """Raise :class:`InputError` unless ``ds`` follows the trajectory contract (format version
+    1)."""
     kind = ds.attrs.get("kind")
     if kind != "trajectory":
         raise InputError(

@@ -1,1 +1,2 @@
-"""Pure JAX, nondimensional physics: materials, friction, the paper's march, the sheet, protocols, the solver driver."""
+"""Pure JAX, nondimensional physics: materials, friction, the paper's march, the sheet, protocols,
+the solver driver."""

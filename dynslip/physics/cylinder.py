@@ -8,7 +8,8 @@ so any admissible tension obeys Euler's capstan bounds (eq. (eq_2D_sol))
 $T_0 e^{-\mu\theta} \le T(\theta) \le T_0 e^{\mu\theta}$, and the vertical force of the
 cylinder on the membrane is a boundary term,
 
-$$F_v = R\int_0^{\theta_{max}} (T\cos\theta - F_f\sin\theta)\,d\theta = R\,T(\theta_{max})\sin\theta_{max} > 0$$
+$$F_v = R\int_0^{\theta_{max}} (T\cos\theta - F_f\sin\theta)\,d\theta =
+R\,T(\theta_{max})\sin\theta_{max} > 0$$
 
 for $\theta_{max} \in (0, \pi)$: no elastically stabilised invagination in 2D.
 
@@ -55,7 +56,8 @@ def tension_from_friction(m, theta, t0=1.0):
 
 
 def vertical_force(t, ff, theta):
-    r"""$F_v/R = \int_0^{\theta_{max}} (T\cos\theta - F_f\sin\theta)\,d\theta$ (trapezoidal), units $T_0$."""
+    r"""$F_v/R = \int_0^{\theta_{max}} (T\cos\theta - F_f\sin\theta)\,d\theta$ (trapezoidal), units
+    $T_0$."""
     y = t * jnp.cos(theta) - ff * jnp.sin(theta)
     return jnp.sum(0.5 * (y[1:] + y[:-1]) * jnp.diff(theta))
 

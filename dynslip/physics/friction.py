@@ -43,7 +43,14 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
-__all__ = ["AbstractFriction", "Coulomb", "SlipWeakening", "soft_threshold", "make_friction", "heals"]
+__all__ = [
+    "AbstractFriction",
+    "Coulomb",
+    "SlipWeakening",
+    "soft_threshold",
+    "make_friction",
+    "heals",
+]
 
 
 def soft_threshold(f, c, eps=0.0):
@@ -179,7 +186,9 @@ def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0) 
         return Coulomb(mu=f(mu), eps=f(eps))
     if law == "slip_weakening":
         if not mu_s >= mu_k >= 0:
-            raise ValueError(f"slip_weakening: need mu_s >= mu_k >= 0, got mu_s = {mu_s}, mu_k = {mu_k}")
+            raise ValueError(
+                f"slip_weakening: need mu_s >= mu_k >= 0, got mu_s = {mu_s}, mu_k = {mu_k}"
+            )
         if not d_c > 0:
             raise ValueError(f"slip_weakening: need d_c > 0, got {d_c}")
         return SlipWeakening(mu_s=f(mu_s), mu_k=f(mu_k), d_c=f(d_c), eps=f(eps))

@@ -227,7 +227,11 @@ def check_range(material: AbstractMaterial, lt, lp, where: str = "") -> None:
     ok = np.asarray(material.in_range(lt, lp))
     if not ok.all():
         idx = np.flatnonzero(~ok.ravel())[0]
-        i1 = lt.ravel()[idx] ** 2 + lp.ravel()[idx] ** 2 + 1 / (lt.ravel()[idx] * lp.ravel()[idx]) ** 2
+        i1 = (
+            lt.ravel()[idx] ** 2
+            + lp.ravel()[idx] ** 2
+            + 1 / (lt.ravel()[idx] * lp.ravel()[idx]) ** 2
+        )
         raise MaterialRangeError(
             f"{material.name}: stretches (lambda_theta={lt.ravel()[idx]:.4g}, "
             f"lambda_phi={lp.ravel()[idx]:.4g}, I1={i1:.4g}) outside the material's range"

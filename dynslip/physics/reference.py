@@ -19,7 +19,11 @@ from __future__ import annotations
 __all__ = ["PAPER_MU", "PAPER_JM", "PAPER_N_NODES", "ROUGH_END_STATE", "MEASURED_RELEASE_FORCE_N",
            "MEASURED_MU_S", "MEASURED_MU_K"]
 
-PAPER_MU = {"hookean": 1.47, "neo_hookean": 0.99, "gent": 1.1}  # paper Fig. 4 (Gent at J_m = PAPER_JM)
+PAPER_MU = {
+    "hookean": 1.47,
+    "neo_hookean": 0.99,
+    "gent": 1.1,
+}  # paper Fig. 4 (Gent at J_m = PAPER_JM)
 PAPER_JM = 50.0
 PAPER_N_NODES = 100
 ROUGH_END_STATE = {"theta_max": 1.8, "rbar_max": 0.9}

@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from dynslip.errors import InputError
 from dynslip.analysis.front_summary import _rest_speed, fronts_dataset
 from dynslip.analysis.fronts import motion_state
 from dynslip.data.trajectory import open_trajectory, stage_names, time_indices
+from dynslip.errors import InputError
 from dynslip.plot.fronts import draw_spacetime
 from dynslip.plot.style import STATE_COLORS, STATE_LABELS
 
@@ -69,7 +69,13 @@ class _Renderer:
     """A figure whose artists are updated in place for each saved frame."""
 
     def __init__(
-        self, ds: xr.Dataset, fronts: xr.Dataset, frames: np.ndarray, size, map_frames=None, outcome=None
+        self,
+        ds: xr.Dataset,
+        fronts: xr.Dataset,
+        frames: np.ndarray,
+        size,
+        map_frames=None,
+        outcome=None,
     ):
         import matplotlib
 
@@ -139,7 +145,9 @@ class _Renderer:
         draw_spacetime(self.ax_map, ds.isel(time=mf), fronts.isel(time=mf), legend=False)
         from dynslip.plot.forming import outcome_title
 
-        self.ax_map.set_title(f"contact state; fronts in black\n{outcome_title(ds, outcome)}", fontsize=8)
+        self.ax_map.set_title(
+            f"contact state; fronts in black\n{outcome_title(ds, outcome)}", fontsize=8
+        )
         self.cursor = self.ax_map.axhline(self.t[sel[0]], color="#2ca02c", lw=1.8)
         # blitting: the static parts are drawn once, the moving artists on top for each frame
         self.dynamic = [self.ball, self.sheet, self.clamp, self.front_pts, self.cursor, self.title]
@@ -176,10 +184,16 @@ class _Renderer:
         s = int(self.stage[k])
         name = self.names[s] if 0 <= s < len(self.names) else str(s)
         fc = float(ds["clamp_force"].values[k])
-        text = f"stage {s}: {name}    t = {self.t[k]:.4g} s    clamp force {fc * self.scale_n:.3g} N ({fc:.3g} G h0 R)"
+        text = (
+            f"stage {s}: {name}    t = {self.t[k]:.4g} s    "
+            f"clamp force {fc * self.scale_n:.3g} N ({fc:.3g} G h0 R)"
+        )
         if "ball_reaction" in ds:
             text += f"    hold on ball {float(ds['ball_reaction'].values[k]) * self.scale_n:.3g} N"
-        text += f"\nclamp at z = {cz:.3g} R    contact to theta = {float(ds['theta_max'].values[k]):.3g} rad"
+        text += (
+            f"\nclamp at z = {cz:.3g} R    "
+            f"contact to theta = {float(ds['theta_max'].values[k]):.3g} rad"
+        )
         self.title.set_text(text)
         self.cursor.set_ydata([self.t[k], self.t[k]])
         canvas = self.fig.canvas
@@ -216,7 +230,8 @@ def animate(
     or ``"mp4"``; ``out_path`` defaults to ``animation.<fmt>`` beside the trajectory;
     ``max_frames`` thins the saved frames evenly when the range holds more; ``rest_speed``
     (R/s, optional) colours slipping nodes slower than this as stuck
-    (:func:`dynslip.analysis.fronts.motion_state`; default: the state flags as saved). Bad options, a
+    (:func:`dynslip.analysis.fronts.motion_state`; default: the state flags as saved). Bad options,
+    a
     file that is not a trajectory of this format version, or a range outside the run raise
     :class:`~dynslip.errors.InputError`.
     """
@@ -296,7 +311,9 @@ def save_frame_png(
         time_indices(ds, (float(time), None))  # InputError for a time outside the run
         k = int(np.argmin(np.abs(t - float(time))))
     fronts = fronts_dataset(ds, rest_speed)
-    renderer = _Renderer(ds, fronts, np.array([k]), size, map_frames=np.arange(t.size), outcome=outcome)
+    renderer = _Renderer(
+        ds, fronts, np.array([k]), size, map_frames=np.arange(t.size), outcome=outcome
+    )
     try:
         from PIL import Image
 

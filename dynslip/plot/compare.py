@@ -32,9 +32,12 @@ def plot_compare(states: dict, path):
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(10, 5), constrained_layout=True)
     for n in names:
         s = states[n]
-        ax0.plot(s["rbar"][s["contact"]], s["theta"][s["contact"]],
-                 label=f"{_short(n)}\ntrapped: {trapped_text(s.get('trapped'))}; theta_max {s['theta_max']:.3g} rad; "
-                       f"mu_mob. max {s['mu_mobilised_max']:.3g}")
+        ax0.plot(
+            s["rbar"][s["contact"]],
+            s["theta"][s["contact"]],
+            label=f"{_short(n)}\ntrapped: {trapped_text(s.get('trapped'))}; "
+            f"theta_max {s['theta_max']:.3g} rad; mu_mob. max {s['mu_mobilised_max']:.3g}",
+        )
     ax0.set_xlabel(r"$\bar r$ (material radius / R)")
     ax0.set_ylabel(r"$\theta$ (rad)")
     ax0.set_title("end states on the contact region")

@@ -20,8 +20,19 @@ from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.data import files as io
 from dynslip.plot.style import STATE_LABELS, state_colormap
 
-__all__ = ["make_figures", "snapshot_indices", "meridian", "theta_rbar", "state_map", "plot_meridian",
-           "plot_theta", "plot_state_map", "outcome_title", "end_words"]
+__all__ = [
+    "end_words",
+    "make_figures",
+    "meridian",
+    "outcome_title",
+    "plot_meridian",
+    "plot_state_map",
+    "plot_theta",
+    "snapshot_indices",
+    "state_map",
+    "theta_rbar",
+]
+
 
 def snapshot_indices(ds: xr.Dataset, per_stage: int = 2) -> list[int]:
     """Frames at the end of every stage plus ``per_stage - 1`` inside each (sorted, unique)."""
@@ -30,7 +41,15 @@ def snapshot_indices(ds: xr.Dataset, per_stage: int = 2) -> list[int]:
     for s in np.unique(stage):
         where = np.flatnonzero(stage == s)
         for k in range(1, per_stage + 1):
-            idx.add(int(where[min(len(where) - 1, k * len(where) // per_stage - 1 if k < per_stage else -1)]))
+            idx.add(
+                int(
+                    where[
+                        min(
+                            len(where) - 1, k * len(where) // per_stage - 1 if k < per_stage else -1
+                        )
+                    ]
+                )
+            )
     return sorted(idx)
 
 
@@ -93,8 +112,13 @@ def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
             ax.add_patch(Circle((0, zb), 1.0, fill=False, edgecolor=c, ls="-", lw=0.7, zorder=1))
         drawn_z.append(zb)
         if not zoom:
-            ax.plot([float(fr["clamp_rho"]), -float(fr["clamp_rho"])], [float(fr["clamp_z"])] * 2, "s", color=c,
-                    ms=4)
+            ax.plot(
+                [float(fr["clamp_rho"]), -float(fr["clamp_rho"])],
+                [float(fr["clamp_z"])] * 2,
+                "s",
+                color=c,
+                ms=4,
+            )
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
@@ -106,7 +130,11 @@ def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
         zb = float(ds["ball_z"].values[k])
         ax.set_xlim(-1.8, 1.8)
         ax.set_ylim(zb - 1.6, zb + 1.6)
-        where = "at the end" if k == last else f"at t = {float(ds['time'].values[k]):.0f} s, the widest contact"
+        where = (
+            "at the end"
+            if k == last
+            else f"at t = {float(ds['time'].values[k]):.0f} s, the widest contact"
+        )
         ax.set_title(f"near the ball {where} (the end position filled grey)", fontsize=9)
     else:
         ax.set_title("whole sheet (clamp: squares; ball outline where it moved)", fontsize=9)
@@ -123,8 +151,13 @@ def plot_theta(ds: xr.Dataset, ax, indices):
     ax.axhline(np.pi / 2, color="k", lw=0.6, ls="--")
     ax.text(0.02, np.pi / 2 + 0.03, "equator", fontsize=7)
     rough = ROUGH_END_STATE
-    ax.plot([rough["rbar_max"]], [rough["theta_max"]], "kx", ms=8,
-            label=f"paper (rough): rbar_max {rough['rbar_max']:g}, theta_max {rough['theta_max']:g}")
+    ax.plot(
+        [rough["rbar_max"]],
+        [rough["theta_max"]],
+        "kx",
+        ms=8,
+        label=f"paper (rough): rbar_max {rough['rbar_max']:g}, theta_max {rough['theta_max']:g}",
+    )
     ax.set_xlabel("rbar / R (material radius)")
     ax.set_ylabel("theta (rad), where in contact")
     ax.set_title("theta(rbar) on the contact region", fontsize=9)
@@ -151,17 +184,31 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     for j in np.flatnonzero(np.diff(stage)):
         ax.axvline(t[j + 1], color="k", lw=0.6)
         s = int(stage[j + 1])
-        ax.text(t[j + 1], 0.98, names[s] if s < len(names) else str(s), rotation=90, va="top", ha="right",
-                fontsize=7, transform=ax.get_xaxis_transform())
+        ax.text(
+            t[j + 1],
+            0.98,
+            names[s] if s < len(names) else str(s),
+            rotation=90,
+            va="top",
+            ha="right",
+            fontsize=7,
+            transform=ax.get_xaxis_transform(),
+        )
     kinetic = kinetic_mask(ds)
     if kinetic is not None and kinetic.any():
-        # slipping with the slip distance past d_c: sliding at mu_k (unhatched slip: at mu_s onset, weakening)
-        ax.contourf(t, rbar, kinetic.T.astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"])
+        # slipping with the slip distance past d_c: sliding at mu_k (unhatched slip: at mu_s onset,
+        # weakening)
+        ax.contourf(
+            t, rbar, kinetic.T.astype(float), levels=[0.5, 1.5], colors="none", hatches=["////"]
+        )
         ax.plot([], [], " ", label="//// sliding at mu_k (slip > d_c)")
     contact = ds["rbar_max"].values
     ax.plot(t, contact, "k-", lw=0.8, label="rbar_max (outermost contact)")
     if rbar_limit is None:
-        rbar_limit = min(float(rbar[-1]), 1.5 * float(np.nanmax(contact)) if np.isfinite(contact).any() else rbar[-1])
+        rbar_limit = min(
+            float(rbar[-1]),
+            1.5 * float(np.nanmax(contact)) if np.isfinite(contact).any() else rbar[-1],
+        )
     ax.set_ylim(0, rbar_limit)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("rbar / R")
@@ -182,8 +229,16 @@ def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure
     plot_meridian(ds, ax0, idx)
     plot_meridian(ds, ax1, idx, zoom=True)
     handles, labels = ax0.get_legend_handles_labels()
-    ax1.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False,
-               title="sheet at (a line style per stage)", title_fontsize=8)
+    ax1.legend(
+        handles,
+        labels,
+        fontsize=8,
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        frameon=False,
+        title="sheet at (a line style per stage)",
+        title_fontsize=8,
+    )
     fig.suptitle(f"meridian section\n{outcome_title(ds, outcome)}", fontsize=10)
     return fig
 
@@ -191,7 +246,9 @@ def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure
 def theta_rbar(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure:
     """The figure ``theta_rbar.png``: theta(rbar) on the contact region at ``indices``."""
     fig = Figure(figsize=(7, 5), layout="constrained")
-    plot_theta(ds, fig.subplots(), snapshot_indices(ds, per_stage=1) if indices is None else indices)
+    plot_theta(
+        ds, fig.subplots(), snapshot_indices(ds, per_stage=1) if indices is None else indices
+    )
     fig.suptitle(outcome_title(ds, outcome), fontsize=9)
     return fig
 

@@ -42,7 +42,9 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     rmax = np.asarray(ds["rbar_max"].values, dtype=float)
     rmax = rmax[np.isfinite(rmax)]
     right = (
-        rbar[-1] if rmax.size == 0 else min(rbar[-1], 1.25 * rmax.max() + 2 * float(np.diff(rbar).max()))
+        rbar[-1]
+        if rmax.size == 0
+        else min(rbar[-1], 1.25 * rmax.max() + 2 * float(np.diff(rbar).max()))
     )
     stage = np.asarray(ds["stage"].values).astype(int)
     names = stage_names(ds)

@@ -22,14 +22,23 @@ from matplotlib.patches import Patch  # noqa: E402
 from dynslip.data.files import save_figure  # noqa: E402
 from dynslip.plot.style import MODEL_LABELS as LABEL  # noqa: E402
 
-__all__ = ["figure4_row", "figure4", "family_plot", "cylinder_plot", "save_figure4_row", "save_figure4",
-           "save_family", "save_cylinder"]
+__all__ = [
+    "figure4_row",
+    "figure4",
+    "family_plot",
+    "cylinder_plot",
+    "save_figure4_row",
+    "save_figure4",
+    "save_family",
+    "save_cylinder",
+]
 
 C_EQ, C_POLE = "#fde0c5", "#cfe3f5"  # friction toward the equator / toward the pole
 
 
 def _background(ax, rbar, direction):
-    """Shade spans of rbar by the direction of friction (+1 toward the equator, -1 toward the pole)."""
+    """Shade spans of rbar by the direction of friction (+1 toward the equator, -1 toward the
+    pole)."""
     edges = np.concatenate([[rbar[0]], 0.5 * (rbar[1:] + rbar[:-1]), [rbar[-1]]])
     for i, d in enumerate(direction):
         if d != 0:
@@ -98,7 +107,11 @@ def family_plot(ds):
     """mu (and the switch angle) across the fully mobilised family, the selected members marked."""
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
     x = ds["switch_value"].values
-    xl = "switch radius $\\bar r_s$ (R)" if ds.attrs.get("switch_by") == "switch_radius" else "switch angle (rad)"
+    xl = (
+        "switch radius $\\bar r_s$ (R)"
+        if ds.attrs.get("switch_by") == "switch_radius"
+        else "switch angle (rad)"
+    )
     for i, m in enumerate(ds["model"].values):
         m = str(m)
         line, = a.plot(x, ds["mu"].values[i], "-o", ms=3, label=LABEL.get(m, m))
@@ -141,8 +154,12 @@ def cylinder_plot(ds):
     a.legend(fontsize=8)
     tm = ds["theta_max"].values
     fv = ds["F_v"].values
-    b.fill_between(tm, fv.min(axis=1), fv.max(axis=1), color="0.8", label="random admissible states")
-    b.plot(tm, ds["F_v_lower"].values, "C0-", label=r"$T_0 e^{-\mu\theta_m}\sin\theta_m$ (lower bound)")
+    b.fill_between(
+        tm, fv.min(axis=1), fv.max(axis=1), color="0.8", label="random admissible states"
+    )
+    b.plot(
+        tm, ds["F_v_lower"].values, "C0-", label=r"$T_0 e^{-\mu\theta_m}\sin\theta_m$ (lower bound)"
+    )
     b.axhline(0, color="k", lw=0.8)
     b.set_yscale("symlog", linthresh=1e-2)
     b.set_xlabel(r"$\theta_{max}$ (rad)")

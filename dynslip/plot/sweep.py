@@ -193,7 +193,9 @@ def plot_window(result: dict, path) -> Path:
     if says:  # whether the search can be read as physics, beside its windows
         import textwrap
 
-        ax.set_xlabel(result.get("field", "mu") + "\n" + "\n".join(textwrap.wrap(says, 95)), fontsize=7)
+        ax.set_xlabel(
+            result.get("field", "mu") + "\n" + "\n".join(textwrap.wrap(says, 95)), fontsize=7
+        )
     fig.tight_layout()
     out = save_figure(fig, path, dpi=120)
     plt.close(fig)
@@ -207,23 +209,52 @@ def plot_critical_mu(result: dict, path) -> Path:
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(5, 3.2))
-    pts = [(int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))
-           for n, c in result["critical_mu"].items() if c]
+    pts = [
+        (int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))
+        for n, c in result["critical_mu"].items()
+        if c
+    ]
     if pts:
-        ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[p[2] for p in pts], fmt="ko-", capsize=3,
-                    label="critical mu (window search)")
-        low = [p for p in pts if p[3]]  # trapped at the range's lower end: mu_c is below it (an upper bound)
+        ax.errorbar(
+            [p[0] for p in pts],
+            [p[1] for p in pts],
+            yerr=[p[2] for p in pts],
+            fmt="ko-",
+            capsize=3,
+            label="critical mu (window search)",
+        )
+        low = [
+            p for p in pts if p[3]
+        ]  # trapped at the range's lower end: mu_c is below it (an upper bound)
         if low:
-            ax.plot([p[0] for p in low], [p[1] for p in low], "wv", mec="k", ms=9,
-                    label="open: below the searched range")
+            ax.plot(
+                [p[0] for p in low],
+                [p[1] for p in low],
+                "wv",
+                mec="k",
+                ms=9,
+                label="open: below the searched range",
+            )
         bound = [p for p in pts if p[4]]  # the runs below failed or did not resolve the contact
         if bound:
-            ax.plot([p[0] for p in bound], [p[1] for p in bound], "ws", mec="C1", ms=9, mew=1.5,
-                    label="below: runs failed or unresolved (a bound)")
+            ax.plot(
+                [p[0] for p in bound],
+                [p[1] for p in bound],
+                "ws",
+                mec="C1",
+                ms=9,
+                mew=1.5,
+                label="below: runs failed or unresolved (a bound)",
+            )
     ex = result.get("extrapolation", {})
     if ex.get("extrapolable"):
-        ax.axhspan(ex["value"] - ex["err"], ex["value"] + ex["err"], color="C0", alpha=0.2,
-                   label=f"extrapolated {ex['value']:.3f} (order {ex['order']:.2f})")
+        ax.axhspan(
+            ex["value"] - ex["err"],
+            ex["value"] + ex["err"],
+            color="C0",
+            alpha=0.2,
+            label=f"extrapolated {ex['value']:.3f} (order {ex['order']:.2f})",
+        )
     from dynslip.analysis.paper import MEASURED_MU_S
 
     ax.axhline(MEASURED_MU_S, color="C3", ls=":", label=f"measured mu_s = {MEASURED_MU_S:g}")

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import importlib
 import json
-from pathlib import Path
 import types
+from pathlib import Path
 from typing import Annotated, Any, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
@@ -88,7 +88,9 @@ class Strict(BaseModel):
     """Base of every schema section: unknown keys are errors; values are frozen; numbers are
     finite (NaN and infinities refused) and never given as text or booleans."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -198,7 +200,9 @@ def format_validation_error(err: ValidationError, source: str, data=None) -> str
         ctx = e.get("ctx") or {}
         value, msg = ctx.get("value"), str(ctx.get("why"))
     more = f" (and {len(err.errors()) - 1} more)" if len(err.errors()) > 1 else ""
-    if e["type"] == "value_error" and isinstance(value, dict):  # a check across fields: its message names them
+    if e["type"] == "value_error" and isinstance(
+        value, dict
+    ):  # a check across fields: its message names them
         return f"{source}: {loc + ': ' if loc else ''}{msg}{more}"
     if isinstance(value, (int, float, str, bool, type(None))):
         shown = json.dumps(value)
@@ -211,13 +215,21 @@ def format_validation_error(err: ValidationError, source: str, data=None) -> str
 def validate_data(data: Any, source: str = "<scenario>"):
     """Validate a mapping into a scenario object, or raise :class:`InputError`."""
     if not isinstance(data, dict):
-        raise InputError(f"{source}: a scenario must be a mapping of sections, got {type(data).__name__}")
+        raise InputError(
+            f"{source}: a scenario must be a mapping of sections, got {type(data).__name__}"
+        )
     if "kind" not in data:
         raise InputError(f"{source}: field 'kind' missing; allowed: {', '.join(_classes())}")
     if not isinstance(data["kind"], str) or data["kind"] not in _classes():
         kind = data["kind"]
-        shown = json.dumps(kind) if isinstance(kind, (int, float, str, bool, type(None))) else type(kind).__name__
-        raise InputError(f"{source}: field 'kind' = {shown[:80]}: unknown kind; allowed: {', '.join(_classes())}")
+        shown = (
+            json.dumps(kind)
+            if isinstance(kind, (int, float, str, bool, type(None)))
+            else type(kind).__name__
+        )
+        raise InputError(
+            f"{source}: field 'kind' = {shown[:80]}: unknown kind; allowed: {', '.join(_classes())}"
+        )
     try:
         return _adapter().validate_python(data)
     except ValidationError as err:
@@ -233,7 +245,9 @@ def load_data(path, overrides: list[str] | tuple[str, ...] = ()) -> dict:
     if data is None:
         data = {}
     if not isinstance(data, dict):
-        raise InputError(f"{path}: a scenario must be a mapping of sections, got {type(data).__name__}")
+        raise InputError(
+            f"{path}: a scenario must be a mapping of sections, got {type(data).__name__}"
+        )
     for text in overrides:
         key, value = parse_override(text)
         set_path(data, key, value, f"{path}: --set")
@@ -258,7 +272,12 @@ def load(path, overrides: list[str] | tuple[str, ...] = (), values: dict[str, An
 def _bounds(p: dict) -> str:
     """``> 0, <= 1e+04`` from the JSON schema of a number."""
     out = []
-    for key, sym in (("exclusiveMinimum", ">"), ("minimum", ">="), ("exclusiveMaximum", "<"), ("maximum", "<=")):
+    for key, sym in (
+        ("exclusiveMinimum", ">"),
+        ("minimum", ">="),
+        ("exclusiveMaximum", "<"),
+        ("maximum", "<="),
+    ):
         if key in p:
             v = p[key]
             out.append(f"{sym} {v:g}" if isinstance(v, float) else f"{sym} {v}")
@@ -279,7 +298,11 @@ def _range_text(prop: dict) -> str:
         else:
             rng = "; ".join(f"[{i}] {b}" for i, b in enumerate(parts) if b)
     elif "minItems" in prop or "maxItems" in prop:
-        n = [f"{sym} {prop[key]}" for key, sym in (("minItems", ">="), ("maxItems", "<=")) if key in prop]
+        n = [
+            f"{sym} {prop[key]}"
+            for key, sym in (("minItems", ">="), ("maxItems", "<="))
+            if key in prop
+        ]
         rng = ", ".join([rng, "items " + ", ".join(n)] if rng else ["items " + ", ".join(n)])
     return rng
 
@@ -296,7 +319,9 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
             continue
         typ = prop.get("type")
         if typ is None and "anyOf" in prop:
-            typ = " | ".join(p.get("type", p.get("$ref", "?").split("/")[-1]) for p in prop["anyOf"])
+            typ = " | ".join(
+                p.get("type", p.get("$ref", "?").split("/")[-1]) for p in prop["anyOf"]
+            )
         if "enum" in prop:
             typ = " | ".join(map(str, prop["enum"]))
         if "const" in prop:
@@ -320,7 +345,9 @@ def schema_reference(extra: dict[str, type] | None = None) -> str:
     """A plain-text reference of every field of every scenario kind (and of the models in
     ``extra``, title -> pydantic class: the sweep file)."""
     lines = []
-    sections = [(f"kind: {kind}", cls) for kind, cls in _classes().items()] + list((extra or {}).items())
+    sections = [(f"kind: {kind}", cls) for kind, cls in _classes().items()] + list(
+        (extra or {}).items()
+    )
     for title, cls in sections:
         sch = cls.model_json_schema(by_alias=True)
         rows: list = []

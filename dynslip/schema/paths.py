@@ -81,12 +81,16 @@ def set_path(data: dict, dotted: str, value: Any, source: str = "<scenario>") ->
                 f"{source}: field '{dotted}' does not exist ('{'.'.join(keys[: i + 1])}' not found)"
             ) from None
         if not isinstance(node, (dict, list)):
-            raise InputError(f"{source}: field '{dotted}' does not exist ('{key}' is not a section)")
+            raise InputError(
+                f"{source}: field '{dotted}' does not exist ('{key}' is not a section)"
+            )
     last = keys[-1]
     if isinstance(node, list):
         try:
             node[_index(node, last)] = value
         except KeyError:
-            raise InputError(f"{source}: field '{dotted}' does not exist ('{last}' is not an item)") from None
+            raise InputError(
+                f"{source}: field '{dotted}' does not exist ('{last}' is not an item)"
+            ) from None
     else:
         node[last] = value

@@ -49,7 +49,9 @@ class WindowSpec(_Strict):
     lo: float = Field(0.0, ge=0, le=100)
     hi: float = Field(3.0, gt=0, le=100)
     coarse: int = Field(13, ge=2, le=1000, description="coarse scan points, 2..1000")
-    tol: float = Field(0.02, ge=1e-6, le=100, description="width of the final brackets, in [1e-6, 100]")
+    tol: float = Field(
+        0.02, ge=1e-6, le=100, description="width of the final brackets, in [1e-6, 100]"
+    )
 
     @model_validator(mode="after")
     def _range(self):
@@ -66,8 +68,12 @@ class SweepSpec(_Strict):
     base: str = Field(description="scenario file, relative to the sweep file")
     overrides: dict[str, Any] = Field(default_factory=dict)
     grid: dict[str, list[Any] | Linspace] | None = Field(
-        None, description="field -> list of values or {start, stop, num}; at most 10000 members in all")
-    list_: list[dict[str, Any]] | None = Field(None, alias="list", description="members, at most 10000")
+        None,
+        description="field -> list of values or {start, stop, num}; at most 10000 members in all",
+    )
+    list_: list[dict[str, Any]] | None = Field(
+        None, alias="list", description="members, at most 10000"
+    )
     window: WindowSpec | None = None
     out: str | None = None
     mode: Literal["sequential", "batched", "dask"] | None = None
@@ -125,7 +131,8 @@ def load_spec(path) -> SweepSpec:
         )  # for a union, the branch that got furthest
         loc = ".".join(str(p) for p in e["loc"] if p not in ("list[any]", "Linspace"))
         msg = (
-            "unknown field (allowed: name, description, base, overrides, grid, list, window, out, mode, keep_runs)"
+            "unknown field (allowed: name, description, base, overrides, grid, list, window, out, "
+            "mode, keep_runs)"
             if e["type"] == "extra_forbidden"
             else e["msg"]
         )
@@ -180,7 +187,8 @@ def friction_field(resolved: dict, field_name: str | None = None) -> tuple[str, 
             field_name = "physics.friction.mu"
         else:
             raise InputError(
-                "window: the scenario has no field 'physics.friction.mu' or 'physics.friction.mu_s' "
+                "window: the scenario has no field 'physics.friction.mu' or "
+                "'physics.friction.mu_s' "
                 "to search over"
             )
     try:

@@ -39,7 +39,9 @@ class Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
                 key = self.construct_object(key_node, deep=True)
                 try:
                     first = seen.get(key)
-                except TypeError:  # an unhashable key (a list or mapping as key): SafeLoader says so
+                except (
+                    TypeError
+                ):  # an unhashable key (a list or mapping as key): SafeLoader says so
                     continue
                 if first is not None:
                     raise _DuplicateKey(
@@ -84,14 +86,20 @@ def read_text(path, what: str = "scenario") -> str:
     try:
         raw = path.read_bytes()
     except OSError as err:
-        raise InputError(f"{path}: cannot read the {what} file ({err.strerror or type(err).__name__})") from None
+        raise InputError(
+            f"{path}: cannot read the {what} file ({err.strerror or type(err).__name__})"
+        ) from None
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as err:
-        raise InputError(f"{path}: not a UTF-8 text file (byte {err.start} is 0x{raw[err.start]:02x}); "
-                         f"allowed: a YAML {what} file in UTF-8") from None
+        raise InputError(
+            f"{path}: not a UTF-8 text file (byte {err.start} is 0x{raw[err.start]:02x}); "
+            f"allowed: a YAML {what} file in UTF-8"
+        ) from None
     if "\x00" in text:
-        raise InputError(f"{path}: a binary file (it holds NUL bytes); allowed: a YAML {what} file in UTF-8")
+        raise InputError(
+            f"{path}: a binary file (it holds NUL bytes); allowed: a YAML {what} file in UTF-8"
+        )
     return text
 
 

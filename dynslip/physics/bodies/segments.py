@@ -118,9 +118,42 @@ class Projection(eqx.Module):
     tangent: jnp.ndarray
 
 
+#: relative slack of the in-range tests (a foot a rounding error past a joint still counts)
+_SLACK = 1e-12
+
+
+def _corners(segments):
+    """The profile's corners: joints where the tangent turns (not C1), and ends on the axis
+    whose tangent is not horizontal (a point); each with its arc length and the bisector of
+    the outward normals on either side (the mirror image's across the axis)."""
+    out, acc = [], 0.0
+    rot = lambda t: np.array([-t[1], t[0]])
+    closed = math.hypot(segments[0].start[0] - segments[-1].end[0],
+                        segments[0].start[1] - segments[-1].end[1]) <= 1e-9
+    for k, seg in enumerate(segments):
+        if k > 0 or closed:
+            prev = segments[k - 1]
+            na, nb = rot(prev.tangent_at(1.0)), rot(seg.tangent_at(0.0))
+            if np.linalg.norm(na - nb) > 1e-9:
+                out.append((seg.start, acc, na + nb))
+        elif abs(seg.start[0]) <= 1e-9 and abs(seg.tangent_at(0.0)[1]) > 1e-9:
+            nb = rot(seg.tangent_at(0.0))
+            out.append((seg.start, 0.0, nb + nb * np.array([-1.0, 1.0])))
+        acc += seg.length
+    last = segments[-1]
+    if not closed and abs(last.end[0]) <= 1e-9 and abs(last.tangent_at(1.0)[1]) > 1e-9:
+        na = rot(last.tangent_at(1.0))
+        out.append((last.end, acc, na + na * np.array([-1.0, 1.0])))
+    pts = np.array([c[0] for c in out], float).reshape(-1, 2)
+    sv = np.array([c[1] for c in out], float)
+    bis = np.array([c[2] / np.linalg.norm(c[2]) for c in out], float).reshape(-1, 2)
+    return pts, sv, bis
+
+
 def segment_arrays(segments):
-    """Stacked numpy arrays of the lines and the arcs of a profile, each with its start arc
-    length: ``(p0, p1, s0_line), (centre, radius, mid_angle, half_sweep, sign, s0_arc)``."""
+    """Stacked numpy arrays of a profile: its lines ``(p0, p1, s0)``, its arcs ``(centre,
+    radius, mid_angle, half_sweep, sign, s0)`` (s0 the arc length at each one's start) and its
+    corners ``(point, s, normal bisector)`` (:func:`_corners`)."""
     s0, acc = [], 0.0
     for seg in segments:
         s0.append(acc)
@@ -136,7 +169,7 @@ def segment_arrays(segments):
     ahalf = np.array([0.5 * abs(seg.sweep) for seg, _ in arcs], float)
     asg = np.array([math.copysign(1.0, seg.sweep) for seg, _ in arcs], float)
     as0 = np.array([s for _, s in arcs], float)
-    return (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0)
+    return (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0), _corners(tuple(segments))
 
 
 def _safe_norm(v):
@@ -146,66 +179,73 @@ def _safe_norm(v):
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
 
 
-def _project_lines(x, p0, p1, s0):
-    """Candidates on each line: unsigned distance, signed distance, normal, s, tangent."""
+def _feet_on_lines(x, p0, p1, s0):
+    """The foot of the normal from x on each line: |distance| (inf where the foot falls off
+    the line), signed distance, normal, s, tangent; shapes (..., L) and (..., L, 2)."""
     d = p1 - p0  # (L, 2)
-    length = jnp.sqrt(jnp.sum(d * d, axis=-1))  # (L,)
+    length = np.sqrt(np.sum(d * d, axis=-1))  # (L,)
     t = d / length[:, None]
-    n = jnp.stack([-t[:, 1], t[:, 0]], axis=-1)  # outward: tangent turned counter-clockwise
+    n = np.stack([-t[:, 1], t[:, 0]], axis=-1)  # outward: the tangent turned counter-clockwise
     rel = x[..., None, :] - p0  # (..., L, 2)
-    u = jnp.sum(rel * t, axis=-1)  # (..., L) arc length from the start
-    inside = (u >= 0) & (u <= length)
-    uc = jnp.clip(u, 0.0, length)
-    q = p0 + uc[..., None] * t
-    w = x[..., None, :] - q
-    r = _safe_norm(w)
-    signed_in = jnp.sum(rel * n, axis=-1)
-    side = jnp.sign(jnp.sum(w * n, axis=-1))
-    side = jnp.where(side == 0, 1.0, side)
-    signed = jnp.where(inside, signed_in, side * r)
-    rs = jnp.where(r > 0, r, 1.0)[..., None]
-    normal = jnp.where(inside[..., None] | (r[..., None] == 0), n, side[..., None] * w / rs)
-    return jnp.abs(signed), signed, normal, s0 + uc, jnp.broadcast_to(t, normal.shape)
+    u = jnp.sum(rel * t, axis=-1)  # (..., L) arc length of the foot from the line's start
+    ok = (u >= -_SLACK * length) & (u <= (1 + _SLACK) * length)
+    signed = jnp.sum(rel * n, axis=-1)
+    shape = signed.shape + (2,)
+    return (jnp.where(ok, jnp.abs(signed), jnp.inf), signed, jnp.broadcast_to(n, shape),
+            s0 + jnp.clip(u, 0.0, length), jnp.broadcast_to(t, shape))
 
 
-def _project_arcs(x, c, radius, mid, half, sg, s0):
-    """Candidates on each arc: unsigned distance, signed distance, normal, s, tangent."""
+def _feet_on_arcs(x, c, radius, mid, half, sg, s0):
+    """The foot of the normal from x on each arc, as :func:`_feet_on_lines`: the radial
+    projection, on the arc where x lies within its half-sweep of the mid-direction m,
+    m.(x - c) >= cos(half) |x - c|."""
+    m = np.stack([np.cos(mid), np.sin(mid)], axis=-1)  # (A, 2)
     rel = x[..., None, :] - c  # (..., A, 2)
     r = _safe_norm(rel)
-    cm, sm = jnp.cos(mid), jnp.sin(mid)
-    # polar angle of x about the centre, from the arc's mid-direction, along the sweep
-    alpha = sg * jnp.arctan2(cm * rel[..., 1] - sm * rel[..., 0], cm * rel[..., 0] + sm * rel[..., 1])
-    inside = jnp.abs(alpha) <= half
-    ac = jnp.clip(alpha, -half, half)
-    ang = mid + sg * ac
-    radial = jnp.stack([jnp.cos(ang), jnp.sin(ang)], axis=-1)
-    q = c + radius[:, None] * radial
-    n = -sg[:, None] * radial  # outward: +radial for an arc bulging out of the solid
-    tang = sg[:, None] * jnp.stack([-radial[..., 1], radial[..., 0]], axis=-1)
-    w = x[..., None, :] - q
-    rw = _safe_norm(w)
-    signed_in = -sg * (r - radius)
-    side = jnp.sign(jnp.sum(w * n, axis=-1))
-    side = jnp.where(side == 0, 1.0, side)
-    signed = jnp.where(inside, signed_in, side * rw)
-    rws = jnp.where(rw > 0, rw, 1.0)[..., None]
-    normal = jnp.where(inside[..., None] | (rw[..., None] == 0), n, side[..., None] * w / rws)
-    return jnp.abs(signed), signed, normal, s0 + radius * (ac + half), tang
+    along = jnp.sum(rel * m, axis=-1)
+    ok = along >= (np.cos(half) - _SLACK) * r
+    signed = -sg * (r - radius)  # +radial outward for an arc bulging out of the solid
+    rs = jnp.where(r > 0, r, 1.0)[..., None]
+    radial = jnp.where((r > 0)[..., None], rel / rs, m)
+    normal = -sg[:, None] * radial
+    tangent = sg[:, None] * jnp.stack([-radial[..., 1], radial[..., 0]], axis=-1)
+    across = m[:, 0] * rel[..., 1] - m[:, 1] * rel[..., 0]
+    alpha = jnp.clip(sg * jnp.arctan2(across, along), -half, half)  # angle from m, along the sweep
+    return (jnp.where(ok, jnp.abs(signed), jnp.inf), signed, normal, s0 + radius * (alpha + half),
+            tangent)
+
+
+def _at_corners(x, v, sv, bis):
+    """Distance to each corner point, signed by the side of the normals' bisector."""
+    w = x[..., None, :] - v  # (..., V, 2)
+    r = _safe_norm(w)
+    side = jnp.where(jnp.sum(w * bis, axis=-1) < 0, -1.0, 1.0)
+    rs = jnp.where(r > 0, r, 1.0)[..., None]
+    normal = jnp.where((r > 0)[..., None], side[..., None] * w / rs, bis)
+    tangent = jnp.stack([normal[..., 1], -normal[..., 0]], axis=-1)
+    return r, side * r, normal, jnp.broadcast_to(sv, r.shape), tangent
 
 
 def project_onto_segments(arrays, x) -> Projection:
     """Closest-point projection of the points ``x`` (..., 2) onto a profile given by
-    :func:`segment_arrays`: the candidate on every segment, the nearest kept (pure JAX)."""
-    (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0) = arrays
+    :func:`segment_arrays` (pure JAX). The nearest point of a profile is the foot of a normal
+    on one of its segments or one of its corners (where two segments' normals differ, so
+    a C1 joint needs no candidate of its own): every candidate is computed, the nearest kept."""
+    (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0), (cv, csv, cbis) = arrays
     x = jnp.asarray(x, float)
     parts = []
     if lp0.shape[0]:
-        parts.append(_project_lines(x, *(jnp.asarray(a) for a in (lp0, lp1, ls0))))
+        parts.append(_feet_on_lines(x, lp0, lp1, ls0))
     if ac.shape[0]:
-        parts.append(_project_arcs(x, *(jnp.asarray(a) for a in (ac, ar, amid, ahalf, asg, as0))))
+        parts.append(_feet_on_arcs(x, ac, ar, amid, ahalf, asg, as0))
+    if cv.shape[0]:
+        parts.append(_at_corners(x, cv, csv, cbis))
     absd, signed, normal, s, tang = (jnp.concatenate([p[i] for p in parts], axis=x.ndim - 1)
                                      for i in range(5))
-    k = jnp.argmin(absd, axis=-1)[..., None]  # (..., 1) the nearest segment
-    pick = lambda a: jnp.take_along_axis(a, k, axis=-1)[..., 0]
-    pick2 = lambda a: jnp.take_along_axis(a, k[..., None], axis=-2)[..., 0, :]
+    # the nearest candidate as a one-hot mask (cheaper than a gather and its scatter-add
+    # gradient on a handful of candidates); a tie keeps the first
+    k = jnp.argmin(absd, axis=-1)[..., None]  # (..., 1)
+    hot = jnp.arange(absd.shape[-1]) == k  # (..., C)
+    pick = lambda a: jnp.sum(jnp.where(hot, a, 0.0), axis=-1)
+    pick2 = lambda a: jnp.sum(jnp.where(hot[..., None], a, 0.0), axis=-2)
     return Projection(distance=pick(signed), normal=pick2(normal), s=pick(s), tangent=pick2(tang))

@@ -30,7 +30,11 @@ def check_static_range(material: AbstractMaterial, lt, lp, where: str = "") -> N
         raise MaterialRangeError(
             f"{material.name}: stretches (lambda_theta={lt[i]:.4g}, lambda_phi={lp[i]:.4g}) "
             f"at node {i} outside the material's range{(' ' + where) if where else ''}"
-            + (f"; the Gent model locks at I1 = J_m + 3 = {material.jm + 3:g}" if hasattr(material, "jm") else "")
+            + (
+                f"; the Gent model locks at I1 = J_m + 3 = {material.jm + 3:g}"
+                if hasattr(material, "jm")
+                else ""
+            )
         )
 
 

@@ -36,8 +36,9 @@ def velocity(material: AbstractMaterial, theta, h, mu):
 
 
 def stable_dt(material: AbstractMaterial, theta, h, safety: float = 0.4):
-    r"""Forward-Euler step below $h^2/(2D)$ with $D = (\partial T_\theta/\partial\lambda_\theta)/\lambda_\theta$,
-    the march's diffusivity, taken at its largest over the shape (times ``safety``)."""
+    r"""Forward-Euler step below $h^2/(2D)$ with
+    $D = (\partial T_\theta/\partial\lambda_\theta)/\lambda_\theta$, the march's
+    diffusivity, taken at its largest over the shape (times ``safety``)."""
     f = fields(material, theta, h)
     eps = 1e-6
     tp_, _ = tensions(material, f.lt + eps, f.lp)
@@ -101,7 +102,11 @@ def march_diffrax(material, theta0, h, mu, dt, t_end, vtol, rtol, solver: str = 
     if solver == "euler":
         method, controller, dt0 = diffrax.Euler(), diffrax.ConstantStepSize(), dt
     elif solver == "tsit5":
-        method, controller, dt0 = diffrax.Tsit5(), diffrax.PIDController(rtol=rtol, atol=rtol * 1e-2), None
+        method, controller, dt0 = (
+            diffrax.Tsit5(),
+            diffrax.PIDController(rtol=rtol, atol=rtol * 1e-2),
+            None,
+        )
     else:
         raise ValueError(f"unknown diffrax solver {solver!r}")
     sol = diffrax.diffeqsolve(
@@ -142,7 +147,8 @@ def velocity_jacobian(material, theta, h, mu):
 def march_implicit(material, theta0, h, mu, dt0, vtol, max_steps, growth=4.0, dt_max=1e6,
                    newton_tol=1e-12, max_newton=30):
     r"""The paper's march to rest with backward-Euler steps,
-    $\theta^{n+1} = \theta^n + \Delta t_n\,S(F_m(\theta^{n+1}), \mu F_N(\theta^{n+1}))$, each solved by
+    $\theta^{n+1} = \theta^n + \Delta t_n\,S(F_m(\theta^{n+1}), \mu F_N(\theta^{n+1}))$, each
+    solved by
     semi-smooth Newton on $G = \theta - \theta^n - \Delta t\,\dot\theta(\theta)$
     (:func:`velocity_jacobian`, dense LU) from $\theta^n$ until the Newton update is at most
     ``newton_tol`` (rad) at every node.
@@ -171,7 +177,9 @@ def march_implicit(material, theta0, h, mu, dt0, vtol, max_steps, growth=4.0, dt
             d = jnp.linalg.solve(jac, g(th))
             return th - d, k + 1, jnp.max(jnp.abs(d))
 
-        th, k, r = jax.lax.while_loop(cond, body, (theta_n, jnp.asarray(0), jnp.asarray(1e300, theta_n.dtype)))
+        th, k, r = jax.lax.while_loop(
+            cond, body, (theta_n, jnp.asarray(0), jnp.asarray(1e300, theta_n.dtype))
+        )
         return th, k, (r <= newton_tol) & jnp.all(jnp.isfinite(th))
 
     def cond(c):
@@ -188,12 +196,27 @@ def march_implicit(material, theta0, h, mu, dt0, vtol, max_steps, growth=4.0, dt
 
     v0 = jnp.max(jnp.abs(velocity(material, theta0, h, mu)))
     z = jnp.asarray(0)
-    theta, _, _, n_acc, vmax, _ = jax.lax.while_loop(cond, body, (theta0, jnp.asarray(dt0, theta0.dtype), z, z, v0, z))
+    theta, _, _, n_acc, vmax, _ = jax.lax.while_loop(
+        cond, body, (theta0, jnp.asarray(dt0, theta0.dtype), z, z, v0, z)
+    )
     return MarchResult(theta, vmax, n_acc, vmax <= vtol)
 
 
-def march(material, theta0, h, mu, *, method: str = "explicit", vtol=1e-6, max_steps=400_000,
-          dt=None, rtol=1e-6, solver="euler", implicit_dt_factor=100.0, implicit_growth=4.0) -> MarchResult:
+def march(
+    material,
+    theta0,
+    h,
+    mu,
+    *,
+    method: str = "explicit",
+    vtol=1e-6,
+    max_steps=400_000,
+    dt=None,
+    rtol=1e-6,
+    solver="euler",
+    implicit_dt_factor=100.0,
+    implicit_growth=4.0,
+) -> MarchResult:
     """Run the march with ``method`` ``"explicit"`` (jitted loop), ``"implicit"`` (backward
     Euler, :func:`march_implicit`: first step ``implicit_dt_factor * dt``, each next one
     ``implicit_growth`` times longer) or ``"diffrax"`` (with ``solver`` ``"euler"`` or
@@ -205,8 +228,16 @@ def march(material, theta0, h, mu, *, method: str = "explicit", vtol=1e-6, max_s
     if method == "explicit":
         return march_explicit(material, theta0, h, mu, dt, vtol, jnp.asarray(max_steps))
     if method == "implicit":
-        return march_implicit(material, theta0, h, mu, dt * implicit_dt_factor, vtol, jnp.asarray(max_steps),
-                              growth=implicit_growth)
+        return march_implicit(
+            material,
+            theta0,
+            h,
+            mu,
+            dt * implicit_dt_factor,
+            vtol,
+            jnp.asarray(max_steps),
+            growth=implicit_growth,
+        )
     if method == "diffrax":
         t_end = dt * max_steps
         return march_diffrax(material, theta0, h, mu, dt, t_end, vtol, rtol, solver, int(max_steps))

@@ -1,0 +1,65 @@
+r"""The mesh check against any body: how deep each element chord dips into it.
+
+The penalty acts at the nodes only, so nothing keeps an element's chord (the straight
+meridian of its conical frustum) out of a body; a deep chord means the mesh does not resolve
+the contact (:func:`dynslip.physics.sheet.chord_depths` does this for the unit ball in closed
+form). Here for any body: the depth $\max_{u\in[0,1]} -d(x_e + u(x_{e+1} - x_e))$ along each
+chord, from 17 samples and then golden-section search on the bracket of the deepest one
+(60 steps: the bracket shrinks to $10^{-13}$ of the chord), exact where the depth along the
+chord has one maximum in the bracket (a convex body, or a chord short against the profile's
+radii of curvature). Positive inside, units of R.
+
+Example::
+
+    >>> import numpy as np
+    >>> from dynslip.physics.bodies.sphere import Sphere
+    >>> th = np.array([0.0, 0.3])  # two nodes on the ball, 0.3 rad apart
+    >>> d = chord_depths(Sphere(), np.sin(th), np.cos(th), 0.0)
+    >>> bool(abs(d[0] - (1 - np.cos(0.15))) < 1e-12)
+    True
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from dynslip.physics.bodies.base import AbstractBody
+
+__all__ = ["chord_depths"]
+
+_SAMPLES = 17
+_GOLDEN_STEPS = 60
+_INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
+
+
+@eqx.filter_jit
+def _depths(body: AbstractBody, a, b, zpos):
+    """Depths (...,) of the chords from ``a`` to ``b`` (..., 2), body displaced by zpos (...)."""
+    depth = lambda u: -body.distance(a + u[..., None] * (b - a), zpos)
+    u = jnp.linspace(0.0, 1.0, _SAMPLES)
+    samples = jax.vmap(lambda ui: depth(jnp.full(a.shape[:-1], ui)))(u)  # (S, ...)
+    k = jnp.argmax(samples, axis=0)
+    lo = u[jnp.clip(k - 1, 0, _SAMPLES - 1)]
+    hi = u[jnp.clip(k + 1, 0, _SAMPLES - 1)]
+
+    def step(_, lh):
+        lo, hi = lh
+        c, d = hi - _INV_PHI * (hi - lo), lo + _INV_PHI * (hi - lo)
+        left = depth(c) >= depth(d)
+        return jnp.where(left, lo, c), jnp.where(left, d, hi)
+
+    lo, hi = jax.lax.fori_loop(0, _GOLDEN_STEPS, step, (lo, hi))
+    return jnp.maximum(jnp.max(samples, axis=0), depth(0.5 * (lo + hi)))
+
+
+def chord_depths(body: AbstractBody, rho, z, zpos) -> np.ndarray:
+    """Depth inside ``body`` (displaced by ``zpos``, shape (...)) of each element chord, for
+    node positions ``rho, z`` of shape (..., N): shape (..., N-1), positive inside, as
+    :func:`dynslip.physics.sheet.chord_depths` for the unit ball."""
+    x = jnp.stack([jnp.asarray(rho, float), jnp.asarray(z, float)], axis=-1)
+    zp = jnp.asarray(zpos, float)[..., None]
+    zp = jnp.broadcast_to(zp, x.shape[:-2] + (x.shape[-2] - 1,))
+    return np.asarray(_depths(body, x[..., :-1, :], x[..., 1:, :], zp))
