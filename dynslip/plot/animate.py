@@ -143,10 +143,13 @@ class _Renderer:
 
         mf = sel if map_frames is None else map_frames
         draw_spacetime(self.ax_map, ds.isel(time=mf), fronts.isel(time=mf), legend=False)
+        import textwrap
+
         from dynslip.plot.forming import outcome_title
 
+        end = "\n".join(textwrap.wrap(outcome_title(ds, outcome), 60))
         self.ax_map.set_title(
-            f"contact state; fronts in black\n{outcome_title(ds, outcome)}", fontsize=8
+            f"contact state; fronts in black\n{end}", fontsize=8
         )
         self.cursor = self.ax_map.axhline(self.t[sel[0]], color="#2ca02c", lw=1.8)
         # blitting: the static parts are drawn once, the moving artists on top for each frame
