@@ -197,6 +197,19 @@ def cmd_compare(args) -> int:
     return 0
 
 
+class _Version(argparse.Action):
+    """``--version``: the version and the commit, asked of git only when given."""
+
+    def __init__(self, option_strings, dest, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from dynslip._version import describe
+
+        print(describe())
+        parser.exit(0)
+
+
 FORCE_HELP = (
     "replace a folder at --out that is not a dynslip result (never a file); default: refuse"
 )
@@ -247,8 +260,10 @@ def _sub(sub, name: str, help: str):  # noqa: A002 - argparse's keyword
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="dynslip", description=__doc__.splitlines()[0],
+    p = _Parser(prog="dynslip", description=__doc__.splitlines()[0].replace("``", ""),
                 epilog="dynslip COMMAND --help: the options of a command, with examples")
+    p.add_argument("--version", action=_Version,
+                   help="print the version and the git commit, and exit")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     r = _sub(sub, "run", "run a scenario file")

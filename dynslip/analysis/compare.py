@@ -12,11 +12,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["end_state", "difference", "compare"]
+__all__ = ["trapped_text", "end_state", "difference", "compare"]
 
 
-def end_state(ds) -> dict:
-    """theta(rbar) on the contact region of the last frame, and its summary figures."""
+def trapped_text(trapped) -> str:
+    """summary.json's ``trapped`` in words: yes, no, or no answer (failed or unresolved; or no
+    summary.json beside the trajectory)."""
+    return {True: "yes", False: "no"}.get(trapped, "no answer")
+
+
+def end_state(ds, summary: dict | None = None) -> dict:
+    """theta(rbar) on the contact region of the last frame, and its summary figures;
+    ``trapped`` from the run's ``summary`` (its summary.json) where given, else None."""
     last = ds.isel(time=-1)
     rbar = np.asarray(ds["rbar"].values, float)
     theta = np.asarray(last["theta"].values, float)
@@ -29,6 +36,7 @@ def end_state(ds) -> dict:
         "theta_max": float(last["theta_max"].values),
         "rbar_max": float(last["rbar_max"].values),
         "mu_mobilised_max": float(np.nanmax(mob)) if np.isfinite(mob).any() else float("nan"),
+        "trapped": None if summary is None else summary.get("trapped"),
     }
 
 
@@ -59,14 +67,16 @@ def difference(a: dict, b: dict) -> dict:
 
 def compare(states: dict) -> dict:
     """``{"runs": ..., "differences": ...}`` of end states (name -> :func:`end_state`, the
-    first the reference): each run's theta_max, rbar_max, mu_mobilised_max, and the
-    difference of the reference to each other run (``"A - B"``)."""
+    first the reference): each run's trapped (None: no answer), theta_max, rbar_max,
+    mu_mobilised_max, and the difference of the reference to each other run (``"A - B"``)."""
     names = list(states)
     ref = states[names[0]]
     result = {"runs": {}, "differences": {}}
     for n in names:
         s = states[n]
-        result["runs"][n] = {k: s[k] for k in ("theta_max", "rbar_max", "mu_mobilised_max")}
+        result["runs"][n] = {
+            k: s.get(k) for k in ("trapped", "theta_max", "rbar_max", "mu_mobilised_max")
+        }
     for n in names[1:]:
         d = difference(ref, states[n])
         result["differences"][f"{names[0]} - {n}"] = {

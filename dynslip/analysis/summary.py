@@ -97,6 +97,7 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "z_mm": slack["clamp_z"] * p.ball_radius_mm if slack else None,
         },
         "end_at_rest": at_rest,
+        "end_at_rest_says": rest_words(p, ds, result, at_rest),
         "ball_reaction_end": reaction,
         "ball_z_end": float(end["ball_z"]),
         "clamp_force_end": float(end["clamp_force"]),
@@ -124,7 +125,49 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         },
         "nodes": sc.numerics.nodes,
     }
+    summary["outcome"] = outcome_words(summary)
     return summary
+
+
+def rest_words(p, ds: xr.Dataset, result, at_rest: bool) -> str:
+    """Whether the run ended at rest, in words: a run whose last stage ended at its time limit
+    is flagged, with how far the ball moved over that stage (its end state is where the run
+    stopped, not a rest state)."""
+    last = result.stage_end[-1] if result.stage_end else None
+    if at_rest:
+        return (f"at rest: stage {last['name']!r} met its rest condition at "
+                f"t = {last['t_end']:.4g} s")
+    if last is None:
+        return "not at rest: the run ended before its first stage did"
+    if _stage_until(p, last["name"]) != "rest":
+        return (f"no rest stage: the run ends with stage {last['name']!r} at "
+                f"t = {last['t_end']:.4g} s (its end state is not checked for rest)")
+    z = ds["ball_z"].values
+    in_stage = np.flatnonzero(ds["stage"].values == len(result.stage_end) - 1)
+    moved = (f"; the ball moved from z = {z[in_stage[0]]:.3g} to {z[in_stage[-1]]:.3g} R over "
+             "the stage" if in_stage.size else "")
+    limit = len(result.stage_end) == len(p.stages) and not last["condition_met"]
+    why = "ended at its time limit" if limit else "did not finish"
+    return (f"NOT AT REST: stage {last['name']!r} {why} (t = {last['t_end']:.4g} s) before the "
+            f"sheet and ball came to rest{moved}; the end state is where the run stopped, not a "
+            "rest state")
+
+
+def outcome_words(s: dict) -> str:
+    """The run's answer in one line (figures' titles and the terminal): trapped or not, where
+    the contact ends, and why there is no answer when there is none."""
+    theta = s["theta_max"]
+    contact = (f"contact ends at theta_max = {theta:.3g} rad (rbar_max {s['rbar_max']:.3g} R)"
+               if np.isfinite(theta) else "no contact at the end")
+    if s["status"] != "ok":
+        return f"failed: no answer ({contact})"
+    if s["trapped"] is None:
+        return f"no answer: the mesh does not resolve the contact ({contact})"
+    if s["trapped"]:
+        return f"trapped; {contact}"
+    if not s["end_at_rest"] and s["end_at_rest_says"].startswith("NOT AT REST"):
+        return f"not trapped (not at rest at the end); {contact}"
+    return f"not trapped; {contact}"
 
 
 def _stage_until(p, name):

@@ -224,7 +224,7 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
             plot_release(ds, summary["release"], outs.folder)
     outs.json(summary)
     if outs.writes:
-        make_figures(ds, outs.folder)
+        make_figures(ds, outs.folder, summary.get("outcome"))
     return summary
 
 
@@ -238,6 +238,7 @@ def _print_summary(console, s: dict) -> None:
     fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
     rows = [
         ("trapped", s["trapped"]),
+        ("ended at rest", s["end_at_rest"]),
         ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
         ("theta_max (rad)", s["theta_max"]),
         ("rbar_max (R)", s["rbar_max"]),
@@ -259,4 +260,7 @@ def _print_summary(console, s: dict) -> None:
     for k, v in rows:
         t.add_row(k, fmt(v))
     console.print(t)
+    console.print(f"outcome: {s['outcome']}", highlight=False)
+    if not s["end_at_rest"]:
+        console.print(f"[bold]{s['end_at_rest_says']}[/bold]", highlight=False)
 

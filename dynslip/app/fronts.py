@@ -28,9 +28,18 @@ def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None) -
     stages = json.loads(fr.attrs["stage_summary"])
     return [
         write_netcdf(fr, out_dir / "fronts.nc"),
-        plot_fronts(ds, fr, out_dir / "fronts.png"),
+        plot_fronts(ds, fr, out_dir / "fronts.png", _outcome(trajectory_path)),
         write_json(out_dir / "fronts_summary.json", {"stages": stages}),
     ]
+
+
+def _outcome(trajectory_path: Path) -> str | None:
+    """The run's ``outcome`` from the summary.json beside its trajectory, or None."""
+    f = trajectory_path.parent / "summary.json"
+    try:
+        return json.loads(f.read_text()).get("outcome") if f.is_file() else None
+    except (OSError, ValueError, AttributeError):
+        return None
 
 
 def summary_lines(stages: list[dict]) -> list[str]:

@@ -10,6 +10,7 @@ For a scenario (``run_window``), $\mu$ is the ideal law's ``physics.friction.mu`
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 import tempfile
 from collections.abc import Callable
@@ -39,8 +40,10 @@ def scenario_window(
     work_dir: Path | None = None,
     console=None,
     progress: Callable[[float, bool | None], None] | None = None,
+    depths: dict[float, float] | None = None,
 ) -> WindowResult:
-    """Window search with ``trapped(mu)`` from running ``member_fn`` on the scenario at mu."""
+    """Window search with ``trapped(mu)`` from running ``member_fn`` on the scenario at mu;
+    ``depths`` (when given) receives each member's deepest chord (``mesh_check``)."""
 
     def trapped(mu: float) -> bool | None:
         member = member_at(data, resolved, field_name, tied, mu)
@@ -48,6 +51,8 @@ def scenario_window(
             summary = member_fn(member, Path(tmp) / "run", console)
         t = summary.get("trapped")
         check = summary.get("mesh_check") or {}
+        if depths is not None and check.get("max_chord_depth") is not None:
+            depths[float(mu)] = float(check["max_chord_depth"])
         if (
             check.get("resolved") is False
         ):  # no answer: recorded with the reason among the failed points
@@ -126,6 +131,7 @@ def run_window(
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
     lines = []
+    depths: dict[float, float] = {}
 
     def progress(mu, v):
         word = {True: "trapped", False: "not trapped", None: "FAILED or unresolved"}[v]
@@ -148,6 +154,7 @@ def run_window(
         work_dir=out,
         console=None,
         progress=progress,
+        depths=depths,
     )
     from dynslip.analysis.convergence import critical_edge
 
@@ -169,6 +176,8 @@ def run_window(
             if result["critical_mu"] and base
             else None
         )
+    nodes, limit = _mesh_of(resolved)
+    result["resolution_check"] = resolution_check(result, depths, nodes, limit, str(path))
     write_json(out / "window.json", result)
     if res.evaluations and all(v is None for v in res.evaluations.values()):
         raise ComputationError(
@@ -183,7 +192,89 @@ def run_window(
     )
     if res.failed:
         console.print(f"[yellow]{len(res.failed)} failed runs: {res.failed}[/yellow]")
+    console.print(f"[bold]{result['resolution_check']['says']}[/bold]", highlight=False)
     return result
+
+
+def _mesh_of(resolved: dict) -> tuple[int | None, float]:
+    """The scenario's mesh size and chord-depth limit (``numerics.nodes``,
+    ``numerics.max_chord_depth``)."""
+    try:
+        nodes = int(get_path(resolved, "numerics.nodes"))
+    except (InputError, KeyError, TypeError, ValueError):
+        nodes = None
+    try:
+        limit = float(get_path(resolved, "numerics.max_chord_depth"))
+    except (InputError, KeyError, TypeError, ValueError):
+        limit = 0.1  # the schema's default
+    return nodes, limit
+
+
+def resolution_check(result: dict, depths: dict[float, float], nodes: int | None, limit: float,
+                     scenario: str) -> dict:
+    """Whether a one-mesh window search can be read as physics, in words, for window.json.
+
+    Its members are resolved when none failed on the mesh check and none came within half the
+    limit (``numerics.max_chord_depth``; the depth of a chord falls as the square of the
+    element's angle, so a refinement by 1.4 is what halves it: such a member's answer may
+    change with the mesh). A search at one mesh size does not know whether its windows
+    survive a refinement: it says so, and names the command that checks it."""
+    failed_mesh = [m for m, why in result.get("failed", [])
+                   if "not resolved by the mesh" in str(why)]
+    marginal = sorted(m for m, d in depths.items() if 0.5 * limit < d <= limit)
+    n_windows = len(result.get("windows", []))
+    words = []
+    if failed_mesh:
+        at = ", ".join(f"{m:.4g}" for m in failed_mesh)
+        words.append(f"{len(failed_mesh)} members did not resolve the contact "
+                     f"(no answer at mu = {at})")
+    if marginal:
+        words.append(f"{len(marginal)} of {len(depths)} members reach a chord depth over half the "
+                     f"limit ({0.5 * limit:g} R): a finer mesh may change their answers")
+    resolved = not failed_mesh and not marginal
+    if n_windows > 1:
+        words.append(f"{n_windows} separate windows: a fragmented answer is typical of a mesh "
+                     "too coarse for the contact; only windows that persist under refinement "
+                     "are physics")
+    n = f"N = {nodes}" if nodes else "one mesh size"
+    finer = f"{nodes},{2 * nodes},{4 * nodes}" if nodes else "N,2N,4N"
+    cmd = (f"dynslip window {scenario} --nodes {finer}" if scenario.endswith((".yaml", ".yml"))
+           else f"the same search at numerics.nodes = {finer}")
+    head = ("members resolved" if resolved else "MEMBERS NOT RESOLVED") + f" at {n}"
+    says = (f"{head}; windows not checked against refinement (check: {cmd})"
+            + ("; " + "; ".join(words) if words else ""))
+    return {"members_resolved": resolved, "nodes": nodes,
+            "max_chord_depth": dict(sorted(depths.items())), "marginal": marginal,
+            "failed_on_mesh": failed_mesh, "refinement_checked": False, "says": says}
+
+
+def refinement_check(per_n: dict, field_name: str) -> dict:
+    """Whether the windows of searches at increasing mesh sizes stay the same: the number of
+    windows, and each edge within the sum of its two searches' tolerances. Windows that change
+    are mesh artefacts until a finer pair agrees."""
+    nodes = sorted(per_n)
+    changes = []
+    for a, b in itertools.pairwise(nodes):
+        wa, wb = per_n[a]["windows"], per_n[b]["windows"]
+        tol = per_n[a]["tol"] + per_n[b]["tol"]
+        if len(wa) != len(wb):
+            changes.append(f"N = {a} -> {b}: {len(wa)} -> {len(wb)} windows")
+            continue
+        moved = max((abs(x - y) for u, v in zip(wa, wb, strict=True)
+                     for x, y in zip(u, v, strict=True)), default=0.0)
+        if moved > tol:
+            changes.append(f"N = {a} -> {b}: an edge moves by {moved:.3g} (> {tol:.3g})")
+    unresolved = [n for n in nodes
+                  if not per_n[n].get("resolution_check", {}).get("members_resolved", True)]
+    if changes:
+        says = (f"windows of {field_name} CHANGE WITH REFINEMENT ({'; '.join(changes)}): read "
+                "only the finest, and only what persists")
+    else:
+        says = f"windows of {field_name} agree across N = " + ", ".join(map(str, nodes))
+    if unresolved:
+        says += "; members not resolved at N = " + ", ".join(map(str, unresolved))
+    return {"windows_change": bool(changes), "changes": changes, "unresolved_at": unresolved,
+            "says": says}
 
 
 def parse_nodes(text: str) -> list[int]:
@@ -254,6 +345,7 @@ def run_window_nodes(
         "upper_edges": "reported as found; an upper edge is an artefact unless it survives "
             "refinement",
     }
+    result["refinement_check"] = refinement_check(per_n, first["field"])
     write_json(out / "window.json", result)
     plot_critical_mu(result, out / "critical_mu.png")
     console.print(
@@ -270,4 +362,5 @@ def run_window_nodes(
         )
     else:
         console.print(f"not extrapolable: {extrap.get('reason')}")
+    console.print(f"[bold]{result['refinement_check']['says']}[/bold]", highlight=False)
     return result

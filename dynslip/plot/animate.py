@@ -69,7 +69,13 @@ class _Renderer:
     """A figure whose artists are updated in place for each saved frame."""
 
     def __init__(
-        self, ds: xr.Dataset, fronts: xr.Dataset, frames: np.ndarray, size, map_frames=None
+        self,
+        ds: xr.Dataset,
+        fronts: xr.Dataset,
+        frames: np.ndarray,
+        size,
+        map_frames=None,
+        outcome=None,
     ):
         import matplotlib
 
@@ -137,7 +143,14 @@ class _Renderer:
 
         mf = sel if map_frames is None else map_frames
         draw_spacetime(self.ax_map, ds.isel(time=mf), fronts.isel(time=mf), legend=False)
-        self.ax_map.set_title("contact state; fronts in black", fontsize=9)
+        import textwrap
+
+        from dynslip.plot.forming import outcome_title
+
+        end = "\n".join(textwrap.wrap(outcome_title(ds, outcome), 60))
+        self.ax_map.set_title(
+            f"contact state; fronts in black\n{end}", fontsize=8
+        )
         self.cursor = self.ax_map.axhline(self.t[sel[0]], color="#2ca02c", lw=1.8)
         # blitting: the static parts are drawn once, the moving artists on top for each frame
         self.dynamic = [self.ball, self.sheet, self.clamp, self.front_pts, self.cursor, self.title]
@@ -174,12 +187,16 @@ class _Renderer:
         s = int(self.stage[k])
         name = self.names[s] if 0 <= s < len(self.names) else str(s)
         fc = float(ds["clamp_force"].values[k])
-        text = (f"stage {s}: {name}    t = {self.t[k]:.4g} s    "
-                f"clamp force {fc * self.scale_n:.3g} N ({fc:.3g} G h0 R)")
+        text = (
+            f"stage {s}: {name}    t = {self.t[k]:.4g} s    "
+            f"clamp force {fc * self.scale_n:.3g} N ({fc:.3g} G h0 R)"
+        )
         if "ball_reaction" in ds:
             text += f"    hold on ball {float(ds['ball_reaction'].values[k]) * self.scale_n:.3g} N"
-        text += (f"\nclamp at z = {cz:.3g} R    "
-                 f"contact to theta = {float(ds['theta_max'].values[k]):.3g} rad")
+        text += (
+            f"\nclamp at z = {cz:.3g} R    "
+            f"contact to theta = {float(ds['theta_max'].values[k]):.3g} rad"
+        )
         self.title.set_text(text)
         self.cursor.set_ydata([self.t[k], self.t[k]])
         canvas = self.fig.canvas
@@ -283,9 +300,11 @@ def save_frame_png(
     time: float | None = None,
     size=DEFAULT_SIZE,
     rest_speed: float | None = None,
+    outcome: str | None = None,
 ) -> Path:
     """Write the animation frame at the saved frame nearest ``time`` (s; default the last)
-    as a PNG. :class:`InputError` for a time outside the run."""
+    as a PNG; ``outcome``: the run's answer in words for the map's title (summary.json's).
+    :class:`InputError` for a time outside the run."""
     ds = open_trajectory(trajectory_path)
     size = _check_size(size)
     t = np.asarray(ds["time"].values, dtype=float)
@@ -295,7 +314,9 @@ def save_frame_png(
         time_indices(ds, (float(time), None))  # InputError for a time outside the run
         k = int(np.argmin(np.abs(t - float(time))))
     fronts = fronts_dataset(ds, rest_speed)
-    renderer = _Renderer(ds, fronts, np.array([k]), size, map_frames=np.arange(t.size))
+    renderer = _Renderer(
+        ds, fronts, np.array([k]), size, map_frames=np.arange(t.size), outcome=outcome
+    )
     try:
         from PIL import Image
 

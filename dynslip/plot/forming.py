@@ -21,15 +21,18 @@ from dynslip.data import files as io
 from dynslip.plot.style import STATE_LABELS, state_colormap
 
 __all__ = [
+    "end_words",
     "make_figures",
-    "snapshot_indices",
     "meridian",
-    "theta_rbar",
-    "state_map",
+    "outcome_title",
     "plot_meridian",
-    "plot_theta",
     "plot_state_map",
+    "plot_theta",
+    "snapshot_indices",
+    "state_map",
+    "theta_rbar",
 ]
+
 
 def snapshot_indices(ds: xr.Dataset, per_stage: int = 2) -> list[int]:
     """Frames at the end of every stage plus ``per_stage - 1`` inside each (sorted, unique)."""
@@ -60,40 +63,91 @@ def _label(ds, i):
     return f"t = {float(ds['time'].values[i]):.0f} s ({names[s] if s < len(names) else s})"
 
 
-def plot_meridian(ds: xr.Dataset, ax, indices):
-    cmap = matplotlib.colormaps["viridis"]
-    for k, i in enumerate(indices):
-        c = cmap(k / max(len(indices) - 1, 1))
+def end_words(ds: xr.Dataset) -> str:
+    """Where the contact ends in the last frame, from the dataset alone."""
+    end = ds.isel(time=-1)
+    theta = float(end["theta_max"])
+    if not np.isfinite(theta):
+        return "no contact at the end"
+    return f"contact ends at theta_max = {theta:.3g} rad (rbar_max {float(end['rbar_max']):.3g} R)"
+
+
+def outcome_title(ds: xr.Dataset, outcome: str | None) -> str:
+    """The outcome line of every figure: summary.json's ``outcome`` (trapped or not, where the
+    contact ends) where given, else where the contact ends (trapped is in summary.json)."""
+    return f"end: {outcome}" if outcome else f"end: {end_words(ds)} (trapped: see summary.json)"
+
+
+#: one line style per stage (cycled), so that curves of different stages lying on top of
+#: each other stay distinguishable
+STAGE_STYLES = ("-", "--", "-.", ":")
+
+
+def _stage_style(ds, i):
+    s = int(ds["stage"].values[i])
+    return matplotlib.colormaps["tab10"](s % 10), STAGE_STYLES[s % len(STAGE_STYLES)], s
+
+
+def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
+    """Sheet (mirrored about the axis), ball and clamp at ``indices``: a colour and a line style
+    per stage; a ball outline only where the ball has moved (more than 0.05 R) since the last
+    one drawn, the end position filled; ``zoom``: the neighbourhood of the ball only."""
+    drawn_z: list[float] = []
+    last = indices[-1]
+    width = {}
+    for i in indices:
+        c, ls, s = _stage_style(ds, i)
         fr = ds.isel(time=i)
         rho, z = fr["rho"].values, fr["z"].values
-        ax.plot(rho, z, color=c, lw=1.4, label=_label(ds, i))
-        ax.plot(-rho, z, color=c, lw=1.4)
+        lw = 2.6 if i == last else max(0.9, 2.2 - 0.4 * width.setdefault(s, len(width)))
+        label = _label(ds, i)
+        if i == 0:  # the flat start: thin grey, whatever its stage
+            c, ls, lw, label = "0.55", "-", 1.0, "t = 0 s (start)"
+        ax.plot(rho, z, color=c, ls=ls, lw=lw, label=label, zorder=3 if i == last else 2)
+        ax.plot(-rho, z, color=c, ls=ls, lw=lw, zorder=3 if i == last else 2)
         zb = float(fr["ball_z"])
-        ax.add_patch(Circle((0, zb), 1.0, fill=False, color=c, ls=":", lw=0.8))
-        ax.plot(
-            [float(fr["clamp_rho"]), -float(fr["clamp_rho"])],
-            [float(fr["clamp_z"])] * 2,
-            "s",
-            color=c,
-            ms=4,
-        )
+        if i == last:
+            ax.add_patch(Circle((0, zb), 1.0, facecolor="0.85", edgecolor="k", lw=1.0, zorder=1))
+        elif all(abs(zb - q) > 0.05 for q in drawn_z):
+            ax.add_patch(Circle((0, zb), 1.0, fill=False, edgecolor=c, ls="-", lw=0.7, zorder=1))
+        drawn_z.append(zb)
+        if not zoom:
+            ax.plot(
+                [float(fr["clamp_rho"]), -float(fr["clamp_rho"])],
+                [float(fr["clamp_z"])] * 2,
+                "s",
+                color=c,
+                ms=4,
+            )
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
-    ax.set_title("meridian snapshots (ball dotted, clamp squares)")
-    ax.legend(fontsize=7, loc="lower left")
+    if zoom:
+        # centred on the ball where the sheet wraps it furthest (the end, when it wraps most there)
+        th = np.asarray(ds["theta_max"].values, dtype=float)[list(indices)]
+        k = indices[int(np.nanargmax(th))] if np.isfinite(th).any() else last
+        k = last if np.isfinite(th[-1]) and th[-1] >= np.nanmax(th) - 1e-9 else k
+        zb = float(ds["ball_z"].values[k])
+        ax.set_xlim(-1.8, 1.8)
+        ax.set_ylim(zb - 1.6, zb + 1.6)
+        where = (
+            "at the end"
+            if k == last
+            else f"at t = {float(ds['time'].values[k]):.0f} s, the widest contact"
+        )
+        ax.set_title(f"near the ball {where} (the end position filled grey)", fontsize=9)
+    else:
+        ax.set_title("whole sheet (clamp: squares; ball outline where it moved)", fontsize=9)
 
 
 def plot_theta(ds: xr.Dataset, ax, indices):
-    cmap = matplotlib.colormaps["viridis"]
     rbar = ds["rbar"].values
-    for k, i in enumerate(indices):
+    for i in indices:
         th = ds["theta"].values[i]
         if np.all(np.isnan(th)):
             continue
-        ax.plot(
-            rbar, th, "o-", ms=2.5, color=cmap(k / max(len(indices) - 1, 1)), label=_label(ds, i)
-        )
+        c, ls, _ = _stage_style(ds, i)
+        ax.plot(rbar, th, marker="o", ls=ls, ms=2.5, color=c, label=_label(ds, i))
     ax.axhline(np.pi / 2, color="k", lw=0.6, ls="--")
     ax.text(0.02, np.pi / 2 + 0.03, "equator", fontsize=7)
     rough = ROUGH_END_STATE
@@ -106,7 +160,7 @@ def plot_theta(ds: xr.Dataset, ax, indices):
     )
     ax.set_xlabel("rbar / R (material radius)")
     ax.set_ylabel("theta (rad), where in contact")
-    ax.set_title("theta(rbar) on the contact region")
+    ax.set_title("theta(rbar) on the contact region", fontsize=9)
     ax.legend(fontsize=7)
 
 
@@ -158,41 +212,63 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     ax.set_ylim(0, rbar_limit)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("rbar / R")
-    ax.set_title("contact and slip state")
+    ax.set_title("contact and slip state", fontsize=9)
     cb = ax.figure.colorbar(m, ax=ax, ticks=[0, 1, 2, 3])
     cb.ax.set_yticklabels(STATE_LABELS, fontsize=7)
-    ax.legend(fontsize=7, loc="lower right")
+    # the legend sits below the map, never on it
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.13), ncol=2, frameon=False)
 
 
-def meridian(ds: xr.Dataset, indices=None) -> Figure:
+def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure:
     """The figure ``meridian.png`` from a trajectory dataset: meridian snapshots (rho, z) of
-    sheet, ball and clamp at ``indices`` (default :func:`snapshot_indices`)."""
-    fig = Figure(figsize=(7, 7))
-    plot_meridian(ds, fig.subplots(), snapshot_indices(ds) if indices is None else indices)
+    sheet, ball and clamp at ``indices`` (default :func:`snapshot_indices`, one per stage),
+    whole and near the ball; ``outcome``: summary.json's ``outcome`` for the title."""
+    idx = snapshot_indices(ds, per_stage=1) if indices is None else indices
+    fig = Figure(figsize=(11, 7), layout="constrained")
+    ax0, ax1 = fig.subplots(1, 2, width_ratios=[1, 1.3])
+    plot_meridian(ds, ax0, idx)
+    plot_meridian(ds, ax1, idx, zoom=True)
+    handles, labels = ax0.get_legend_handles_labels()
+    ax1.legend(
+        handles,
+        labels,
+        fontsize=8,
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        frameon=False,
+        title="sheet at (a line style per stage)",
+        title_fontsize=8,
+    )
+    fig.suptitle(f"meridian section\n{outcome_title(ds, outcome)}", fontsize=10)
     return fig
 
 
-def theta_rbar(ds: xr.Dataset, indices=None) -> Figure:
+def theta_rbar(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure:
     """The figure ``theta_rbar.png``: theta(rbar) on the contact region at ``indices``."""
-    fig = Figure(figsize=(7, 5))
-    plot_theta(ds, fig.subplots(), snapshot_indices(ds) if indices is None else indices)
+    fig = Figure(figsize=(7, 5), layout="constrained")
+    plot_theta(
+        ds, fig.subplots(), snapshot_indices(ds, per_stage=1) if indices is None else indices
+    )
+    fig.suptitle(outcome_title(ds, outcome), fontsize=9)
     return fig
 
 
-def state_map(ds: xr.Dataset) -> Figure:
+def state_map(ds: xr.Dataset, outcome: str | None = None) -> Figure:
     """The figure ``state_map.png``: the contact and slip state against time and rbar."""
-    fig = Figure(figsize=(9, 5))
+    fig = Figure(figsize=(9, 5.5), layout="constrained")
     plot_state_map(ds, fig.subplots())
+    fig.suptitle(outcome_title(ds, outcome), fontsize=9)
     return fig
 
 
-def make_figures(ds: xr.Dataset, out: Path) -> list[Path]:
-    """Write the three figures into ``out``; returns their paths. The figures are not
+def make_figures(ds: xr.Dataset, out: Path, outcome: str | None = None) -> list[Path]:
+    """Write the three figures into ``out``; returns their paths. ``outcome``: the run's
+    answer in words (summary.json's ``outcome``) for their titles. The figures are not
     pyplot's (no backend is chosen or changed)."""
     out = Path(out)
-    idx = snapshot_indices(ds)
+    idx = snapshot_indices(ds, per_stage=1)
     return [
-        io.save_figure(meridian(ds, idx), out / "meridian.png", dpi=120),
-        io.save_figure(theta_rbar(ds, idx), out / "theta_rbar.png", dpi=120),
-        io.save_figure(state_map(ds), out / "state_map.png", dpi=120),
+        io.save_figure(meridian(ds, idx, outcome), out / "meridian.png", dpi=120),
+        io.save_figure(theta_rbar(ds, idx, outcome), out / "theta_rbar.png", dpi=120),
+        io.save_figure(state_map(ds, outcome), out / "state_map.png", dpi=120),
     ]

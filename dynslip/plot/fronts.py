@@ -96,15 +96,19 @@ def _edges(x: np.ndarray) -> np.ndarray:
     return np.r_[x[0] - (mid[0] - x[0]), mid, x[-1] + (x[-1] - mid[-1])]
 
 
-def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path) -> Path:
-    """Figure: fronts over the space-time map; front angle and speed against time."""
+def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path, outcome: str | None = None) -> Path:
+    """Figure: fronts over the space-time map; front angle and speed against time; titled
+    with the run's ``outcome`` (summary.json's, else where the contact ends)."""
     import matplotlib
+
+    from dynslip.plot.forming import outcome_title
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     t = np.asarray(ds["time"].values, dtype=float)
     fig, axes = plt.subplots(1, 3, figsize=(13, 5.2), constrained_layout=True)
+    fig.suptitle(outcome_title(ds, outcome), fontsize=10)
     draw_spacetime(axes[0], ds, fronts)
     axes[0].set_title("stick fronts over the contact state\n(o born, x removed)", fontsize=9)
     pos_t = np.asarray(fronts["front_theta"].values)

@@ -42,10 +42,21 @@ def release_force(ds: xr.Dataset, metrics: dict | None = None) -> Figure:
     a.plot(
         disp, ds["ball_reaction"].values * fs, ":", color="C0", lw=0.8, label="force of the hold"
     )
-    a.axhline(MEASURED_RELEASE_FORCE_N, color="k", ls=":",
-              label=f"measured release force {MEASURED_RELEASE_FORCE_N:g} N")
-    a.plot([metrics["peak_displacement_mm"]], [metrics["peak_force_N"]], "o", color="C3",
-           label=f"peak {metrics['peak_force_N']:.2f} N (until opening radius R)")
+    # the measured release force is a magnitude: drawn on the side of the run's pull
+    sign = -1.0 if metrics["peak_force_N"] < 0 else 1.0
+    a.axhline(
+        sign * MEASURED_RELEASE_FORCE_N,
+        color="k",
+        ls=":",
+        label=f"measured release force {MEASURED_RELEASE_FORCE_N:g} N (magnitude)",
+    )
+    a.plot(
+        [metrics["peak_displacement_mm"]],
+        [metrics["peak_force_N"]],
+        "o",
+        color="C3",
+        label=f"peak {metrics['peak_force_N']:.2f} N (until opening radius R)",
+    )
     if metrics.get("displacement_at_opening_R_mm") is not None:
         for ax in (a, b):
             ax.axvline(metrics["displacement_at_opening_R_mm"], color="0.5", ls="--", lw=0.8)
@@ -55,6 +66,17 @@ def release_force(ds: xr.Dataset, metrics: dict | None = None) -> Figure:
     b.axhline(math.pi / 2, color="0.5", ls=":", lw=0.8)
     b.set_ylabel(r"$\theta_{max}$ (rad)")
     b.set_xlabel("ball displacement along the axis (mm, + toward its pole)")
+    opened = metrics.get("displacement_at_opening_R_mm")
+    fig.suptitle(
+        f"peak |force| {abs(metrics['peak_force_N']):.2f} N "
+        f"(measured {MEASURED_RELEASE_FORCE_N:g} N); "
+        + (
+            "the ball tears out (opening radius R reached)"
+            if opened is not None
+            else "the opening radius R is not reached: the ball stays held"
+        ),
+        fontsize=9,
+    )
     return fig
 
 

@@ -176,7 +176,7 @@ def plot_window(result: dict, path) -> Path:
     from dynslip.data.files import save_figure
 
     plt = _mpl()
-    fig, ax = plt.subplots(figsize=(6, 2.6))
+    fig, ax = plt.subplots(figsize=(6, 3.4 if result.get("resolution_check") else 2.6))
     ev = [(m, v) for m, v in result["evaluations"]]
     ok = [(m, v) for m, v in ev if v is not None]
     ax.plot([m for m, _ in ok], [1.0 if v else 0.0 for _, v in ok], "ko", ms=4, label="runs")
@@ -189,6 +189,13 @@ def plot_window(result: dict, path) -> Path:
     ax.set_xlim(*result["range"])
     ax.set_title(f"trapping windows (tol {result['tol']:g})", fontsize=9)
     ax.legend(fontsize=7, loc="center right")
+    says = (result.get("resolution_check") or {}).get("says")
+    if says:  # whether the search can be read as physics, beside its windows
+        import textwrap
+
+        ax.set_xlabel(
+            result.get("field", "mu") + "\n" + "\n".join(textwrap.wrap(says, 95)), fontsize=7
+        )
     fig.tight_layout()
     out = save_figure(fig, path, dpi=120)
     plt.close(fig)
@@ -202,8 +209,11 @@ def plot_critical_mu(result: dict, path) -> Path:
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(5, 3.2))
-    pts = [(int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))
-           for n, c in result["critical_mu"].items() if c]
+    pts = [
+        (int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))
+        for n, c in result["critical_mu"].items()
+        if c
+    ]
     if pts:
         ax.errorbar(
             [p[0] for p in pts],
@@ -217,16 +227,34 @@ def plot_critical_mu(result: dict, path) -> Path:
             p for p in pts if p[3]
         ]  # trapped at the range's lower end: mu_c is below it (an upper bound)
         if low:
-            ax.plot([p[0] for p in low], [p[1] for p in low], "wv", mec="k", ms=9,
-                    label="open: below the searched range")
+            ax.plot(
+                [p[0] for p in low],
+                [p[1] for p in low],
+                "wv",
+                mec="k",
+                ms=9,
+                label="open: below the searched range",
+            )
         bound = [p for p in pts if p[4]]  # the runs below failed or did not resolve the contact
         if bound:
-            ax.plot([p[0] for p in bound], [p[1] for p in bound], "ws", mec="C1", ms=9, mew=1.5,
-                    label="below: runs failed or unresolved (a bound)")
+            ax.plot(
+                [p[0] for p in bound],
+                [p[1] for p in bound],
+                "ws",
+                mec="C1",
+                ms=9,
+                mew=1.5,
+                label="below: runs failed or unresolved (a bound)",
+            )
     ex = result.get("extrapolation", {})
     if ex.get("extrapolable"):
-        ax.axhspan(ex["value"] - ex["err"], ex["value"] + ex["err"], color="C0", alpha=0.2,
-                   label=f"extrapolated {ex['value']:.3f} (order {ex['order']:.2f})")
+        ax.axhspan(
+            ex["value"] - ex["err"],
+            ex["value"] + ex["err"],
+            color="C0",
+            alpha=0.2,
+            label=f"extrapolated {ex['value']:.3f} (order {ex['order']:.2f})",
+        )
     from dynslip.analysis.paper import MEASURED_MU_S
 
     ax.axhline(MEASURED_MU_S, color="C3", ls=":", label=f"measured mu_s = {MEASURED_MU_S:g}")

@@ -57,7 +57,11 @@ def _text_for_number(tp, value) -> str | None:
     number is allowed (pydantic would read "0.5" as 0.5 and true as 1); ``None`` when fine."""
     if _wants_number(tp):
         if isinstance(value, str):
-            return "a number is required, not text (write it without quotes)"
+            try:
+                float(value)
+            except ValueError:
+                return f"a number is expected, not the text {value!r}"
+            return "a number is expected, not text: write it without quotes"
         if isinstance(value, bool):
             return "a number is required, not a boolean"
         return None
@@ -349,12 +353,11 @@ def schema_reference(extra: dict[str, type] | None = None) -> str:
         rows: list = []
         _rows(sch, sch.get("$defs", {}), "", rows)
         lines.append(f"{title}  ({(cls.__doc__ or '').strip().splitlines()[0]})")
-        lines.append(
-            f"  {'field':42s} {'type':18s} {'default':14s} {'range':20s} {'unit':6s} description"
-        )
-        for r in rows:  # the range is never cut: a bound is part of the contract
-            lines.append(
-                f"  {r[0]:42s} {r[1][:18]:18s} {r[2][:14]:14s} {r[3]:20s} {r[4]:6s} {r[5]}"
-            )
+        head = ("field", "type", "default", "range", "unit", "description")
+        # no column is ever cut (a value list or a bound is part of the contract): each is as
+        # wide as its widest entry in the section
+        widths = [max(len(r[i]) for r in [head, *rows]) for i in range(5)]
+        for r in [head, *rows]:
+            lines.append("  " + " ".join(f"{r[i]:{w}s}" for i, w in enumerate(widths)) + f" {r[5]}")
         lines.append("")
     return "\n".join(lines)

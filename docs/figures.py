@@ -1,0 +1,189 @@
+"""Make every figure of docs/ and the README from the shipped scenarios: one command.
+
+    python docs/figures.py                 # the shipped settings (N = 50): about 2 min on 2 cores
+    python docs/figures.py --fast          # numerics.nodes = 30 everywhere: a check that all draw
+    python docs/figures.py --only fronts_let_go.png
+
+:data:`RUNS` are the runs the figures are drawn from (the scenario, the fields set, and the
+command line that makes the same run); :data:`FIGURES` is the manifest: every image under
+docs/img/, the run it is drawn from and the command that draws it. ``tests/test_docs.py``
+checks that every image the docs show is in the manifest, that every image of the manifest
+is shown, and that docs/img holds nothing else, so a figure cannot outlive the code that
+made it. The runs are written to ``outputs/figures/<run>/`` (``--runs DIR``), the
+figures to docs/img/ (``--img DIR``); a run folder of an earlier call is reused with
+``--reuse``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+IMG = ROOT / "docs" / "img"
+
+
+#: the fast settings of ``--fast``: 30 nodes, the fewest at which these paths' contact stays
+#: resolved (the tube path with fed material needs its shipped 50: ``fast=False``)
+FAST = {"numerics.nodes": 30}
+
+
+@dataclass(frozen=True)
+class Run:
+    scenario: str
+    set: dict = field(default_factory=dict)
+    fast: bool = True  # --fast applies FAST to this run
+
+    def fields(self, fast: bool = False) -> dict:
+        return {**self.set, **(FAST if fast and self.fast else {})}
+
+    def command(self, fast: bool = False) -> str:
+        return " ".join(
+            [
+                "dynslip run",
+                self.scenario,
+                *(f"--set {k}={v}" for k, v in self.fields(fast).items()),
+            ]
+        )
+
+
+RUNS = {
+    "method2": Run("scenarios/method2.yaml"),
+    "method2_let_go": Run("scenarios/method2_let_go.yaml", {"numerics.save_interval_s": 0.5}),
+    "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
+    "method2_rim_feed": Run("scenarios/method2_rim_feed.yaml", fast=False),
+    "release_pull_tube": Run("scenarios/release_pull_tube.yaml", fast=False),
+}
+
+
+@dataclass(frozen=True)
+class Figure:
+    run: str
+    command: str  # what draws it from the run folder DIR (the run's own command first)
+    draw: str  # the function of this module that draws it: draw(run_dir, out_path)
+
+
+FIGURES = {
+    "meridian_method2.png": Figure(
+        "method2", "dynslip run scenarios/method2.yaml (DIR/meridian.png)", "copy_meridian"
+    ),
+    "state_map_method2.png": Figure(
+        "method2", "dynslip run scenarios/method2.yaml (DIR/state_map.png)", "copy_state_map"
+    ),
+    "fronts_method2_tube.png": Figure(
+        "method2", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
+    ),
+    "animation_frame_let_go.png": Figure(
+        "method2_let_go",
+        "dynslip.plot.animate.save_frame_png(DIR / 'trajectory.nc', PATH, time=<let_go + 4 s>, "
+        "rest_speed=1e-4)",
+        "animation_frame",
+    ),
+    "fronts_let_go.png": Figure(
+        "method2_let_go", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
+    ),
+    "fronts_let_go_rest_speed.png": Figure(
+        "method2_let_go", "dynslip fronts DIR/trajectory.nc --rest-speed 1e-4", "fronts_rest_speed"
+    ),
+    "fronts_method1_rest_speed.png": Figure(
+        "method1", "dynslip fronts DIR/trajectory.nc --rest-speed 1e-4", "fronts_rest_speed"
+    ),
+    "meridian_rim_feed.png": Figure(
+        "method2_rim_feed",
+        "dynslip run scenarios/method2_rim_feed.yaml (DIR/meridian.png)",
+        "copy_meridian",
+    ),
+    "release_force_tube.png": Figure(
+        "release_pull_tube",
+        "dynslip run scenarios/release_pull_tube.yaml (DIR/release_force.png)",
+        "copy_release_force",
+    ),
+}
+
+
+def copy_meridian(run_dir: Path, out: Path) -> None:
+    shutil.copyfile(run_dir / "meridian.png", out)
+
+
+def copy_state_map(run_dir: Path, out: Path) -> None:
+    shutil.copyfile(run_dir / "state_map.png", out)
+
+
+def copy_release_force(run_dir: Path, out: Path) -> None:
+    shutil.copyfile(run_dir / "release_force.png", out)
+
+
+def fronts(run_dir: Path, out: Path, rest_speed: float | None = None) -> None:
+    from dynslip.app.fronts import run_fronts
+
+    with tempfile.TemporaryDirectory() as tmp:
+        png = next(
+            p
+            for p in run_fronts(run_dir / "trajectory.nc", Path(tmp), rest_speed=rest_speed)
+            if p.suffix == ".png"
+        )
+        shutil.copyfile(png, out)
+
+
+def fronts_rest_speed(run_dir: Path, out: Path) -> None:
+    fronts(run_dir, out, rest_speed=1e-4)
+
+
+def animation_frame(run_dir: Path, out: Path) -> None:
+    """The frame 4 s into let_go: the cap at rest while the sheet near the edge slips back."""
+    import json
+
+    import numpy as np
+    import xarray as xr
+
+    from dynslip.plot.animate import save_frame_png
+
+    with xr.open_dataset(run_dir / "trajectory.nc", engine="netcdf4") as ds:
+        names = json.loads(ds.attrs["stage_names"])
+        t = ds["time"].values[np.flatnonzero(ds["stage"].values == names.index("let_go"))[0]] + 4.0
+    outcome = json.loads((run_dir / "summary.json").read_text()).get("outcome")
+    save_frame_png(run_dir / "trajectory.nc", out, time=float(t), rest_speed=1e-4, outcome=outcome)
+
+
+def make_run(name: str, runs_dir: Path, fast: bool, reuse: bool) -> Path:
+    import dynslip
+
+    out = runs_dir / name
+    if reuse and (out / "trajectory.nc").is_file():
+        return out
+    r = RUNS[name]
+    scn = dynslip.load(ROOT / r.scenario, set=r.fields(fast))
+    print(f"  {r.command(fast)} --out {out}", flush=True)
+    dynslip.run(scn, out=out, force=True)
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument(
+        "--fast", action="store_true", help=f"set {FAST} on every run (a check that all draw)"
+    )
+    p.add_argument("--only", action="append", choices=sorted(FIGURES), help="make only this figure")
+    p.add_argument(
+        "--runs", type=Path, default=ROOT / "outputs" / "figures", help="folder of the runs"
+    )
+    p.add_argument("--img", type=Path, default=IMG, help="folder of the figures (default docs/img)")
+    p.add_argument("--reuse", action="store_true", help="reuse a run folder of an earlier call")
+    args = p.parse_args(argv)
+    wanted = args.only or sorted(FIGURES)
+    args.img.mkdir(parents=True, exist_ok=True)
+    done: dict[str, Path] = {}
+    for name in wanted:
+        fig = FIGURES[name]
+        if fig.run not in done:
+            done[fig.run] = make_run(fig.run, args.runs, args.fast, args.reuse)
+        globals()[fig.draw](done[fig.run], args.img / name)
+        print(f"{args.img / name}: {fig.command}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
