@@ -365,7 +365,12 @@ class MotionNewton(eqx.Module):
         g = forces(model, q)
         _, _, delta1 = increment_rates(model, friction, inc, q, zb, g)
         y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1)
-        dy, _ = evaluate(model, layout, t1, y1, args)  # the accumulators by the rectangle rule at x1
+        # the accumulators by the rectangle rule at x1, with the friction law the motion used: the
+        # return map's coefficient at the increment's start, mu(delta0) (with mu(delta1) the
+        # friction power of fully mobilised nodes is counted at the weakened threshold, which
+        # the motion never saw: 5x the work on the let-go path)
+        y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0)
+        dy, _ = evaluate(model, layout, t1, y_rates, args)
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate)
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
