@@ -60,7 +60,7 @@ def _batched_solver(settings):
     if key not in _VMAPPED:
         solve = segment_solver(settings)
         a = eqx.if_array(0)  # array leaves mapped; a model's float constants (Gent's J_m) broadcast
-        _VMAPPED[key] = eqx.filter_jit(eqx.filter_vmap(solve, in_axes=(a, None, a, a, a, a, a, a, a)))
+        _VMAPPED[key] = eqx.filter_jit(eqx.filter_vmap(solve, in_axes=(a, None, a, a, a, a, a, a, a, a)))
     return _VMAPPED[key]
 
 
@@ -112,18 +112,19 @@ def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], 
         segs = [r.segment() for r in runs]
         inputs = (models_b, layout, np.stack([np.asarray(s.y) for s in segs]),
                   np.asarray([s.t0 for s in segs]), np.asarray([s.t1 for s in segs]),
-                  np.asarray([s.dt0 for s in segs]), stack([s.args for s in segs]), rtol, atol)
+                  np.asarray([s.dt0 for s in segs]), stack([s.args for s in segs]), rtol, atol,
+                  jax.tree_util.tree_map(lambda *r: np.stack([np.asarray(x) for x in r]), *[s.rate for s in segs]))
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(("batch", n_b, *keys[0]), lambda inputs=inputs: vsolve.lower(*inputs).compile(),
                              [runs[b].stats for b in active])
         r0 = _time.perf_counter()
         out = jax.device_get(compiled(*inputs))
         run_s = (_time.perf_counter() - r0) / len(active)  # the tick's time, shared by its active members
-        lockstep = int(np.max(out[2]))  # the tick's cost: the largest increment count of the batch
+        lockstep = int(np.max(out.steps))  # the tick's cost: the largest increment count of the batch
         for b in active:
             r, seg = runs[b], segs[b]
             r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + lockstep
-            if not r.advance(seg, tuple(o[b] for o in out), run_s):
+            if not r.advance(seg, jax.tree_util.tree_map(lambda o, b=b: o[b], out), run_s):
                 continue
             r.y = jnp.asarray(r.y)
             if r.heals_between_segments:

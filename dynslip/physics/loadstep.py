@@ -1,4 +1,10 @@
-r"""Quasi-static load stepping: implicit Euler increments controlled by Newton's iteration count.
+r"""Quasi-static load stepping on the whole state: implicit Euler increments controlled by Newton's
+iteration count.
+
+Since issue 23 ``numerics.solver: load_step`` runs :mod:`dynslip.physics.newton` (Newton on
+the motion alone); this module is the full-state Newton it replaced, kept as the physics-only
+choice ``load_step_full`` (:func:`dynslip.physics.simulate.solver_for`), the baseline of
+``benchmarks/speed.py``, and for its increment loop over any diffrax term (:func:`increments`).
 
 The forming path is slow loading of a rate-independent problem (stages of 10-90 s
 against a drag time $\tau = \eta R^2/(G h_0) = 0.1$ s). Implicit Euler on the overdamped law
@@ -80,7 +86,7 @@ from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
 
-__all__ = ["LoadStepEuler", "IncrementState", "load_step_solver", "increments", "run_segment", "segment_solver", "GROW", "CUT", "GROW_BELOW",
+__all__ = ["LoadStepEuler", "IncrementState", "load_step_solver", "increments", "run_segment", "GROW", "CUT", "GROW_BELOW",
            "SHRINK_ABOVE"]
 
 GROW = 1.5  # increment growth after a fast Newton solve
@@ -195,7 +201,7 @@ def run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, *, max_steps: 
                 max_increment: float, max_increment_free: float, linear_solver: str = "structured",
                 heal_rate: float = 0.0, backtrack: int = 4):
     """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
-    newton_iterations)``. Not jitted (see :func:`segment_solver`). ``dt0`` is the first increment tried.
+    newton_iterations)``. Not jitted (:class:`dynslip.physics.simulate.FullStateLoadStep` jits it). ``dt0`` is the first increment tried.
     """
     term = diffrax.ODETerm(vector_field(model, layout))
     solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter, backtrack)
@@ -239,26 +245,3 @@ def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=N
     t, y, _, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
     ok = (t >= t1) & jnp.all(jnp.isfinite(y))
     return y, ok, nacc + nrej, nacc, nrej, nit
-
-
-_CACHE: dict = {}
-
-
-def segment_solver(settings):
-    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for ``numerics.solver:
-    load_step``, the signature of :func:`dynslip.physics.simulate.segment_solver` with the
-    Newton iteration count as a sixth output; one per setting of the increment control."""
-    key = (settings.max_steps, settings.linear_solver, settings.newton_max_iter, settings.max_increment,
-           settings.max_increment_free, settings.heal_rate, settings.newton_backtrack)
-    if key in _CACHE:
-        return _CACHE[key]
-
-    @eqx.filter_jit
-    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
-        return run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=settings.max_steps,
-                           max_iter=settings.newton_max_iter, max_increment=settings.max_increment,
-                           max_increment_free=settings.max_increment_free, linear_solver=settings.linear_solver,
-                           heal_rate=settings.heal_rate, backtrack=settings.newton_backtrack)
-
-    _CACHE[key] = solve
-    return solve

@@ -20,7 +20,7 @@ with the sheet's drag taken relative to the ball (:mod:`dynslip.physics.sheet`).
 Energy balance: $W_c + W_b = \Delta(E_{el} + E_{pen}) + D_{drag} + D_{fric}$, with the
 initial (pre-stretch) energy counted in $E(0)$.
 
-Integration: load stepping (:mod:`dynslip.physics.loadstep`, the schema default) or a
+Integration: load stepping (:mod:`dynslip.physics.newton`, the schema default) or a
 stiff diffrax solver (Kvaerno5, the reference) with a PID controller, one stage at a time
 (a restart at every stage boundary: the protocol's kinks), each stage run in save segments; condition stops (clamp force below a threshold, rest) are
 checked between segments, so their resolution is the save interval. The vector field
@@ -44,12 +44,14 @@ import numpy as np
 from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, sheet_structure, vector_field
 from dynslip.physics.friction import AbstractFriction, Coulomb
 from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.loadstep import segment_solver as load_step_segment_solver
+from dynslip.physics.loadstep import run_segment
+from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
 
-__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "Result", "simulate", "MemberRun", "Segment",
+__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "RunFailure", "StepLimit", "NonFinite",
+           "ContactUnresolved", "Result", "solver_for", "simulate", "MemberRun", "Segment",
            "static_key", "initial_state",
            "vector_field", "frame_record", "N_ACC"]
 
@@ -90,33 +92,82 @@ def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = Non
     return cls(root_finder=chord(linear_solver=lin))
 
 
+class TimeStepping(eqx.Module):
+    """A stiff diffrax solver (Kvaerno5, the reference) with a PID controller over a save segment."""
+
+    name: str = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
+    linear_solver: str = eqx.field(static=True, default="structured")
+    pcoeff: float = eqx.field(static=True, default=0.3)
+    icoeff: float = eqx.field(static=True, default=0.3)
+
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        term = diffrax.ODETerm(vector_field(model, layout))
+        solver = _solver(self.name, self.linear_solver, layout)
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
+        sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
+                                  max_steps=self.max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
+        y1 = sol.ys[-1]
+        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
+        st = sol.stats
+        return SegmentOutput(y=y1, ok=ok, steps=st["num_steps"], accepted=st["num_accepted_steps"],
+                             rejected=st["num_rejected_steps"], newton_iterations=jnp.zeros((), jnp.int32),
+                             rate=zero_rate(layout.n))
+
+
+class FullStateLoadStep(eqx.Module):
+    """The load stepping of :mod:`dynslip.physics.loadstep` (Newton on the whole state: motion,
+    slip distance and energy accumulators), kept as the baseline of the motion-only Newton."""
+
+    settings: Settings = eqx.field(static=True)
+
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        s = self.settings
+        y, ok, nst, nacc, nrej, nit = run_segment(
+            model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=s.max_steps, max_iter=s.newton_max_iter,
+            max_increment=s.max_increment, max_increment_free=s.max_increment_free, linear_solver=s.linear_solver,
+            heal_rate=s.heal_rate, backtrack=s.newton_backtrack)
+        return SegmentOutput(y=y, ok=ok, steps=nst, accepted=nacc, rejected=nrej, newton_iterations=nit,
+                             rate=zero_rate(layout.n))
+
+
+LOAD_STEPPING = ("load_step", "load_step_full")
+
+
+def solver_for(settings: Settings):
+    """The segment solver object of ``settings.solver``: ``load_step`` (the default,
+    :class:`dynslip.physics.newton.MotionNewton`), ``load_step_full`` (the full-state Newton
+    baseline), or a diffrax solver name (``kvaerno5``, ``kvaerno3``, ``kvaerno4``,
+    ``implicit_euler``)."""
+    s = settings
+    if s.solver == "load_step":
+        return MotionNewton(max_iter=s.newton_max_iter, backtrack=s.newton_backtrack,
+                            linear="thomas" if s.linear_solver == "thomas" else "cyclic",
+                            max_increment=s.max_increment, max_increment_free=s.max_increment_free,
+                            heal_rate=s.heal_rate, max_steps=s.max_steps)
+    if s.solver == "load_step_full":
+        return FullStateLoadStep(settings=s)
+    return TimeStepping(name=s.solver, max_steps=s.max_steps, linear_solver=s.linear_solver, pcoeff=s.pcoeff,
+                        icoeff=s.icoeff)
+
+
 _SOLVE_CACHE: dict = {}
 _COMPILED: dict = {}  # ahead-of-time compiled segment solves, keyed by everything static
 
 
 def segment_solver(settings: Settings):
-    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol)`` for a solver name and
-    step limit; shared by every run (compiled once per mesh size and material class)."""
-    if settings.solver == "load_step":  # implicit Euler load increments (returns Newton iterations too)
-        return load_step_segment_solver(settings)
-    key = (settings.solver, settings.max_steps, settings.linear_solver)
-    if key in _SOLVE_CACHE:
-        return _SOLVE_CACHE[key]
-    max_steps = settings.max_steps
-    pcoeff, icoeff = settings.pcoeff, settings.icoeff
+    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput`` of
+    the solver object of ``settings`` (:func:`solver_for`); shared by every run (compiled once
+    per mesh size and material class)."""
+    solver = solver_for(settings)
+    if solver in _SOLVE_CACHE:
+        return _SOLVE_CACHE[solver]
 
     @eqx.filter_jit
-    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol):
-        term = diffrax.ODETerm(vector_field(model, layout))
-        solver = _solver(settings.solver, settings.linear_solver, layout)
-        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff)
-        sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
-                                  max_steps=max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
-        y1 = sol.ys[-1]
-        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
-        return y1, ok, sol.stats["num_steps"], sol.stats["num_accepted_steps"], sol.stats["num_rejected_steps"]
+    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None):
+        return solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
 
-    _SOLVE_CACHE[key] = solve
+    _SOLVE_CACHE[solver] = solve
     return solve
 
 
@@ -174,6 +225,43 @@ class SolverFailure(RuntimeError):
     """The solver did not reach the end of a segment (step limit, NaN, material range)."""
 
 
+class RunFailure(SolverFailure):
+    """Why a run stopped as failed, in physics terms, with the quantities (``Result.failure``;
+    ``Result.failed`` is its message). The schema layer maps each kind to the settings a user
+    can change (numerics.max_steps, numerics.nodes, ...): no setting names here."""
+
+    def __init__(self, stage: str, t: float, what: str):
+        self.stage, self.t, self.what = stage, t, what
+        super().__init__(f"stage '{stage}' at t = {t:.6g} s: {what}")
+
+
+class StepLimit(RunFailure):
+    """A save segment from ``t`` to ``t1`` needed more than ``max_steps`` steps."""
+
+    def __init__(self, stage: str, t: float, t1: float, max_steps: int):
+        self.t1, self.max_steps = t1, max_steps
+        super().__init__(stage, t, f"the solver did not reach t = {t1:.6g} s: step limit reached "
+                                   f"({max_steps} steps per save segment)")
+
+
+class NonFinite(RunFailure):
+    """A state or energy went non-finite (a stretch outside the material's range, or divergence)."""
+
+
+class ContactUnresolved(RunFailure):
+    """The mesh no longer resolves the contact: an element chord ``depth`` (R) inside the ball,
+    beyond ``limit`` (R), on the element of material radii ``element`` (R), or the pole passed
+    through the ball (``pole_crossed``, depth 1)."""
+
+    def __init__(self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool):
+        self.depth, self.limit, self.element, self.pole_crossed = depth, limit, element, pole_crossed
+        why = ("the pole passed through the ball" if pole_crossed else
+               f"the chord of the element on rbar [{element[0]:.4g}, {element[1]:.4g}] R lies {depth:.3g} R "
+               f"inside the ball (limit {limit:g} R)")
+        super().__init__(stage, t, f"contact not resolved by the mesh: {why}; a finer mesh near the contact, or "
+                                   "a larger chord-depth limit, is needed")
+
+
 @dataclasses.dataclass
 class Result:
     frames: list  # dicts of numpy arrays (see frame_record) plus "time", "stage"
@@ -181,6 +269,7 @@ class Result:
     stats: dict
     failed: str | None = None
     e0: float = 0.0
+    failure: RunFailure | None = None  # the failure with its quantities (failed is its message)
 
 
 def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_drag, weight, support_z=0.0,
@@ -205,7 +294,7 @@ def _to_numpy(rec):
 def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
     """Everything a compiled segment solve is specialised on: the solver's settings other than
     the tolerances, the mesh size and the non-array parts of the model and stage loads."""
-    return (settings.solver, settings.max_steps, settings.linear_solver, layout.n,
+    return (repr(solver_for(settings)), settings.solver, settings.max_steps, settings.linear_solver, layout.n,
             settings.newton_max_iter, settings.newton_backtrack, settings.max_increment, settings.max_increment_free,
             settings.heal_rate,
             repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
@@ -220,6 +309,7 @@ class Segment:
     t1: float
     dt0: float
     args: StageArgs
+    rate: tuple  # the predictor's rate (load stepping), zero at a stage's start
 
 
 class MemberRun:
@@ -252,12 +342,13 @@ class MemberRun:
         self.stage_end: list = []
         self.stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0,
                       "method": settings.solver,
-                      "newton_iterations": 0 if settings.solver == "load_step" else None}
+                      "newton_iterations": 0 if settings.solver in LOAD_STEPPING else None}
         self.dt_guess = 1e-3 * settings.save_interval
         self.reaction = 0.0
         self.clamp_reaction = (0.0, 0.0)
         self.t_wall0 = _time.perf_counter()
         self.failed: str | None = None
+        self.failure: RunFailure | None = None
         self.e0: float | None = None
         self.si = -1
         self.done = False
@@ -277,6 +368,7 @@ class MemberRun:
         n_seg = max(1, math.ceil(stage.max_duration / self.settings.save_interval - 1e-9))
         self.seg_ts = np.linspace(self.t, self.t + stage.max_duration, n_seg + 1)
         self.seg = 1
+        self.rate = zero_rate(self.layout.n)
         self.met = stage.stop.met_at_duration
         self.stop_state = stage.stop.init()
 
@@ -288,16 +380,16 @@ class MemberRun:
     def segment(self) -> Segment:
         """The next save segment; a finished run asks for a zero-length one (masked by the batch)."""
         if self.done:
-            return Segment(self.y, self.t, self.t, self.dt_guess, self.args)
+            return Segment(self.y, self.t, self.t, self.dt_guess, self.args, self.rate)
         t1 = float(self.seg_ts[self.seg])
-        return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args)
+        return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args, self.rate)
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
-        """Take a segment's solve output ``(y1, ok, steps, accepted, rejected[, newton])``; False
+        """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
         (and the run done, with ``failed`` set) where the solver did not reach the segment's end."""
-        y1, ok, nst, nacc, nrej = out[:5]
-        if len(out) > 5:  # load_step: Newton iterations
-            self.stats["newton_iterations"] += int(out[5])
+        y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
+        if self.settings.solver in LOAD_STEPPING:
+            self.stats["newton_iterations"] += int(out.newton_iterations)
         ok = bool(ok)
         self.stats["run_s"] += run_s
         nst, nacc, nrej = int(nst), int(nacc), int(nrej)
@@ -307,14 +399,15 @@ class MemberRun:
         self.stats["segments"] += 1
         if not ok:
             s = self.settings
-            why = ("step limit reached" if nst >= s.max_steps else
-                   "non-finite state (NaN/inf: a stretch outside the material's range, or divergence)")
-            self.failed = (f"solver failed in stage '{self.stage.name}' between t = {self.t:.6g} s and "
-                           f"{seg.t1:.6g} s: {why} (max_steps per segment = {s.max_steps})")
-            self._end_stage()
+            if nst >= s.max_steps:
+                self._fail(StepLimit(self.stage.name, self.t, seg.t1, s.max_steps))
+            else:
+                self._fail(NonFinite(self.stage.name, self.t, f"the solver did not reach t = {seg.t1:.6g} s: "
+                                     "non-finite state (NaN/inf: a stretch outside the material's range, or "
+                                     "divergence)"))
             return False
         self.dt_guess = (seg.t1 - self.t) / max(nacc, 1)
-        self.y, self.t = y1, seg.t1
+        self.y, self.t, self.rate = y1, seg.t1, out.rate
         self.seg += 1
         return True
 
@@ -326,7 +419,7 @@ class MemberRun:
     def heals_between_segments(self) -> bool:
         """Time-stepped solvers reset the friction law's state at segment ends (load stepping
         heals inside every increment)."""
-        return bool(self.layout.n_int) and self.settings.solver != "load_step"
+        return bool(self.layout.n_int) and self.settings.solver not in LOAD_STEPPING
 
     # -- recording and the stop check
     def record(self, rec: dict) -> None:
@@ -342,16 +435,12 @@ class MemberRun:
             self.e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
             return  # the initial frame
         if not np.all(np.isfinite(rec["energy_elastic"])):
-            self.failed = (f"stage '{self.stage.name}' at t = {self.t:.6g} s: elastic energy not finite "
-                           "(a stretch outside the material's range)")
-            self._end_stage()
+            self._fail(NonFinite(self.stage.name, self.t, "elastic energy not finite (a stretch outside the "
+                                                          "material's range)"))
             return
-        why = self._unresolved(rec)
-        if why:
-            self.failed = (f"stage '{self.stage.name}' at t = {self.t:.6g} s: contact not resolved by the mesh: "
-                           f"{why}; refine the mesh (numerics.nodes, numerics.mesh_grading) or allow deeper "
-                           "chords (numerics.max_chord_depth)")
-            self._end_stage()
+        unresolved = self._unresolved(rec)
+        if unresolved is not None:
+            self._fail(unresolved)
             return
         met, self.stop_state = self.stage.stop.check(rec, self.t, self.stop_state)
         if met:
@@ -359,7 +448,11 @@ class MemberRun:
         if met or self.seg >= len(self.seg_ts):
             self._end_stage()
 
-    def _unresolved(self, rec: dict) -> str | None:
+    def _fail(self, failure: RunFailure) -> None:
+        self.failure, self.failed = failure, str(failure)
+        self._end_stage()
+
+    def _unresolved(self, rec: dict) -> ContactUnresolved | None:
         """Why the frame ``rec`` is past what the mesh resolves, or None (``Settings.max_chord_depth``)."""
         limit = self.settings.max_chord_depth
         if limit is None:
@@ -367,12 +460,10 @@ class MemberRun:
         first = self.frames[0]
         depth, k, crossed = deepest_chord(rec["rho"], rec["z"], rec["ball_z"],
                                           np.sign(first["z"][0] - first["ball_z"]))
-        if crossed:
-            return "the pole passed through the ball"
-        if depth > limit:
+        if crossed or depth > limit:
             rbar = np.asarray(self.model.mesh.rbar)
-            return (f"the chord of the element on rbar [{rbar[k]:.4g}, {rbar[k + 1]:.4g}] R lies {float(depth):.3g} R "
-                    f"inside the ball (limit {limit:g} R)")
+            return ContactUnresolved(self.stage.name, self.t, float(depth), float(limit),
+                                     (float(rbar[k]), float(rbar[k + 1])), bool(crossed))
         return None
 
     def _end_stage(self) -> None:
@@ -393,7 +484,7 @@ class MemberRun:
 
     def result(self) -> Result:
         return Result(frames=self.frames, stage_end=self.stage_end, stats=self.stats, failed=self.failed,
-                      e0=self.e0 or 0.0)
+                      e0=self.e0 or 0.0, failure=self.failure)
 
 
 def _compiled(key, compile_fn, stats_list):
@@ -437,7 +528,7 @@ def simulate(
     run.record(frame_record(model, layout, _f(run.t), run.y, run.args, thr))
     while not run.done:
         seg = run.segment()
-        inputs = (model, layout, seg.y, _f(seg.t0), _f(seg.t1), _f(seg.dt0), seg.args, run.rtol, run.atol)
+        inputs = (model, layout, seg.y, _f(seg.t0), _f(seg.t1), _f(seg.dt0), seg.args, run.rtol, run.atol, seg.rate)
         compiled = _compiled(static_key(settings, layout, model, seg.args),
                              lambda inputs=inputs: solve.lower(*inputs).compile(), [run.stats])
         r0 = _time.perf_counter()

@@ -1,0 +1,414 @@
+r"""Load increments by Newton on the motion alone (issue 23).
+
+The same implicit Euler increment as :mod:`dynslip.physics.loadstep`,
+$x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
+:func:`dynslip.physics.field.evaluate`, solved for fewer unknowns:
+
+- **Unknowns.** The node positions *relative to the ball*, $q_i = x_i - z_b e_z$
+  ($n$ blocks of 2; the pole's $\rho_0 = 0$ stays a trivial row), and the ball height
+  $z_b$, the only border unknown. A node's rate relative to the ball, $u_i$, depends on
+  its relative position and on the elastic and penalty forces, i.e. on its neighbours
+  (the energy is invariant under a common vertical shift), so the $q$ rows are block
+  tridiagonal. The ball's rate $v_b$ couples only to the clamped edge (the clamp's force
+  $C_z = \partial E/\partial z_{n-1}$ on a force-controlled ball) and to itself (the
+  support), so the border is one unknown touching one block. Implicit Euler is invariant
+  under this linear change of variables: the increment is the one the full state would
+  give.
+- **Slip distance by a local return map.** Per node, given the trial forces,
+  $\delta_1 = \delta_0 + \Delta t\,|S(F_t, \mu(\delta_1) N)|/(\eta A)$ in contact
+  ($\delta_1 = \delta_0$ out of contact), solved node by node (:func:`return_map`: the
+  closed form of the ideal threshold on the piece of $\mu(\delta)$ it lands on, polished by
+  local Newton steps on the smoothed law). Its consistent tangent
+  $\partial\delta_1/\partial x = -g_x/g_\delta$ enters the Jacobian by the implicit function
+  theorem (:func:`_implicit`). It is the same equation the global unknown satisfied.
+- **Energy accumulators by quadrature.** After an increment is accepted, the work and
+  dissipation rates of :func:`dynslip.physics.field.evaluate` at $x_1$ times $\Delta t$ (the
+  rectangle rule at the increment's end: exactly what the implicit accumulators gave).
+- **Jacobian from element and node derivatives.** Per element, the value, gradient and
+  Hessian of its energy in its four coordinates (``vmap`` of ``jacfwd`` of ``grad``); per
+  node, the penalty's, and the Jacobian of the node's rate in its own position and force
+  (``vmap`` of ``jacfwd``); the chain rule assembles the $2\times 2$ blocks
+  $\partial u_i/\partial q_j = L^q_i\delta_{ij} + L^g_i H_{ij}$. No pass over the whole field.
+- **Backtracking** as :class:`dynslip.physics.loadstep.DampedNewton` (a correction that
+  raises the residual's max norm is halved, at most ``backtrack`` times); the residual of
+  the accepted trial is the next iteration's residual (one evaluation per trial).
+- **Predictor.** Newton starts from the last accepted increment's rate extrapolated over
+  the new increment (zero at a segment's start).
+
+The linear solve is :func:`dynslip.physics.linalg.block_solve` (block cyclic reduction or
+block Thomas, with the one-unknown border by a Schur complement).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from dynslip.physics.field import Layout, StageArgs, evaluate, heal
+from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.linalg import bordered_solve
+from dynslip.physics.materials import relaxed_energy
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
+
+__all__ = ["MotionNewton", "SegmentOutput", "increment_rates", "newton_blocks", "residual", "slip_update", "zero_rate"]
+
+GROW = 1.5
+CUT = 0.5
+SHRINK = 0.7
+MIN_FRACTION = 1e-10
+
+
+class SegmentOutput(eqx.Module):
+    """What a segment solve returns (both solvers): the end state, whether it reached the
+    segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
+    (0 for the time-stepped solvers)."""
+
+    y: jax.Array
+    ok: jax.Array
+    steps: jax.Array
+    accepted: jax.Array
+    rejected: jax.Array
+    newton_iterations: jax.Array
+    rate: tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
+
+    def __iter__(self):
+        """The five values the time-stepped segment solve used to return as a tuple
+        (``tests/test_structured.py`` still unpacks them; read the fields instead)."""
+        return iter((self.y, self.ok, self.steps, self.accepted, self.rejected))
+
+
+# --------------------------------------------------------------------------- element / node terms
+
+def element_energy(material, dr, rsum, area_el, xa, xb):
+    """Elastic energy of one element from its two nodes (rho, z) (G h0 R^2), as
+    :meth:`dynslip.physics.sheet.SheetModel.elastic_energy` sums it."""
+    d = xb - xa
+    lt = jnp.sqrt(d[0] ** 2 + d[1] ** 2) / dr
+    lp = (xa[0] + xb[0]) / rsum
+    return area_el * relaxed_energy(material, lt, lp)
+
+
+def contact_gap(q):
+    """Penetration $1 - |q|$ of a node at ``q`` = (rho, z - zb) relative to the ball's
+    centre, and the ball's outward normal and tangent (toward the equator) there. The one
+    place the contact geometry is computed (a rigid body other than the ball replaces this)."""
+    r = jnp.sqrt(q[0] ** 2 + q[1] ** 2)
+    rs = jnp.where(r > 0, r, 1.0)
+    n = q / rs
+    t = jnp.stack([n[1], -n[0]])
+    return 1.0 - r, n, t
+
+
+def _node_penalty(pen, area, q):
+    return area * penalty_energy(pen, contact_gap(q)[0])
+
+
+def forces(model: SheetModel, q):
+    """$\\partial E/\\partial x$ per node, (n, 2), NaN everywhere where the energy is not finite
+    (as :meth:`SheetModel.gradients`)."""
+    m = model.mesh
+    rsum = m.rbar[1:] + m.rbar[:-1]
+
+    def el(dr, rs, a, xa, xb):
+        return jax.value_and_grad(element_energy, argnums=(4, 5))(model.material, dr, rs, a, xa, xb)
+
+    e, (ga, gb) = jax.vmap(el)(m.dr, rsum, m.area_el, q[:-1], q[1:])
+    ep, gp = jax.vmap(jax.value_and_grad(_node_penalty, argnums=2), in_axes=(None, 0, 0))(model.penalty, m.area, q)
+    g = gp.at[:-1].add(ga).at[1:].add(gb)
+    bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
+    return jnp.where(bad, jnp.nan, g)
+
+
+def forces_and_hessians(model: SheetModel, q):
+    """:func:`forces` and the blocks of the energy's Hessian: ``(g, h_diag, h_up)``,
+    ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them)."""
+    m = model.mesh
+    rsum = m.rbar[1:] + m.rbar[:-1]
+
+    def el(dr, rs, a, x):
+        f = lambda x: element_energy(model.material, dr, rs, a, x[:2], x[2:])
+        gfun = jax.grad(f)
+        h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
+        return f(x), g, h
+
+    e, ge, he = jax.vmap(el)(m.dr, rsum, m.area_el, jnp.concatenate([q[:-1], q[1:]], axis=1))
+
+    def nd(a, x):
+        f = lambda x: _node_penalty(model.penalty, a, x)
+        gfun = jax.grad(f)
+        h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
+        return f(x), g, h
+
+    ep, gp, hp = jax.vmap(nd)(m.area, q)
+    g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
+    h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
+    h_up = he[:, :2, 2:]
+    bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
+    return jnp.where(bad, jnp.nan, g), h_diag, h_up
+
+
+# --------------------------------------------------------------------------- friction return map
+
+def _slip(friction: AbstractFriction, ft, normal, delta, eps):
+    """$|S|$ of one node with slip distance ``delta`` (None for a memoryless law)."""
+    return jnp.abs(friction.slip_force(ft, normal, delta, eps=eps))
+
+
+def slip_update(friction, ft, normal, eps, delta0, c):
+    r"""The node's return map: the slip force with the coefficient of the increment's start,
+    $S(F_t, \mu(\delta_0) N)$ (exactly zero on the trial's stick side), and the slip distance
+    it adds, $\delta_1 = \delta_0 + c\,|S|$, $c = \Delta t/(\eta A)$; $\delta_1 = \delta_0$ out of
+    contact. Continuous in the motion, so its autodiff derivative is the map's consistent
+    tangent. Returns ``(delta_mu, delta1)``: the slip distance at which $\mu$ is evaluated,
+    and the new one.
+
+    Why $\mu$ at $\delta_0$ (first order in time, as implicit Euler itself): the fully implicit
+    root of $\delta = \delta_0 + c|S(F_t, \mu(\delta) N)|$ at fixed forces is unique, but where
+    the weakening outruns the drag ($c\,(\mu_s - \mu_k) N/d_c > 1$, the case at increments of
+    20 drag times) it lies on the kinetic branch past $d_c$ as soon as the node slips: the
+    node's slip force jumps from 0 to $|F_t| - \mu_k N$ across the trial's stick boundary, and
+    Newton on the motion chatters across it (33323 increments against 431 on the frozen
+    let-go path at N = 50, docs/speed.md). A corrector ($\mu$ at the predicted $\delta_1$) is
+    continuous too but needed 1185."""
+    live = normal > 0
+    d1 = delta0 + c * _slip(friction, ft, normal, delta0, eps)
+    return delta0, jnp.where(live, d1, delta0)
+
+
+# --------------------------------------------------------------------------- the increment's residual
+
+class Increment(eqx.Module):
+    """The data of one increment: start state (relative positions, ball height, slip
+    distance), its end time and length, the loads."""
+
+    q0: jax.Array  # (n, 2)
+    zb0: jax.Array
+    delta0: jax.Array | None
+    t1: jax.Array
+    h: jax.Array
+    args: StageArgs
+
+
+def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
+    """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
+    gradient ``g``, and its slip distance at the increment's end (None: memoryless law)."""
+    args = inc.args
+    f = -g
+    _, n, t = contact_gap(q)
+    pole = i == 0
+    fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
+    ft = jnp.where(pole, 0.0, f @ t)
+    area = model.mesh.area[i]
+    normal = area * penalty_pressure(model.penalty, contact_gap(q)[0])
+    eta_a = args.drag * area
+    eps = args.eps * area
+    delta1, delta_mu = None, None
+    if delta0 is not None:
+        delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a)
+    s = friction.slip_force(ft, normal, delta_mu, eps=eps)
+    u = (fn * n + s * t) / eta_a
+    u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
+    return u, delta1
+
+
+def ball_rate(inc: Increment, g_edge, zb):
+    """The ball's velocity and the clamp's force on the sheet $C_z$ (held: prescribed;
+    force-controlled: $(F_h + F_s(z_b) + C_z + F_g)/\\eta_b$)."""
+    args = inc.args
+    pinned = args.clamp_mode == CLAMP_POSITION
+    cz = jnp.where(pinned, g_edge[1], args.clamp_force(inc.t1)[1])
+    fb = args.ball_force(inc.t1) + args.support_force(zb)
+    return jnp.where(args.ball_mode == BALL_HOLD, args.vzb, (fb + cz + args.weight) / args.ball_drag)
+
+
+def edge_rate(model: SheetModel, inc: Increment, g_edge, zb):
+    """Rate relative to the ball of the clamped edge: prescribed (pinned clamp) or drag under
+    the ramped clamp force."""
+    args = inc.args
+    pinned = args.clamp_mode == CLAMP_POSITION
+    vb = ball_rate(inc, g_edge, zb)
+    eta_a = args.drag * model.mesh.area[-1]
+    free = (args.clamp_force(inc.t1) - g_edge) / eta_a
+    return jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), free)
+
+
+def increment_rates(model, friction, inc: Increment, q, zb, g):
+    """Every node's rate relative to the ball (n, 2), the ball's velocity and the slip
+    distances at the increment's end, from the relative positions and energy gradient."""
+    idx = jnp.arange(q.shape[0])
+    d0 = inc.delta0
+    if d0 is None:
+        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None))(idx, q, g)
+        delta1 = None
+    else:
+        u, delta1 = jax.vmap(lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di))(idx, q, g, d0)
+        delta1 = delta1.at[-1].set(d0[-1])
+    u = u.at[-1].set(edge_rate(model, inc, g[-1], zb))
+    return u, ball_rate(inc, g[-1], zb), delta1
+
+
+def residual(model, friction, inc: Increment, q, zb):
+    """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} - \\Delta t\\,v_b$."""
+    g = forces(model, q)
+    u, vb, _ = increment_rates(model, friction, inc, q, zb, g)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb
+
+
+def newton_blocks(model, friction, inc: Increment, q, zb):
+    """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
+    (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives."""
+    n = q.shape[0]
+    g, h_diag, h_up = forces_and_hessians(model, q)
+    idx = jnp.arange(n)
+    d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(n)
+    mem = inc.delta0 is not None
+
+    def local(i, qi, gi, di):
+        return node_rate(model, friction, inc, i, qi, gi, di if mem else None)[0]
+
+    lq, lg = jax.vmap(jax.jacfwd(local, argnums=(1, 2)))(idx, q, g, d0)  # (n, 2, 2) each
+    # the clamped edge: rate from its force and the ball height only
+    eg, ez = jax.jacfwd(lambda ge, z: edge_rate(model, inc, ge, z), argnums=(0, 1))(g[-1], zb)
+    bg, bz = jax.jacfwd(lambda ge, z: ball_rate(inc, ge, z), argnums=(0, 1))(g[-1], zb)
+    lq = lq.at[-1].set(0.0)
+    lg = lg.at[-1].set(eg)
+    h_low = jnp.swapaxes(h_up, 1, 2)  # d2E/dx_{i+1} dx_i
+    h = inc.h
+    eye = jnp.eye(2)
+    diag = eye - h * (lq + lg @ h_diag)
+    upper = jnp.concatenate([-h * lg[:-1] @ h_up, jnp.zeros((1, 2, 2))])
+    lower = jnp.concatenate([jnp.zeros((1, 2, 2)), -h * lg[1:] @ h_low])
+    B = jnp.zeros((n, 2, 1)).at[-1, :, 0].set(-h * ez)
+    C = jnp.zeros((1, n, 2))
+    C = C.at[0, -1].set(-h * bg @ h_diag[-1]).at[0, -2].set(-h * bg @ h_low[-1])
+    D = jnp.reshape(1.0 - h * bz, (1, 1))
+    return lower, diag, upper, B, C, D
+
+
+# --------------------------------------------------------------------------- the solver object
+
+class MotionNewton(eqx.Module):
+    """Implicit Euler load increments, Newton on the motion alone (module docstring).
+
+    ``rtol``/``atol`` (max norm; converged when the last correction is below
+    ``atol + rtol |x|`` and the residual below ``atol``), at most ``max_iter`` corrections
+    per increment, ``backtrack`` halvings of a correction that raises the residual,
+    ``linear``: ``"cyclic"`` (block cyclic reduction) or ``"thomas"``. Increments grow by 1.5
+    after at most ``grow_below`` iterations and shrink by 0.7 after at least ``shrink_above``.
+    """
+
+    max_iter: int = eqx.field(static=True, default=20)
+    backtrack: int = eqx.field(static=True, default=4)
+    linear: str = eqx.field(static=True, default="cyclic")
+    grow_below: int = eqx.field(static=True, default=12)
+    shrink_above: int = eqx.field(static=True, default=18)
+    max_increment: float = eqx.field(static=True, default=20.0)
+    max_increment_free: float = eqx.field(static=True, default=5.0)
+    heal_rate: float = eqx.field(static=True, default=0.0)
+    max_steps: int = eqx.field(static=True, default=20000)
+
+    def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
+        """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0) rate``
+        (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0))``."""
+        friction = args.friction
+        h = t1 - t0
+        rho, z, zb0, acc0 = layout.unpack(y0)
+        q0 = jnp.stack([rho, z - zb0], axis=1)
+        delta0 = layout.internal(y0)
+        inc = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args)
+        rq, rz = rate
+        q = q0 + h * rq
+        zb = zb0 + h * rz
+
+        def res(q, zb):
+            return residual(model, friction, inc, q, zb)
+
+        def size(rq, rz):
+            return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.abs(rz))
+
+        r_q, r_z = res(q, zb)
+
+        def cond(c):
+            _, _, _, _, it, done, bad = c
+            return (~done) & (~bad) & (it < self.max_iter)
+
+        def body(c):
+            q, zb, r_q, r_z, it, _, _ = c
+            blocks = newton_blocks(model, friction, inc, q, zb)
+            dq, dz = bordered_solve(*blocks, r_q, r_z, self.linear)
+            f0 = size(r_q, r_z)
+
+            def bt_cond(b):
+                _alpha, tq, tz, k = b
+                f1 = size(tq, tz)
+                return ~((f1 <= f0) | (f1 <= atol)) & (k < self.backtrack)
+
+            def bt_body(b):
+                alpha, _, _, k = b
+                alpha = 0.5 * alpha
+                tq, tz = res(q - alpha * dq, zb - alpha * dz)
+                return alpha, tq, tz, k + 1
+
+            tq, tz = res(q - dq, zb - dz)
+            alpha, tq, tz, _ = jax.lax.while_loop(bt_cond, bt_body, (jnp.array(1.0), tq, tz, jnp.array(0)))
+            qn, zbn = q - alpha * dq, zb - alpha * dz
+            step = jnp.maximum(jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
+                               jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn)))
+            done = (step < 1.0) & (size(tq, tz) <= atol)
+            bad = ~(jnp.all(jnp.isfinite(qn)) & jnp.isfinite(zbn) & jnp.isfinite(size(tq, tz)))
+            return qn, zbn, tq, tz, it + 1, done, bad
+
+        init = (q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False))
+        q, zb, _, _, it, done, bad = jax.lax.while_loop(cond, body, init)
+        g = forces(model, q)
+        _, _, delta1 = increment_rates(model, friction, inc, q, zb, g)
+        y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1)
+        dy, _ = evaluate(model, layout, t1, y1, args)  # the accumulators by the rectangle rule at x1
+        y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
+        y1 = heal(model, layout, y1, args, self.heal_rate)
+        ok = done & ~bad & jnp.all(jnp.isfinite(y1))
+        return y1, ok, it, (q - q0, zb - zb0)
+
+    def segment(self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
+        ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment."""
+        from dynslip.physics.loadstep import increment_cap
+
+        cap = increment_cap(args, self.max_increment, self.max_increment_free)
+        dt_min = MIN_FRACTION * (t1 - t0)
+        zero = jnp.array(0, dtype=jnp.int32)
+        n = layout.n
+        rate0 = zero_rate(n) if rate is None else rate
+
+        def cond(c):
+            t, _, _, dt, _, nacc, nrej, _ = c
+            return (t < t1) & (nacc + nrej < self.max_steps) & (dt >= dt_min)
+
+        def body(c):
+            t, y, rate, dt, was_cut, nacc, nrej, nit = c
+            left = t1 - t
+            last = left <= 1.25 * dt
+            h = jnp.where(last, left, dt)
+            t_next = jnp.where(last, t1, t + h)
+            y1, ok, iters, (dq, dz) = self.increment(model, layout, t, t_next, y, args, rate, rtol, atol)
+            factor = jnp.where(iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0))
+            factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)
+            dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
+            dt_new = jnp.where(ok, dt_ok, CUT * h)
+            new_rate = (dq / h, dz / h)
+            rate = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_rate, rate)
+            return (jnp.where(ok, t_next, t), jnp.where(ok, y1, y), rate, dt_new, ~ok, nacc + ok, nrej + (~ok),
+                    nit + iters)
+
+        init = (t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
+        t, y, rate, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
+        ok = (t >= t1) & jnp.all(jnp.isfinite(y))
+        return SegmentOutput(y=y, ok=ok, steps=nacc + nrej, accepted=nacc, rejected=nrej, newton_iterations=nit,
+                             rate=rate)
+
+
+def zero_rate(n: int):
+    """The predictor's rate at a stage's start: zero on ``(q, zb)``."""
+    return (jnp.zeros((n, 2)), jnp.zeros(()))

@@ -1,0 +1,179 @@
+"""Newton on the motion alone (:mod:`dynslip.physics.newton`): its blocks against jax.jacfwd,
+cyclic reduction against a dense solve, and its increment against the full-state one."""
+
+from __future__ import annotations
+
+import diffrax
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dynslip.physics import newton as nw
+from dynslip.physics.field import Layout, vector_field
+from dynslip.physics.friction import make_friction
+from dynslip.physics.linalg import bordered_solve, cyclic_reduction
+from dynslip.physics.loadstep import load_step_solver
+from dynslip.physics.materials import make_material
+from dynslip.physics.protocols import (
+    BALL_FORCE,
+    BALL_HOLD,
+    CLAMP_FORCE,
+    CLAMP_POSITION,
+    Stage,
+    StopRule,
+)
+from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.simulate import _stage_args
+
+N = 9
+MODEL = SheetModel(make_mesh(N, 2.4), make_material("gent", jm=50.0), Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
+WEAK = make_friction("slip_weakening", mu_s=1.5, mu_k=1.2, d_c=0.02, eps=1e-3)
+MODES = [(BALL_HOLD, CLAMP_POSITION), (BALL_FORCE, CLAMP_POSITION), (BALL_FORCE, CLAMP_FORCE)]
+
+
+def _state(layout, seed=0):
+    """A sheet draped over the ball (nodes near its surface, some pressed in), perturbed."""
+    rng = np.random.default_rng(seed)
+    rbar = np.asarray(MODEL.mesh.rbar)
+    th = np.minimum(1.05 * rbar, 1.5)
+    rho = 0.999 * np.sin(th) + 0.1 * rbar
+    z = 0.999 * np.cos(th) + 0.01 * rng.normal(size=N)
+    rho[0] = 0.0
+    internal = jnp.asarray(rng.uniform(0.0, 0.03, N)) if layout.n_int else None
+    return layout.pack(jnp.asarray(rho), jnp.asarray(z), jnp.asarray(0.0), jnp.zeros(4), internal)
+
+
+def _args(friction, ball_mode, clamp_mode):
+    stage = Stage("s", StopRule("duration", duration=5.0), clamp_vz=-0.2, ball_mode=ball_mode, clamp_mode=clamp_mode,
+                  ball_force_end=0.0)
+    return _stage_args(stage, 0.0, 0.0, 0.3, (0.1, -0.2), friction, 1e-3, 0.1, 0.4, 0.05, support_z=-0.01,
+                       support_k=1e3)
+
+
+def _increment(layout, y0, args, h):
+    rho, z, zb0, _ = layout.unpack(y0)
+    q0 = jnp.stack([rho, z - zb0], axis=1)
+    return nw.Increment(q0=q0, zb0=zb0, delta0=layout.internal(y0), t1=jnp.asarray(h), h=jnp.asarray(h), args=args)
+
+
+def _dense(lower, diag, upper, B, C, D):
+    n = diag.shape[0]
+    j = np.zeros((2 * n + 1, 2 * n + 1))
+    for i in range(n):
+        j[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = diag[i]
+        if i > 0:
+            j[2 * i : 2 * i + 2, 2 * i - 2 : 2 * i] = lower[i]
+        if i < n - 1:
+            j[2 * i : 2 * i + 2, 2 * i + 2 : 2 * i + 4] = upper[i]
+    j[: 2 * n, -1] = np.asarray(B).reshape(-1)
+    j[-1, : 2 * n] = np.asarray(C).reshape(-1)
+    j[-1, -1] = float(D[0, 0])
+    return j
+
+
+@pytest.mark.parametrize("modes", MODES)
+def test_blocks_from_element_derivatives_equal_jacfwd(modes):
+    """The assembled Newton matrix (element Hessians, node Jacobians, the slip update's
+    tangent, the ball's border) is the derivative of the increment's residual, to rounding."""
+    layout = Layout(N, 1)
+    y0 = _state(layout)
+    inc = _increment(layout, y0, _args(WEAK, *modes), 0.5)
+    rng = np.random.default_rng(1)
+    q = inc.q0 + 1e-3 * rng.normal(size=inc.q0.shape)
+    q = q.at[0, 0].set(0.0)
+    zb = inc.zb0 + 1e-3
+
+    def flat(x):
+        rq, rz = nw.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
+        return jnp.concatenate([rq.reshape(-1), rz[None]])
+
+    x = jnp.concatenate([q.reshape(-1), zb[None]])
+    jac = np.asarray(jax.jacfwd(flat)(x))
+    blocks = nw.newton_blocks(MODEL, WEAK, inc, q, zb)
+    np.testing.assert_allclose(_dense(*blocks), jac, rtol=0, atol=1e-12 * np.abs(jac).max())
+    # and the bordered solve of those blocks is the dense solve, by either elimination
+    r = np.asarray(flat(x))
+    for method in ("cyclic", "thomas"):
+        dq, dz = bordered_solve(*blocks, jnp.asarray(r[:-1]).reshape(N, 2), jnp.asarray(r[-1]), method)
+        np.testing.assert_allclose(np.concatenate([np.asarray(dq).reshape(-1), [float(dz)]]),
+                                   np.linalg.solve(jac, r), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 8, 13, 64])
+def test_cyclic_reduction_equals_dense_solve(n):
+    rng = np.random.default_rng(n)
+    low, up = (jnp.asarray(rng.normal(size=(n, 3, 3))) for _ in range(2))
+    dia = jnp.asarray(rng.normal(size=(n, 3, 3))) + 8 * jnp.eye(3)
+    f = jnp.asarray(rng.normal(size=(n, 3, 2)))
+    a = np.zeros((3 * n, 3 * n))
+    for i in range(n):
+        a[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = dia[i]
+        if i > 0:
+            a[3 * i : 3 * i + 3, 3 * i - 3 : 3 * i] = low[i]
+        if i < n - 1:
+            a[3 * i : 3 * i + 3, 3 * i + 3 : 3 * i + 6] = up[i]
+    x = cyclic_reduction(low, dia, up, f)
+    np.testing.assert_allclose(np.asarray(x).reshape(-1, 2), np.linalg.solve(a, np.asarray(f).reshape(-1, 2)),
+                               rtol=1e-10, atol=1e-13)
+
+
+@pytest.mark.parametrize("modes", MODES)
+def test_motion_newton_increment_is_the_full_state_increment(modes):
+    """With a memoryless law both solve the same implicit Euler equations in different
+    variables (positions relative to the ball; accumulators by the rectangle rule at x1):
+    the increments agree to Newton's tolerance, accumulators included."""
+    coulomb = make_friction("coulomb", mu=1.2, eps=1e-3)
+    layout = Layout(N, 0)
+    y0 = _state(layout, seed=2)
+    args = _args(coulomb, *modes)
+    h = jnp.asarray(0.05)
+    full = load_step_solver(layout, 1e-12, 1e-12, max_iter=40)
+    term = diffrax.ODETerm(vector_field(MODEL, layout))
+    y_full, _, _, _, res = full.step(term, jnp.asarray(0.0), h, y0, args, full.init(term, 0.0, h, y0, args), False)
+    assert diffrax.is_okay(res)
+    solver = nw.MotionNewton(max_iter=40)
+    zero = (jnp.zeros((N, 2)), jnp.zeros(()))
+    y_mot, ok, _it, _ = solver.increment(MODEL, layout, jnp.asarray(0.0), h, y0, args, zero, 1e-12, 1e-12)
+    assert bool(ok)
+    np.testing.assert_allclose(np.asarray(y_mot), np.asarray(y_full), rtol=0, atol=1e-9)
+
+
+def test_slip_update_adds_the_increments_slip_and_sticks_below_the_threshold():
+    """One node: delta1 = delta0 + dt |S(F_t, mu(delta0) N)|/(eta A); nothing added while
+    |F_t| <= mu(delta0) N - eps or out of contact."""
+    fr = make_friction("slip_weakening", mu_s=1.5, mu_k=1.0, d_c=0.02, eps=0.0)
+    d0, c = jnp.asarray(0.01), jnp.asarray(2.0)
+    mu0 = float(fr.coefficient(d0))
+    _, d1 = nw.slip_update(fr, jnp.asarray(2.0), jnp.asarray(1.0), 0.0, d0, c)
+    assert float(d1) == pytest.approx(0.01 + 2.0 * (2.0 - mu0))
+    _, d1 = nw.slip_update(fr, jnp.asarray(0.99 * mu0), jnp.asarray(1.0), 0.0, d0, c)
+    assert float(d1) == 0.01
+    _, d1 = nw.slip_update(fr, jnp.asarray(2.0), jnp.asarray(0.0), 0.0, d0, c)
+    assert float(d1) == 0.01
+
+
+@pytest.mark.slow
+def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
+    """The return map takes mu at the increment's start (first order in time, as implicit Euler);
+    on a short push-down with slip weakening the end state stays within 1e-6 R of the full-state
+    Newton's, whose slip distance is implicit, and the slip distances agree where they are large."""
+    import math
+
+    from test_forming import MODEL as SHEET
+    from test_forming import PRE, Z0, push_protocol
+
+    from dynslip.physics.simulate import Settings, simulate
+
+    def run(solver):
+        fr = make_friction("slip_weakening", mu_s=1.0, mu_k=0.8, d_c=0.02, eps=1e-3)
+        return simulate(SHEET, push_protocol(), friction=fr, eps=1e-3, drag=0.1, ball_drag=0.4 * math.pi,
+                        pre_stretch=PRE, z_sheet=Z0, settings=Settings(solver=solver, save_interval=1.0))
+
+    a, b = run("load_step"), run("load_step_full")
+    assert a.failed is None and b.failed is None
+    fa, fb = a.frames[-1], b.frames[-1]
+    d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))
+    print(f"motion-only vs full-state Newton, slip weakening: max |dx| = {d:.2e} R")
+    assert d < 1e-6
+    assert np.max(fb["slip_distance"]) > 0.02  # the push-down weakens the contact
