@@ -71,22 +71,26 @@ def base():
 
 def test_energy_balance_closes_and_shrinks_with_tolerance(base):
     """W_clamp + W_ball = change of stored energy + drag + friction dissipation, every term
-    its own accumulated state; the residual is <= 1% of the work and shrinks with rtol."""
+    its own accumulated state. Measured (``pytest -s tests/test_forming.py``, Kvaerno5, N = 40):
+    residual / work 1.5e-8 at rtol 1e-5 and 6.0e-7 at rtol 1e-3; asserted below 1e-6 and
+    3e-5 (about 60x and 50x), and shrinking by >= 10x over the two decades of rtol
+    (measured 39x). A missing term worth 1e-5 of the work fails."""
     r_base, work = residual(base)
     assert work > 1.0
     f = base.frames[-1]
     assert f["dissipation_friction"] > 1e-3 * work  # friction really worked
-    assert r_base <= 1e-2
+    assert r_base <= 1e-6
     loose = run(push_protocol(), rtol=1e-3, atol=1e-5)
     r_loose, _ = residual(loose)
     print(f"energy residual / work: rtol 1e-3 -> {r_loose:.3e}, rtol 1e-5 -> {r_base:.3e}")
-    assert r_loose <= 1e-2
-    assert r_base < r_loose
+    assert r_loose <= 3e-5
+    assert r_base < 0.1 * r_loose
 
 
 def test_rate_independence(base):
     """Halving every speed (holds scaled too) changes the end state's theta on the contact
-    region by < 1% of theta_max, and the change roughly halves at the next halving."""
+    region by < 5e-5 (measured 6.1e-7, ``pytest -s tests/test_forming.py``; 80x), and the
+    change halves at the next halving (first order in the rate: measured ratio 2.10)."""
     runs = [base, run(push_protocol(factor=2.0)), run(push_protocol(factor=4.0))]
     ths = [contact_theta(r.frames[-1]) for r in runs]
     both = np.isfinite(ths[0]) & np.isfinite(ths[1]) & np.isfinite(ths[2])
@@ -95,12 +99,15 @@ def test_rate_independence(base):
     d2 = float(np.max(np.abs(ths[1][both] - ths[2][both])))
     print(f"rate independence: max|dtheta| 1x->2x {d1:.3e}, 2x->4x {d2:.3e} (theta_max {theta_max:.3f}); "
           f"ratio {d1 / max(d2, 1e-300):.2f}")
-    assert d1 < 0.01 * theta_max
+    assert d1 < 5e-5
     assert 1.4 < d1 / d2 < 3.0
 
 
 def test_smoothing_converges_to_the_ideal_law(base):
-    """Force-space smoothing eps -> 0: the end state converges to the ideal Coulomb law's."""
+    """Force-space smoothing eps -> 0: the end state converges to the ideal Coulomb law's at
+    first order in eps. Measured (``pytest -s tests/test_forming.py``): 8.0e-3, 8.2e-4,
+    8.0e-5 for eps 1e-1, 1e-2, 1e-3 (orders 0.99, 1.01, as in docs/forming.md); asserted:
+    each order in [0.8, 1.2], the last difference below 1e-3 (12x)."""
     ideal = contact_theta(run(push_protocol(), eps=0.0).frames[-1])
     diffs = []
     for eps in (1e-1, 1e-2, 1e-3):
@@ -108,15 +115,21 @@ def test_smoothing_converges_to_the_ideal_law(base):
         both = np.isfinite(th) & np.isfinite(ideal)
         diffs.append(float(np.max(np.abs(th[both] - ideal[both]))))
     print(f"smoothing: max|theta_eps - theta_ideal| for eps 1e-1, 1e-2, 1e-3: {diffs}")
-    assert diffs[0] > diffs[1] > diffs[2] or diffs[2] < 1e-6
-    assert diffs[-1] < 0.01 * float(np.nanmax(ideal))
+    orders = [math.log10(diffs[i] / diffs[i + 1]) for i in range(2)]
+    print(f"smoothing: orders {orders}")
+    assert all(0.8 <= q <= 1.2 for q in orders), orders
+    assert diffs[-1] < 1e-3
 
 
 def test_end_state_cross_checks_with_the_static_formulas(base):
-    """On the contact region of a held end state: |F_m| <= mu F_N (1 + 5%) at >= 95% of nodes
-    (F_m, F_N from the static module's formulas on theta(rbar)); pressure = T_t + T_p within
-    5%; on the free span the axial force 2 pi rho T_t sin psi is constant within 2% and
-    equals the clamp force."""
+    """On the contact region of a held end state, F_m, F_N from the static module's formulas
+    on theta(rbar) (discretisation errors, not solver tolerances; measured with
+    ``pytest -s tests/test_forming.py``): |F_m| <= 1.06 mu F_N at every inner contact node
+    (measured max 1.049, the node next to the pole's lumped area), and on the slipping
+    region (node 3 to the lift-off node) |F_m| = mu F_N within 3% (measured 1.7%: the sheet
+    slides at its Coulomb limit there); pressure = T_t + T_p within 3% off the pole (measured
+    2.1%); on the free span the axial force 2 pi rho T_t sin psi is constant within 3e-6
+    (measured 3.2e-8, 100x) and equals the clamp force within 1e-6 (measured 1.2e-8, 80x)."""
     f = base.frames[-1]
     assert f["slip_max"] < 1e-3  # held: at rest
     contact = f["state"] > 0
@@ -126,10 +139,10 @@ def test_end_state_cross_checks_with_the_static_formulas(base):
     g = sphere.fields(MAT, jnp.asarray(theta), h)
     fm, fn = np.asarray(g.fm), np.asarray(g.fn)
     inner = slice(0, k)  # the lift-off node carries the penalty's edge: excluded
-    ok = np.abs(fm[inner]) <= 0.8 * fn[inner] * 1.05
-    print(f"|F_m| <= mu F_N (1+5%) at {ok.mean():.1%} of {ok.size} contact nodes; "
-          f"|F_m|/(mu F_N) = {np.round(np.abs(fm[inner]) / (0.8 * fn[inner]), 3).tolist()}")
-    assert ok.mean() >= 0.95
+    ratio = np.abs(fm[inner]) / (0.8 * fn[inner])
+    print(f"|F_m|/(mu F_N) = {np.round(ratio, 4).tolist()}")
+    assert ratio.max() <= 1.06
+    assert ratio.size >= 8 and np.max(np.abs(ratio[3:] - 1.0)) < 0.03
     # The pole node is excluded like the lift-off node: its lumped area (half the first
     # annulus, pi dr^2 / 2) is twice its own disc (pi dr^2 / 4), so its nodal pressure is a
     # lumping artefact; the error elsewhere falls off away from the pole (printed).
@@ -137,13 +150,15 @@ def test_end_state_cross_checks_with_the_static_formulas(base):
     tsum = np.asarray(f["T_theta"] + f["T_phi"])[1:k]
     rel = np.abs(p / tsum - 1)
     print(f"pressure / (T_t + T_p) - 1 on nodes 1..{k - 1}: {np.round(rel, 4).tolist()}")
-    assert rel.max() < 0.05
+    assert rel.max() < 0.03
     rho, z = jnp.asarray(f["rho"]), jnp.asarray(f["z"])
     axial = np.asarray(MODEL.free_span_axial_force(rho, z))[k + 1 :]
     spread = (axial.max() - axial.min()) / abs(axial.mean())
-    print(f"free span axial force: mean {axial.mean():.4f}, spread {spread:.2e}, clamp {f['clamp_force']:.4f}")
-    assert spread < 0.02
-    assert axial.mean() == pytest.approx(float(f["clamp_force"]), rel=0.02)
+    mismatch = abs(axial.mean() / float(f["clamp_force"]) - 1)
+    print(f"free span axial force: mean {axial.mean():.6f}, spread {spread:.2e}, clamp {f['clamp_force']:.6f}, "
+          f"mismatch {mismatch:.2e}")
+    assert spread < 3e-6
+    assert mismatch < 1e-6
     assert float(f["ball_reaction"]) == pytest.approx(-float(f["clamp_force"]), rel=1e-6)
 
 
@@ -269,7 +284,9 @@ def test_runner_raises_computation_error_not_a_verdict(tmp_path):
 @pytest.mark.slow
 def test_mesh_convergence_of_the_end_state():
     """theta(rbar) at the nodes of the coarsest mesh (shared by all: N - 1 doubles) on the
-    contact region of the held push-down end state; report the measured order."""
+    contact region of the held push-down end state. Measured (``pytest -s -m slow
+    tests/test_forming.py -k mesh``, Kvaerno5): 2.1e-3, 6.0e-4, order 1.83; asserted: the
+    order in [1.5, 2.3] (second order, the lumped contact costing a little)."""
     thetas = []
     for n in (17, 33, 65):
         model = SheetModel(make_mesh(n, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
@@ -285,8 +302,7 @@ def test_mesh_convergence_of_the_end_state():
     d2 = float(np.max(np.abs(thetas[1][both] - thetas[2][both])))
     order = math.log2(d1 / d2)
     print(f"mesh convergence: max|dtheta| 17->33 {d1:.3e}, 33->65 {d2:.3e}, measured order {order:.2f}")
-    assert d2 < d1
-    assert order > 0.5
+    assert 1.5 <= order <= 2.3
 
 
 @pytest.mark.slow

@@ -80,6 +80,8 @@ def test_release_free_span_force_constant_and_equal_to_the_force_on_the_ball(pul
     fs = summary["release"]["free_span"]
     print("release free span:", fs, "peak force (N):", summary["release"]["peak_force_N"])
     assert fs["frames"] >= 0.8 * ds.sizes["time"]
+    # load stepping (the default): measured spread 1.3e-3, mismatch 8.4e-4
+    # (``pytest -s tests/test_release.py -k free_span``, merged speed branch): 15x, 24x margin
     assert fs["max_relative_spread"] < 0.02
     assert fs["max_relative_mismatch_to_hold"] < 0.02
     # pulling toward the pole loads the sheet: the hold's force grows throughout

@@ -420,7 +420,6 @@ def test_run_window_on_a_scenario(tmp_path):
 
 def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
     """The real scenario schema (kind: forming): every case stops before anything runs."""
-    pytest.importorskip("dynslip.schema.forming")
     from dynslip import cli
 
     monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
@@ -461,8 +460,7 @@ def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     from dynslip.app.window import run_window
 
     base = scenarios_dir / "method2_let_go.yaml"
-    if not base.exists():
-        pytest.skip("scenarios/method2_let_go.yaml not shipped yet")
+    assert base.exists(), "the shipped scenario scenarios/method2_let_go.yaml is missing"
     sets = ["numerics.nodes=20", "physics.friction.law=coulomb"]  # the ideal law's mu (method2_let_go.yaml: static/kinetic)
     # coarse step 0.2: a prototype's window (trapped at 0.8 only) and the shipped one near
     # mu = 1 are narrower than 0.4
