@@ -110,7 +110,9 @@ def test_release_force_converges_under_mesh_refinement(tmp_path):
         peaks[n] = s1["release"]["peak_force_N"]
     d1, d2 = abs(peaks[20] - peaks[40]), abs(peaks[40] - peaks[80])
     print(f"release peak force (N) by nodes: {peaks}; differences {d1:.4f}, {d2:.4f}, order {math.log2(d1 / d2):.2f}")
-    assert d2 < d1
+    # measured (``pytest -s -m slow tests/test_release.py -k mesh``, abd10c6 + speed 0c23bc9):
+    # 17.670, 17.718, 17.732 N; differences 0.048, 0.013, order 1.87
+    assert 1.4 <= math.log2(d1 / d2) <= 2.4
 
 
 # ----------------------------------------------------------------------------- bad input

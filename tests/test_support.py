@@ -72,7 +72,8 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
     assert float(end["ball_z"]) > 0.0, (cz, float(end["ball_z"]), float(end["clamp_force"]))
     assert abs(float(end["ball_reaction"]) - pull_up) < 1e-12  # only the applied pull, no support
     r, _ = residual(res)
-    assert r < 1e-2, r
+    # measured 2.2e-6 (``pytest -s tests/test_support.py``, Kvaerno5); bound 1e-4 (45x)
+    assert r < 1e-4, r
     print(f"support: clamp pull {cz:.4f}, support force {fs:.4f}, sink {-zb:.3e} R (closed form {d:.3e}); "
           f"lift-off to z_b = {float(end['ball_z']):.3e} R; energy residual / work {r:.2e}")
 

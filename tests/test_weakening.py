@@ -262,7 +262,9 @@ def test_weakening_mesh_convergence_at_fixed_dc_and_trend_in_dc():
     tm = {n: float(ends[n]["theta_max"]) for n in ends}
     print(f"weakening mesh convergence (d_c = {D_C} R): |dtheta| 20->40 {e1:.2e}, 40->80 {e2:.2e}, "
           f"order {math.log2(e1 / e2):.2f}; theta_max {tm}")
-    assert e2 < e1
+    # measured (``pytest -s -m slow tests/test_weakening.py -k mesh``, abd10c6 + speed 0c23bc9):
+    # 8.2e-4, 2.6e-4, order 1.62
+    assert 1.2 <= math.log2(e1 / e2) <= 2.3
     trend = {}
     for dc in (0.04, 0.02, 0.01, 0.005):
         r = _sheet_run(_sw(d_c=dc))
