@@ -47,11 +47,20 @@ def test_end_state_converges_as_the_penalty_stiffness_doubles():
     both[np.flatnonzero(both)[-1]] = False  # the lift-off node moves with k
     d = [float(np.max(np.abs(ths[i][both] - ths[i + 1][both]))) for i in range(3)]
     orders = [math.log2(d[i] / d[i + 1]) for i in range(2)]
-    pen = [float(np.max(1.0 - np.hypot(f["rho"], f["z"] - f["ball_z"]))) for f in ends.values()]
+    pen, closed = [], []
+    for k, f in ends.items():
+        gap = 1.0 - np.hypot(f["rho"], f["z"] - f["ball_z"])
+        i = int(np.argmax(gap))
+        p_ref = float(f["pressure"][i] * f["lambda_theta"][i] * f["lambda_phi"][i])  # per reference area
+        pen.append(float(gap[i]))
+        closed.append(math.sqrt(2 * 1e-3 * p_ref / k))  # the quadratic band's d = sqrt(2 w p / k)
+    cf_err = max(abs(a / b - 1) for a, b in zip(pen, closed, strict=True))
+    print(f"penetration against its closed form: worst relative error {cf_err:.2e}")
     print(f"penalty convergence: max|dtheta| {d}, orders {orders}; max penetration {pen}")
     assert both.sum() >= 6
     assert all(0.45 <= q <= 0.55 for q in orders), orders
     assert max(pen) < 1e-3  # inside the quadratic band
+    assert cf_err < 1e-9  # measured 2.3e-13: the run used the stated k in the stated law
     assert all(abs(pen[i] / pen[i + 1] - math.sqrt(2)) < 0.02 for i in range(3)), pen
 
 
