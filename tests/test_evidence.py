@@ -12,16 +12,14 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import xarray as xr
-
 from conftest import SCENARIOS, assert_energy_closes
+from test_forming import MAT, NODES, PRE, RIM, Z0, push_protocol
 
 from dynslip.app.kinds import run as run_scenario
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Settings, simulate
 from dynslip.schema.base import load
-
-from test_forming import MAT, NODES, PRE, RIM, Z0, push_protocol
 
 
 def _penalty_run(k):

@@ -11,12 +11,11 @@ import json
 import math
 
 import pytest
+from conftest import SCENARIOS, assert_energy_closes
 
 from dynslip.analysis.compare import difference, end_state
 from dynslip.app.kinds import run as run_scenario
 from dynslip.schema.base import load
-
-from conftest import SCENARIOS, assert_energy_closes
 
 
 @pytest.mark.slow
