@@ -81,6 +81,7 @@ def let_go_pair(tmp_path_factory):
     return {sv: _let_go(sv, tmp_path_factory.mktemp(sv)) for sv in ("load_step", "kvaerno5")}
 
 
+@pytest.mark.slow
 def test_load_stepping_matches_kvaerno5_on_the_let_go_path(let_go_pair):
     """The default solver against the reference on the shipped let-go path: the same trapped
     verdict, the same stages reached and the rest rule met, end states within the stated
@@ -108,6 +109,7 @@ def test_load_stepping_matches_kvaerno5_on_the_let_go_path(let_go_pair):
     assert dx < 0.1
 
 
+@pytest.mark.slow
 def test_kvaerno5_energy_balance_on_the_let_go_path(let_go_pair):
     """Kvaerno5 closes the energy balance on the let-go path (force-controlled rim and ball,
     slip weakening with healing) to 1e-5 of the work (measured 8.1e-7, ``pytest -s
@@ -117,6 +119,7 @@ def test_kvaerno5_energy_balance_on_the_let_go_path(let_go_pair):
     assert_energy_closes(sk)
 
 
+@pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="known defect of the merged speed branch (0c23bc9): load stepping's "
                    "energy residual on the let-go path is -809 against a work of 197 (relative 4.1); "
                    "strict, so the fix turns this into a failure until the mark is removed")
