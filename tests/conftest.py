@@ -20,12 +20,21 @@ def scenarios_dir() -> Path:
 
 #: load stepping's energy residual at the default increments (fraction of the work): implicit
 #: Euler's own numerical dissipation, sum of 1/2 dx^T H dx >= 0 per increment, first order in
-#: the increment (tests/test_loadstep.py measures the order, 0.99); 2-4% on the shipped paths
+#: the increment (tests/test_loadstep.py measures the order, 0.99); 2-4% on the shipped paths.
+#: Measured on abd10c6 + speed 0c23bc9: 3.1e-2 on the N = 40 push-down of test_forming
+#: (``python`` on test_forming.push_protocol with Settings(solver="load_step")), 8.6e-4 on the
+#: release pull (tests/test_release.py). This is the method's own first-order dissipation, so
+#: the bound cannot be 10x the measurement; runs that must detect a missing term use Kvaerno5.
 LOAD_STEP_ENERGY_RESIDUAL = 5e-2
+
+#: Kvaerno5's energy residual (fraction of the work) at the default rtol 1e-5: measured 1.5e-8
+#: on the N = 40 push-down (``pytest -s tests/test_forming.py``), 8.1e-7 on the shipped let-go
+#: path at N = 20 (``pytest -s tests/test_evidence.py -k let_go``); bound 1e-5 (12x)
+KVAERNO5_ENERGY_RESIDUAL = 1e-5
 
 
 def assert_energy_closes(summary):
-    """The run's energy balance: Kvaerno5 closes it to its tolerance (1e-2 of the work); load
+    """The run's energy balance: Kvaerno5 closes it to :data:`KVAERNO5_ENERGY_RESIDUAL`; load
     stepping leaves its numerical dissipation, which removes energy (residual W - dE - D >= 0
     at the end) and stays below :data:`LOAD_STEP_ENERGY_RESIDUAL`."""
     e = summary["energy_balance"]
@@ -33,4 +42,4 @@ def assert_energy_closes(summary):
         assert e["residual_end"] >= 0.0, e
         assert e["relative_residual"] < LOAD_STEP_ENERGY_RESIDUAL, e
     else:
-        assert e["relative_residual"] < 1e-2, e
+        assert e["relative_residual"] < KVAERNO5_ENERGY_RESIDUAL, e

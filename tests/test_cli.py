@@ -61,8 +61,20 @@ def test_parse_override_types():
 
 
 def test_schema_lists_units():
+    """Every field whose name carries a unit suffix lists that unit in the unit column."""
     text = schema_reference()
-    assert "kind:" in text
+    suffix = {"_mm_s": "mm/s", "_mm": "mm", "_MPa": "MPa", "_N": "N"}
+    checked = 0
+    for line in text.splitlines():
+        cols = line.split()
+        if len(cols) < 2 or not cols[0].startswith("physics."):
+            continue
+        for end, unit in suffix.items():
+            if cols[0].endswith(end):
+                assert f" {unit} " in line, line
+                checked += 1
+                break
+    assert checked >= 10, checked
 
 
 def test_subprocess_no_traceback(tmp_path):

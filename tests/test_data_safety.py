@@ -351,20 +351,51 @@ def test_parent_is_a_file_refused(tmp_path, capsys, monkeypatch):
     assert (tmp_path / "f").read_text() == "x" and not calls
 
 
-@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root writes anyway")
-def test_read_only_parent_refused(tmp_path, capsys, monkeypatch):
-    calls = _stub_run(monkeypatch, _good("new"))
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    ro.chmod(0o555)
+def _unprivileged() -> list[str] | None:
+    """The argv prefix that runs a command without the power to write into a read-only folder:
+    nothing for an ordinary user; as root, setpriv (or runuser) to the user nobody (65534), or
+    capsh dropping CAP_DAC_OVERRIDE; None where none of them exists."""
+    import shutil
+
+    if os.geteuid() != 0:
+        return []
+    if shutil.which("setpriv"):
+        return [shutil.which("setpriv"), "--reuid=65534", "--regid=65534", "--clear-groups"]
+    if shutil.which("runuser"):
+        return [shutil.which("runuser"), "-u", "nobody", "--"]
+    if shutil.which("capsh"):
+        return [shutil.which("capsh"), "--drop=cap_dac_override", "--"]
+    return None
+
+
+def test_read_only_parent_refused():
+    """The real command line, run as an unprivileged user (root writes into a 0555 folder
+    anyway): exit 2, one line naming --out, nothing written."""
+    import tempfile
+
+    prefix = _unprivileged()
+    if prefix is None:
+        pytest.skip("running as root and none of setpriv, runuser, capsh is installed")
+    # tmp_path's parents are 0700 (root's): an unprivileged user could not reach them
+    base = Path(tempfile.mkdtemp(prefix="dynslip-ro-", dir="/tmp"))
     try:
-        rc, err = _cli(["run", CYL, "--out", ro / "out"], capsys)
-        assert rc == 2
-        line = one_line(err)
+        base.chmod(0o777)
+        ro = base / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        env = {**os.environ, "HOME": str(base), "DYNSLIP_CACHE_DIR": str(base / "cache")}
+        res = subprocess.run([*prefix, sys.executable, "-m", "dynslip.cli", "run", CYL, "--out",
+                              str(ro / "out")], capture_output=True, text=True, cwd=base, env=env,
+                             timeout=300, check=False)
+        assert res.returncode == 2, res.stderr[-2000:]
+        line = one_line(res.stderr)
         assert "--out" in line and "not writable" in line
-        assert list(ro.iterdir()) == [] and not calls
+        assert list(ro.iterdir()) == []
     finally:
         ro.chmod(0o755)
+        import shutil
+
+        shutil.rmtree(base)
 
 
 def _sweep_file(tmp_path: Path) -> Path:

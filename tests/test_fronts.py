@@ -299,8 +299,7 @@ def test_fronts_of_a_method2_run_are_continuous_between_named_events(tmp_path):
     from dynslip.schema import base as scenario
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "method2_let_go.yaml"
-    if not path.exists():
-        pytest.skip("scenarios/method2_let_go.yaml is not in this checkout")
+    assert path.exists(), "the shipped scenario scenarios/method2_let_go.yaml is missing"
     run_scenario(scenario.load(path, ["numerics.nodes=20"]), tmp_path, Console(quiet=True))
     ds = xr.open_dataset(tmp_path / "trajectory.nc").load()
     for rest_speed in (None, 1e-4):

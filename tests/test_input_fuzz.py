@@ -187,13 +187,12 @@ def _boom(*args, **kwargs):
 @pytest.fixture
 def stubbed(monkeypatch):
     """Every runner, preflight and member function replaced by one that fails the test."""
-    with contextlib.suppress(ImportError):
-        import dynslip.app.kinds as kinds
+    import dynslip.app.kinds as kinds
 
-        for k in list(kinds.RUNNERS):
-            monkeypatch.setitem(kinds.RUNNERS, k, _boom)
-        for k in list(kinds.PREFLIGHTS):
-            monkeypatch.setitem(kinds.PREFLIGHTS, k, _boom)
+    for k in list(kinds.RUNNERS):
+        monkeypatch.setitem(kinds.RUNNERS, k, _boom)
+    for k in list(kinds.PREFLIGHTS):
+        monkeypatch.setitem(kinds.PREFLIGHTS, k, _boom)
     for cls in _classes().values():
         monkeypatch.setattr(cls, "run", _boom, raising=False)
         if hasattr(cls, "preflight"):
@@ -201,10 +200,9 @@ def stubbed(monkeypatch):
     import dynslip.app.sweep as sweep_mod
 
     monkeypatch.setattr(sweep_mod, "default_member_fn", _boom, raising=False)
-    with contextlib.suppress(ImportError):
-        import dynslip.app.members as members
+    import dynslip.app.members as members
 
-        monkeypatch.setattr(members, "default_member_fn", _boom)
+    monkeypatch.setattr(members, "default_member_fn", _boom)
     return monkeypatch
 
 

@@ -3,7 +3,8 @@ shipped default settings (slow: N = 50, full paths).
 
 The paper reports that both methods end in essentially the same pocket; the numbers are
 reported (printed), and the assertions are what the model must show: both trap the
-ball, at rest, with the energy balance closed, and their contact regions overlap.
+ball, at rest, with the energy balance closed, and theta(rbar) agrees on the common contact
+region within a stated bound.
 """
 
 import json
@@ -44,6 +45,9 @@ def test_method1_and_method2_at_default_settings(tmp_path):
         assert s["trapped"] is True, m
         assert s["theta_max"] > math.pi / 2
         assert_energy_closes(s)
-        # the pocket needs at most the static coefficient it was formed with
-        assert s["mu_mobilised_max"] <= s["mu_s"] * 1.05
-    assert d["common_rbar_max"] > 0.5
+    # The same pocket: on the common contact region (rbar up to 0.97 R) theta(rbar) of the two
+    # methods differs by at most 0.1 rad (a stated bound, 5% of theta_max; measured 0.058 rad,
+    # theta_max 1.841 and 1.799: ``pytest -s -m slow tests/test_methods.py`` at commit abd10c6
+    # merged with speed 0c23bc9), on a common region reaching past the ball's equator radius 0.9 R.
+    assert d["common_rbar_max"] > 0.9
+    assert d["max_abs_dtheta"] < 0.1

@@ -23,8 +23,10 @@ def _forming(nodes=40, mu=0.8):
         "kind": "forming",
         "physics": {
             "friction": {"law": "coulomb", "mu": mu},
-            "stages": [{"name": "push_down", "clamp_to_z_mm": -30.0, "clamp_speed_mm_s": 4.0},
-                       {"name": "hold", "duration_s": 2.0}],
+            "stages": [
+                {"name": "push_down", "clamp_to_z_mm": -30.0, "clamp_speed_mm_s": 4.0},
+                {"name": "hold", "duration_s": 2.0},
+            ],
         },
         "numerics": {"nodes": nodes, "save_interval_s": 1.0},
     }
@@ -85,6 +87,8 @@ def test_release_free_span_force_constant_and_equal_to_the_force_on_the_ball(pul
     fs = summary["release"]["free_span"]
     print("release free span:", fs, "peak force (N):", summary["release"]["peak_force_N"])
     assert fs["frames"] >= 0.8 * ds.sizes["time"]
+    # load stepping (the default): measured spread 1.3e-3, mismatch 8.4e-4
+    # (``pytest -s tests/test_release.py -k free_span``, merged speed branch): 15x, 24x margin
     assert fs["max_relative_spread"] < 0.02
     assert fs["max_relative_mismatch_to_hold"] < 0.02
     # pulling toward the pole loads the sheet: the hold's force grows throughout
@@ -115,10 +119,11 @@ def test_release_force_converges_under_mesh_refinement(tmp_path):
         peaks[n] = s1["release"]["peak_force_N"]
     d1, d2 = abs(peaks[20] - peaks[40]), abs(peaks[40] - peaks[80])
     print(
-        f"release peak force (N) by nodes: {peaks}; differences {d1:.4f}, {d2:.4f}, order "
-        f"{math.log2(d1 / d2):.2f}"
+        f"release peak force (N) by nodes: {peaks}; differences {d1:.4f}, {d2:.4f}, order {math.log2(d1 / d2):.2f}"  # noqa: E501
     )
-    assert d2 < d1
+    # measured (``pytest -s -m slow tests/test_release.py -k mesh``, abd10c6 + speed 0c23bc9):
+    # 17.670, 17.718, 17.732 N; differences 0.048, 0.013, order 1.87
+    assert 1.4 <= math.log2(d1 / d2) <= 2.4
 
 
 # ----------------------------------------------------------------------------- bad input
@@ -163,11 +168,14 @@ def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, case):
     assert not out.exists() and not (tmp_path / "out.staging").exists()
 
 
-@pytest.mark.parametrize("friction, needle", [
-    ({"law": "slip_weakening", "mu_s": 0.8, "mu_k": 0.9}, "mu_k"),
-    ({"law": "slip_weakening", "d_c_mm": 0.0}, "d_c_mm"),
-    ({"law": "slip_weakening", "d_c_mm": -1.0}, "d_c_mm"),
-])
+@pytest.mark.parametrize(
+    "friction, needle",
+    [
+        ({"law": "slip_weakening", "mu_s": 0.8, "mu_k": 0.9}, "mu_k"),
+        ({"law": "slip_weakening", "d_c_mm": 0.0}, "d_c_mm"),
+        ({"law": "slip_weakening", "d_c_mm": -1.0}, "d_c_mm"),
+    ],
+)
 def test_bad_weakening_parameters_exit_2(tmp_path, friction, needle):
     data = _forming()
     data["physics"]["friction"] = friction

@@ -234,8 +234,7 @@ def test_killed_sweep_resumes_with_every_member_once(tmp_path):
     script = (
         "from test_sweep import slow_member, fake_validate\n"
         "from dynslip.app.sweep import run_sweep\n"
-        f"run_sweep({str(path)!r}, out={str(out)!r}, member_fn=slow_member, "
-        f"validate_fn=fake_validate, plot=False)\n"
+        f"run_sweep({str(path)!r}, out={str(out)!r}, member_fn=slow_member, validate_fn=fake_validate, plot=False)\n"  # noqa: E501
     )
     env = {
         **os.environ,
@@ -421,7 +420,6 @@ def test_run_window_on_a_scenario(tmp_path):
 
 def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
     """The real scenario schema (kind: forming): every case stops before anything runs."""
-    pytest.importorskip("dynslip.schema.forming")
     from dynslip import cli
 
     monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
@@ -462,8 +460,7 @@ def test_method2_window_agrees_with_direct_runs(tmp_path, scenarios_dir):
     from dynslip.app.window import run_window
 
     base = scenarios_dir / "method2_let_go.yaml"
-    if not base.exists():
-        pytest.skip("scenarios/method2_let_go.yaml not shipped yet")
+    assert base.exists(), "the shipped scenario scenarios/method2_let_go.yaml is missing"
     sets = [
         "numerics.nodes=20",
         "physics.friction.law=coulomb",

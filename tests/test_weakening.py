@@ -35,9 +35,16 @@ def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta):
         s = fr.slip_force(f, normal, delta)
         return jnp.stack([s / eta, fr.internal_rate(s / eta, normal, delta)])
 
-    sol = diffrax.diffeqsolve(diffrax.ODETerm(vf), diffrax.Kvaerno5(), t0, t1, 1e-3, y0,
-                              stepsize_controller=diffrax.PIDController(rtol=1e-8, atol=1e-10),
-                              max_steps=20000)
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(vf),
+        diffrax.Kvaerno5(),
+        t0,
+        t1,
+        1e-3,
+        y0,
+        stepsize_controller=diffrax.PIDController(rtol=1e-8, atol=1e-10),
+        max_steps=20000,
+    )
     y1 = sol.ys[-1]
     f1 = stiff * (x_drive0 + v_drive * (t1 - t0) - y1[0])
     s1 = fr.slip_force(f1, normal, y1[1])
@@ -85,11 +92,14 @@ def test_one_node_ramp_sticks_at_mu_s_slides_at_mu_k_and_resticks():
     assert np.all(x[(t > t_onset * 1.01) & first] > 0.0)
     # onset and peak: the closed form mu_s N, within 1%
     peak1 = force[first].max()
-    assert abs(peak1 - MU_S) / MU_S < 1e-2, peak1
+    # measured (pytest -s tests/test_weakening.py): peak 0.9899992 (8e-7), sliding force
+    # exact to round-off, second peak 0.9904589 (4.6e-4: the reload overshoots by one segment)
+    assert abs(peak1 - MU_S) / MU_S < 1e-5, peak1
     # sliding past d_c: F = mu_k N + eta V (the drag of the overdamped law), within 1%
     late = (t > 17.0) & (t <= 20.0 + 1e-9)
     assert np.all(delta[late] > D_C)
-    assert np.allclose(force[late], MU_K + eta * v, rtol=1e-2), force[late]
+    slide_err = np.max(np.abs(force[late] / (MU_K + eta * v) - 1))
+    assert slide_err < 1e-8, force[late]
     # unloading: sticks (force criterion), the slip distance is reset, the node stays put
     back = (t > 20.2) & (t <= 22.0 + 1e-9)
     assert np.all(slip[back] == 0.0) and np.all(delta[back] == 0.0)
@@ -97,9 +107,11 @@ def test_one_node_ramp_sticks_at_mu_s_slides_at_mu_k_and_resticks():
     # reloading: the static threshold again (a law without reset would slide at mu_k)
     second = t > 22.0
     peak2 = force[second].max()
-    assert abs(peak2 - MU_S) / MU_S < 1e-2, peak2
-    print(f"one-node ramp: peaks {peak1:.5f}, {peak2:.5f} (mu_s N = {MU_S}); sliding force "
-          f"{force[late].mean():.5f} (mu_k N + eta V = {MU_K + eta * v:.5f})")
+    assert abs(peak2 - MU_S) / MU_S < 5e-3, peak2
+    print(
+        f"one-node ramp: peaks {peak1:.7f}, {peak2:.7f} (mu_s N = {MU_S}); sliding force "
+        f"{force[late].mean():.7f} (mu_k N + eta V = {MU_K + eta * v:.5f}), max rel error {slide_err:.2e}"  # noqa: E501
+    )
 
 
 @pytest.mark.parametrize("heal_rate", [1e-4, 1e-3])
@@ -133,29 +145,57 @@ def test_settling_node_heals_and_needs_mu_s_again(heal_rate):
     assert healed["delta_end"] == 0.0 and healed["slip_end"] == 0.0
     assert abs(healed["peak"] - MU_S) / MU_S < 1e-2, healed["peak"]
     print(
-        f"settling node: bare criterion delta = {bare['delta_end']:.4g} R, reload peak "
-        f"{bare['peak']:.4f}; "
+        f"settling node: bare criterion delta = {bare['delta_end']:.4g} R, reload peak {bare['peak']:.4f}; "  # noqa: E501
         f"healed at {heal_rate:g} R/s: reload peak {healed['peak']:.4f} (mu_s N = {MU_S})"
     )
 
 
-def test_one_node_without_weakening_is_coulomb():
-    """mu_s = mu_k: the law is ideal Coulomb at that mu (identical slip forces)."""
-    sw = make_friction("slip_weakening", mu_s=0.9, mu_k=0.9, d_c=D_C, eps=1e-3)
-    co = Coulomb(mu=jnp.asarray(0.9), eps=jnp.asarray(1e-3))
-    f = jnp.linspace(-2, 2, 41)
-    for delta in (0.0, 0.5 * D_C, 3 * D_C):
-        np.testing.assert_array_equal(sw.slip_force(f, jnp.ones(41), jnp.full(41, delta)),
-                                      co.slip_force(f, jnp.ones(41)))
+def test_slip_force_against_its_closed_form():
+    """The weakening law's slip force against its closed form written out here (friction.py's
+    module docstring): mu(delta) = mu_k + (mu_s - mu_k) max(0, 1 - delta/d_c), c = mu N,
+    e = eps c / (c + eps); S = 0 for |f| <= c - e, (|f| - c + e)^2 / (4 e) on the blend,
+    |f| - c beyond, with the sign of f; mu_s = mu_k is Coulomb at that mu."""
+    eps = 1e-2
+    f = np.linspace(-2.0, 2.0, 401)
+    normal = np.full(f.size, 1.3)
+    for mu_s, mu_k in ((MU_S, MU_K), (0.9, 0.9)):
+        sw = make_friction("slip_weakening", mu_s=mu_s, mu_k=mu_k, d_c=D_C, eps=eps)
+        for delta in (0.0, 0.5 * D_C, 3 * D_C):
+            mu = mu_k + (mu_s - mu_k) * max(0.0, 1.0 - delta / D_C)
+            c = mu * 1.3
+            e = eps * c / (c + eps)
+            a = np.abs(f)
+            mag = np.where(a <= c - e, 0.0, np.where(a < c + e, (a - c + e) ** 2 / (4 * e), a - c))
+            got = np.asarray(
+                sw.slip_force(jnp.asarray(f), jnp.asarray(normal), jnp.full(f.size, delta))
+            )
+            np.testing.assert_allclose(got, np.sign(f) * mag, rtol=1e-13, atol=1e-15)
+            assert np.count_nonzero(got == 0.0) > 0 and np.count_nonzero(got) > 0
+    co = Coulomb(mu=jnp.asarray(0.9), eps=jnp.asarray(eps))
+    sw = make_friction("slip_weakening", mu_s=0.9, mu_k=0.9, d_c=D_C, eps=eps)
+    np.testing.assert_allclose(
+        np.asarray(sw.slip_force(jnp.asarray(f), jnp.asarray(normal), jnp.full(f.size, 0.5))),
+        np.asarray(co.slip_force(jnp.asarray(f), jnp.asarray(normal))),
+        rtol=1e-13,
+        atol=1e-15,
+    )
 
 
 # ----------------------------------------------------------------------------- the whole sheet
 
 
 def _sheet_run(friction, factor=1.0, model=MODEL, save=1.0, rtol=1e-5):
-    return simulate(model, push_protocol(factor=factor), friction=friction, eps=1e-3, drag=0.1,
-                    ball_drag=0.1 * 4 * math.pi, pre_stretch=PRE, z_sheet=Z0,
-                    settings=Settings(rtol=rtol, atol=rtol * 1e-2, save_interval=save))
+    return simulate(
+        model,
+        push_protocol(factor=factor),
+        friction=friction,
+        eps=1e-3,
+        drag=0.1,
+        ball_drag=0.1 * 4 * math.pi,
+        pre_stretch=PRE,
+        z_sheet=Z0,
+        settings=Settings(rtol=rtol, atol=rtol * 1e-2, save_interval=save),
+    )
 
 
 def _sw(mu_s=MU_S, mu_k=MU_K, d_c=D_C):
@@ -191,12 +231,16 @@ def test_equal_coefficients_reproduce_ideal_coulomb():
 
 
 def test_weakening_energy_balance_and_memory(sw_base):
-    """Energy balance with the weakening law's dissipation (its own accumulated state) within 1%
-    of the work; the law really weakened (nodes past d_c at mu_k) and the pole stuck at mu_s."""
+    """Energy balance with the weakening law's dissipation (its own accumulated state): measured
+    residual / work 6.2e-8 (``pytest -s tests/test_weakening.py``, Kvaerno5, N = 40), asserted
+    below 5e-6 (80x); the law really weakened (nodes past d_c at mu_k) and the pole stuck at
+    mu_s; the nodes past d_c slide at their kinetic limit, mu_mobilised = mu_k within 5e-3
+    (measured 5e-4), and no node mobilises
+    more than 1.06 its current mu."""
     r, work = residual(sw_base)
     f = sw_base.frames[-1]
     print(f"weakening energy residual / work = {r:.2e} (work {work:.3f})")
-    assert r <= 1e-2
+    assert r <= 5e-6
     assert f["dissipation_friction"] > 1e-3 * work
     contact = np.asarray(f["state"]) > 0
     mu = np.asarray(f["mu_current"])[contact]
@@ -205,24 +249,29 @@ def test_weakening_energy_balance_and_memory(sw_base):
     assert np.all(sd[~contact] == 0.0) and sd.max() > D_C
     # the static formulas on the end state: mobilised friction below the node's current mu
     mob = np.asarray(f["mu_mobilised"])[contact]
-    assert np.all(mob <= mu * 1.05 + 1e-9)
+    weak = sd[contact] > 1.5 * D_C
+    weak[-1] = False  # the lift-off node carries the penalty's edge
+    print(f"mu_mobilised / mu_k on the nodes past d_c: {np.round(mob[weak] / MU_K, 4).tolist()}")
+    assert weak.sum() >= 3
+    assert np.max(np.abs(mob[weak] / MU_K - 1)) < 5e-3
+    assert np.all(mob[:-1] <= mu[:-1] * 1.06)
 
 
 def test_weakening_rate_independence(sw_base):
-    """Halving every speed (holds scaled): max |delta theta| on the contact region < 1% of
-    theta_max, and the change roughly halves at the next halving."""
+    """Halving every speed (holds scaled): max |delta theta| on the contact region below 1e-4
+    (measured 2.7e-6 and 9.4e-7, ``pytest -s tests/test_weakening.py``; 37x), and the change
+    falls at the next halving (measured ratio 2.86)."""
     half = _sheet_run(_sw(), factor=2.0)
     quarter = _sheet_run(_sw(), factor=4.0)
     th = float(quarter.frames[-1]["theta_max"])
     d1 = _contact_dtheta(sw_base.frames[-1], half.frames[-1])
     d2 = _contact_dtheta(half.frames[-1], quarter.frames[-1])
     print(
-        f"weakening rate independence: |dtheta| 1x->2x {d1:.2e}, 2x->4x {d2:.2e}, ratio "
-        f"{d1 / max(d2, 1e-300):.2f},"
+        f"weakening rate independence: |dtheta| 1x->2x {d1:.2e}, 2x->4x {d2:.2e}, ratio {d1 / max(d2, 1e-300):.2f},"  # noqa: E501
         f" theta_max {th:.4f}"
     )
-    assert d1 < 1e-2 * th and d2 < 1e-2 * th
-    assert d2 < 0.75 * d1
+    assert d1 < 1e-4 and d2 < 1e-4
+    assert 1.4 < d1 / d2 < 4.0
 
 
 @pytest.mark.slow
@@ -243,6 +292,7 @@ def test_weakening_mesh_convergence_at_fixed_dc_and_trend_in_dc():
         r = _sheet_run(_sw(), model=res)
         assert r.failed is None, r.failed
         ends[n] = r.frames[-1]
+
     # compare theta at common material radii (the 20-node radii are in all three meshes)
     def th_at(frame, n, rb):
         rbar = np.linspace(0, 2.54 / PRE, n)
@@ -255,9 +305,13 @@ def test_weakening_mesh_convergence_at_fixed_dc_and_trend_in_dc():
     e1 = np.max(np.abs(th_at(ends[20], 20, rb) - th_at(ends[40], 40, rb)))
     e2 = np.max(np.abs(th_at(ends[40], 40, rb) - th_at(ends[80], 80, rb)))
     tm = {n: float(ends[n]["theta_max"]) for n in ends}
-    print(f"weakening mesh convergence (d_c = {D_C} R): |dtheta| 20->40 {e1:.2e}, 40->80 {e2:.2e}, "
-          f"order {math.log2(e1 / e2):.2f}; theta_max {tm}")
-    assert e2 < e1
+    print(
+        f"weakening mesh convergence (d_c = {D_C} R): |dtheta| 20->40 {e1:.2e}, 40->80 {e2:.2e}, "
+        f"order {math.log2(e1 / e2):.2f}; theta_max {tm}"
+    )
+    # measured (``pytest -s -m slow tests/test_weakening.py -k mesh``, abd10c6 + speed 0c23bc9):
+    # 8.2e-4, 2.6e-4, order 1.62
+    assert 1.2 <= math.log2(e1 / e2) <= 2.3
     trend = {}
     for dc in (0.04, 0.02, 0.01, 0.005):
         r = _sheet_run(_sw(d_c=dc))
