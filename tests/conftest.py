@@ -25,7 +25,12 @@ def scenarios_dir() -> Path:
 #: (``python`` on test_forming.push_protocol with Settings(solver="load_step")), 8.6e-4 on the
 #: release pull (tests/test_release.py). This is the method's own first-order dissipation, so
 #: the bound cannot be 10x the measurement; runs that must detect a missing term use Kvaerno5.
-LOAD_STEP_ENERGY_RESIDUAL = 5e-2
+#: With the motion-only Newton's larger increments (after the accumulator fix e1eaaab):
+#: 5.27e-2 on the let-go path at N = 20 (tests/test_evidence.py), 4.9e-2 at N = 50, 9.4e-3 on
+#: the main job, 2.3e-2 on method 1 (``dynslip run scenarios/X.yaml``, summary.json
+#: energy_balance). Bound 8e-2: 1.5x the largest; the sign (>= 0) catches an over-counted
+#: dissipation, as it caught -4.1 before that fix.
+LOAD_STEP_ENERGY_RESIDUAL = 8e-2
 
 #: Kvaerno5's energy residual (fraction of the work) at the default rtol 1e-5: measured 1.5e-8
 #: on the N = 40 push-down (``pytest -s tests/test_forming.py``), 8.1e-7 on the shipped let-go
