@@ -23,7 +23,7 @@ from dynslip.errors import ComputationError, InputError, MaterialRangeError
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit status 2 (bad input)."""
 
-    def error(self, message):  # noqa: D401 - argparse API
+    def error(self, message):
         self.exit(2, f"dynslip: error: {message}\n")
 
 
@@ -180,6 +180,15 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from dynslip.app.export import run_export
+
+    _check_dir_out(args.out)
+    print(run_export(Path(args.trajectory), Path(args.out) if args.out else None, fmt=args.format,
+                     force=args.force))
+    return 0
+
+
 FORCE_HELP = "replace a folder at --out that is not a dynslip result (never a file)"
 FORCE_IN_PLACE_HELP = "write into a folder at --out that is not a dynslip result (never a file)"
 
@@ -248,6 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("runs", nargs="+")
     c.add_argument("--out")
     c.set_defaults(fn=cmd_compare)
+
+    x = sub.add_parser("export", help="export a saved trajectory for ParaView (VTU series + .pvd, or XDMF)")
+    x.add_argument("trajectory")
+    x.add_argument("--format", choices=["vtu", "xdmf"], default="vtu")
+    x.add_argument("--out", help="output folder (default <trajectory folder>/paraview/)")
+    x.add_argument("--force", action="store_true", help=FORCE_HELP)
+    x.set_defaults(fn=cmd_export)
     return p
 
 

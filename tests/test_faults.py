@@ -27,12 +27,12 @@ pytestmark = pytest.mark.slow
 
 
 def dynslip(*args, cwd, env=None, preexec_fn=None, timeout=600):
-    return subprocess.run([sys.executable, "-m", "dynslip.cli", *map(str, args)], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "dynslip.cli", *map(str, args)], check=False, cwd=cwd, env=env,
                           preexec_fn=preexec_fn, capture_output=True, text=True, timeout=timeout)
 
 
 def start(*args, cwd, env=None):
-    return subprocess.Popen([sys.executable, "-m", "dynslip.cli", *map(str, args)], cwd=cwd, env=env,
+    return subprocess.Popen([sys.executable, "-m", "dynslip.cli", *map(str, args)], check=False, cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -155,3 +155,37 @@ def test_compilation_cache_faults(earlier, tmp_path, how):
         got = _traj_values(out / "trajectory.nc")
         for k in ref:
             np.testing.assert_array_equal(got[k], ref[k])
+
+
+WINDOW = ["window", SCENARIO, *TINY, "--lo", "0.2", "--hi", "1.4", "--coarse", "3", "--tol", "0.4"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_window_search_killed_resumes_to_the_same_window_json(tmp_path, sig):
+    ref = dynslip(*WINDOW, "--out", tmp_path / "ref", cwd=tmp_path)
+    assert ref.returncode == 0, ref.stderr
+    ref_json = json.loads((tmp_path / "ref" / "window.json").read_text())
+    n_total = ref_json["n_evaluations"]
+    assert n_total >= 3
+    log = tmp_path / "w" / "evaluations.json"
+
+    def finished():
+        try:
+            return len(json.loads(log.read_text())["evaluations"])
+        except (OSError, ValueError, KeyError):
+            return 0
+
+    p = start(*WINDOW, "--out", tmp_path / "w", cwd=tmp_path)
+    wait_for(lambda: finished() >= 2 or p.poll() is not None)
+    p.send_signal(sig)
+    p.communicate()
+    kept = finished()
+    assert 2 <= kept < n_total, "killed too late to test a resume"
+    assert not (tmp_path / "w" / "window.json").exists()
+    r = dynslip(*WINDOW, "--out", tmp_path / "w", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert f"resuming: {kept} evaluations" in r.stdout
+    # only the missing members ran: one progress line per new evaluation
+    assert sum(": trapped" in ln or ": not trapped" in ln or "FAILED" in ln
+               for ln in r.stdout.splitlines()) == n_total - kept
+    assert json.loads((tmp_path / "w" / "window.json").read_text()) == ref_json
