@@ -109,6 +109,9 @@ def cmd_schema(args) -> int:
                                "sweep window (also `dynslip window --lo --hi --coarse --tol`)": WindowSpec}))
     print(f"dynslip window: --coarse 2..{MAX_COARSE}; --tol finite, >= 1e-9 max(1, |lo|, |hi|); "
           "lo, hi finite with lo < hi, each a valid value of the friction field")
+    from dynslip.app.sizes import describe
+
+    print(describe())
     return 0
 
 

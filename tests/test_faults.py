@@ -189,3 +189,20 @@ def test_window_search_killed_resumes_to_the_same_window_json(tmp_path, sig):
     assert sum(": trapped" in ln or ": not trapped" in ln or "FAILED" in ln
                for ln in r.stdout.splitlines()) == n_total - kept
     assert json.loads((tmp_path / "w" / "window.json").read_text()) == ref_json
+
+
+def test_run_over_the_machine_memory_refused_before_it_starts(tmp_path):
+    from dynslip.app.sizes import estimate, machine_memory
+
+    nodes, save = 4000, 0.0005
+    frames = 320.0 / save  # the let-go path lasts > 320 s at its longest
+    if estimate(nodes, frames) <= machine_memory():
+        pytest.skip("this machine holds even this run")
+    p = dynslip("run", SCENARIO, "--set", f"numerics.nodes={nodes}", "--set", f"numerics.save_interval_s={save}",
+                "--out", tmp_path / "big", cwd=tmp_path)
+    assert p.returncode == 2
+    (line,) = p.stderr.strip().splitlines()
+    assert "numerics.nodes = 4000" in line and "GiB" in line and "this machine has" in line
+    assert os.listdir(tmp_path) == []  # nothing written
+    s = dynslip("schema", cwd=tmp_path)
+    assert s.returncode == 0 and "memory of a forming run" in s.stdout
