@@ -206,3 +206,26 @@ def test_run_over_the_machine_memory_refused_before_it_starts(tmp_path):
     assert os.listdir(tmp_path) == []  # nothing written
     s = dynslip("schema", cwd=tmp_path)
     assert s.returncode == 0 and "memory of a forming run" in s.stdout
+
+
+def test_non_finite_state_mid_run_keeps_the_finite_frames(tmp_path):
+    """The Hookean sheet (refused beyond stretch 3) pushed down past the ball: the state goes
+    non-finite in push_down; exit 3, one line naming the stage and the time, the frames before
+    it kept (every value finite), marked incomplete."""
+    import numpy as np
+    import xarray as xr
+
+    p = dynslip("run", SCENARIO, "--set", "numerics.nodes=12", "--set", "numerics.max_chord_depth=1.0",
+                "--set", "physics.material.model=hookean", "--out", tmp_path / "nf", cwd=tmp_path)
+    assert p.returncode == 3 and "Traceback" not in p.stderr
+    first = p.stderr.strip().splitlines()[0]
+    assert "non-finite state" in first and "stage 'push_down'" in first and "t = " in first
+    t_fail = float(first.split("between t = ")[1].split(" s")[0])
+    (kept,) = tmp_path.glob("nf.incomplete-*")
+    assert not (tmp_path / "nf").exists()
+    assert "this folder" in (kept / "INCOMPLETE").read_text()
+    with xr.open_dataset(kept / "trajectory.nc") as ds:
+        assert ds.attrs["complete"] == 0
+        assert float(ds["time"].values[-1]) == pytest.approx(t_fail, abs=1e-3)
+        for v in ("rho", "z", "lambda_theta", "lambda_phi", "T_theta", "energy_elastic"):
+            assert np.isfinite(ds[v].values).all(), v

@@ -428,7 +428,7 @@ class StagedRun:
         if issubclass(exc_type, KeyboardInterrupt):
             why = f"interrupted by {signal_name(exc)}"
         else:
-            why = f"run did not complete: {exc_type.__name__}: {exc}"
+            why = f"run did not complete: {exc_type.__name__}: {exc}".replace(str(self.staging), "this folder")
         with _signals_held():
             with contextlib.suppress(OSError):
                 if set(os.listdir(self.staging)) <= {INCOMPLETE, RESULT_MARKER}:
