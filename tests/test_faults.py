@@ -32,7 +32,7 @@ def dynslip(*args, cwd, env=None, preexec_fn=None, timeout=600):
 
 
 def start(*args, cwd, env=None):
-    return subprocess.Popen([sys.executable, "-m", "dynslip.cli", *map(str, args)], check=False, cwd=cwd, env=env,
+    return subprocess.Popen([sys.executable, "-m", "dynslip.cli", *map(str, args)], cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -229,3 +229,58 @@ def test_non_finite_state_mid_run_keeps_the_finite_frames(tmp_path):
         assert float(ds["time"].values[-1]) == pytest.approx(t_fail, abs=1e-3)
         for v in ("rho", "z", "lambda_theta", "lambda_phi", "T_theta", "energy_elastic"):
             assert np.isfinite(ds[v].values).all(), v
+
+
+SWEEP = """\
+name: faults
+base: {base}
+overrides:
+  physics.friction.law: coulomb
+  numerics.nodes: 12
+  numerics.max_chord_depth: 0.3
+grid:
+  physics.friction.mu: {{start: 0.4, stop: 1.6, num: 4}}
+"""
+
+
+def _sweep_values(path):
+    import xarray as xr
+
+    with xr.open_dataset(path) as ds:
+        return {k: ds[k].values.copy() for k in ds.data_vars if ds[k].dtype.kind in "fiub"}
+
+
+def test_dask_worker_killed_mid_sweep_every_member_once(tmp_path):
+    """A real LocalCluster; one worker SIGKILLed once the first member is written. dask reruns
+    the lost member elsewhere, or the sweep stops (exit 3) and the rerun runs only the missing
+    members; either way sweep.nc equals that of an uninterrupted sweep."""
+    import numpy as np
+    from distributed import Client, LocalCluster
+
+    (tmp_path / "s.yaml").write_text(SWEEP.format(base=SCENARIO))
+    ref = dynslip("sweep", tmp_path / "s.yaml", "--mode", "sequential", "--out", tmp_path / "ref", cwd=tmp_path)
+    assert ref.returncode == 0, ref.stderr
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        pids = list(client.run(os.getpid).values())
+        p = start("sweep", tmp_path / "s.yaml", "--mode", "dask", "--scheduler", cluster.scheduler_address,
+                  "--out", tmp_path / "d", cwd=tmp_path)
+        mdir = tmp_path / "d" / "members"
+        wait_for(lambda: (mdir.is_dir() and any(mdir.glob("*.json"))) or p.poll() is not None)
+        assert p.poll() is None, "the sweep ended before a worker could be killed"
+        os.kill(pids[0], signal.SIGKILL)
+        _, err = p.communicate(timeout=600)
+        if p.returncode == 3:  # stopped: the rerun runs the missing members only
+            n_done = len(list(mdir.glob("*.json")))
+            r = dynslip("sweep", tmp_path / "s.yaml", "--mode", "dask", "--scheduler", cluster.scheduler_address,
+                        "--out", tmp_path / "d", cwd=tmp_path)
+            assert r.returncode == 0, r.stderr
+            assert f"{n_done} already done, {4 - n_done} to run" in r.stdout
+        else:
+            assert p.returncode == 0, err
+    recs = [json.loads(f.read_text()) for f in mdir.glob("*.json")]
+    assert len(recs) == 4 and len({r["fingerprint"] for r in recs}) == 4  # every member exactly once
+    got, want = _sweep_values(tmp_path / "d" / "sweep.nc"), _sweep_values(tmp_path / "ref" / "sweep.nc")
+    assert got.keys() == want.keys()
+    for k in want:
+        np.testing.assert_array_equal(got[k], want[k], err_msg=k)
