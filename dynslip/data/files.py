@@ -16,6 +16,11 @@ A run writes into a fresh staging folder ``<out>.staging-XXXXXXXX/`` that holds 
 so no file of the user's, such as ``<out>.old``, is touched). A run that fails or is
 interrupted (SIGINT, SIGTERM) is kept, readable, as ``<out>.incomplete-<UTC time>/``
 with the reason in ``INCOMPLETE``; nothing of an earlier run is deleted.
+
+One run at a time per output folder (:mod:`dynslip.data.lock`: a second one is refused,
+exit 2, naming the holder). A write that fails (disk full, a file-size limit, an I/O error)
+raises :class:`WriteFailed` (exit 3) naming the file and the cause; the partial file is
+removed, the target untouched.
 """
 
 from __future__ import annotations
