@@ -26,7 +26,7 @@ from dynslip.errors import ComputationError, InputError, MaterialRangeError
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit status 2 (bad input)."""
 
-    def error(self, message):  # noqa: D401 - argparse API
+    def error(self, message):
         self.exit(2, f"dynslip: error: {message}\n")
 
 
@@ -127,6 +127,9 @@ def cmd_schema(args) -> int:
     )
     print(f"dynslip window: --coarse 2..{MAX_COARSE}; --tol finite, >= 1e-9 max(1, |lo|, |hi|); "
           "lo, hi finite with lo < hi, each a valid value of the friction field")
+    from dynslip.app.sizes import describe
+
+    print(describe())
     return 0
 
 
@@ -249,6 +252,9 @@ examples:
   dynslip window scenarios/method2_let_go.yaml --lo 1.0 --hi 1.6 --coarse 4 --tol 0.005
   dynslip window scenarios/method2_let_go.yaml --set numerics.nodes=30
   dynslip window scenarios/method2_let_go.yaml --nodes 50,100,200 --lo 1.0 --hi 1.6""",
+    "export": """examples:
+  dynslip export outputs/method2_let_go/trajectory.nc
+  dynslip export outputs/method2_let_go/trajectory.nc --format xdmf --out outputs/m2_paraview""",
     "compare": """example:
   dynslip compare outputs/method2_let_go outputs/m2_n30 --out outputs/compare""",
 }
@@ -257,6 +263,16 @@ examples:
 def _sub(sub, name: str, help: str):  # noqa: A002 - argparse's keyword
     return sub.add_parser(name, help=help, description=help, epilog=EPILOGS[name],
                           formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def cmd_export(args) -> int:
+    from dynslip.app.export import run_export
+
+    _check_dir_out(args.out)
+    print(run_export(Path(args.trajectory), Path(args.out) if args.out else None, fmt=args.format,
+                     force=args.force))
+    return 0
+
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -401,6 +417,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", help="folder for compare.json and compare.png; default outputs/compare/"
     )
     c.set_defaults(fn=cmd_compare)
+
+    x = _sub(sub, "export", "export a saved trajectory for ParaView (VTU series + .pvd, or XDMF)")
+    x.add_argument("trajectory", help="a forming run's trajectory.nc")
+    x.add_argument("--format", choices=["vtu", "xdmf"], default="vtu",
+                   help="vtu: one .vtu per saved frame and a .pvd time series; xdmf: one XDMF "
+                   "file with time (the motion as a displacement field); default: vtu")
+    x.add_argument("--out", help="output folder; default: <trajectory folder>/paraview/")
+    x.add_argument("--force", action="store_true", help=FORCE_HELP)
+    x.set_defaults(fn=cmd_export)
     return p
 
 

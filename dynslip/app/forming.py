@@ -124,6 +124,9 @@ def resolve_start(sc, console=None):
     """Resolve and check ``sc.start_from`` (running its scenario first when needed) before any
     output is written; bad input raises :class:`dynslip.errors.InputError`. Returns (start
     state, provenance), or None without ``start_from``; kept on the scenario for the run."""
+    from dynslip.app.sizes import check_forming
+
+    check_forming(sc)  # a run that would not fit in memory is refused before it starts
     if sc.start_from and sc._start is None:
         from dynslip.app.release import load_start
 

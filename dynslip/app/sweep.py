@@ -617,6 +617,9 @@ def run_sweep(
             if cluster is not None:
                 stack.callback(cluster.close)
         # the folder is made only now that the input (and the scheduler) has been checked
+        from dynslip.data.lock import out_lock
+
+        stack.enter_context(out_lock(out))  # one sweep per folder at a time
         mdir.mkdir(parents=True, exist_ok=True)
         if not (out / RESULT_MARKER).is_file():
             write_result_marker(out, "sweep")

@@ -41,11 +41,21 @@ def scenario_window(
     console=None,
     progress: Callable[[float, bool | None], None] | None = None,
     depths: dict[float, float] | None = None,
+    errors: dict[float, str] | None = None,
 ) -> WindowResult:
     """Window search with ``trapped(mu)`` from running ``member_fn`` on the scenario at mu;
-    ``depths`` (when given) receives each member's deepest chord (``mesh_check``)."""
+    ``depths`` (when given) receives each member's deepest chord (``mesh_check``); ``errors``
+    (when given) gets the reason of each failed point before ``progress`` is called."""
 
     def trapped(mu: float) -> bool | None:
+        try:
+            return _trapped(mu)
+        except ComputationError as err:
+            if errors is not None:
+                errors[float(mu)] = str(err)
+            raise
+
+    def _trapped(mu: float) -> bool | None:
         member = member_at(data, resolved, field_name, tied, mu)
         with tempfile.TemporaryDirectory(dir=work_dir) as tmp:
             summary = member_fn(member, Path(tmp) / "run", console)
@@ -96,7 +106,7 @@ def run_window(
     from rich.console import Console
 
     from dynslip.app.members import default_member_fn, resolve
-    from dynslip.data.files import check_out, write_json, write_result_marker
+    from dynslip.data.files import check_out
     from dynslip.schema import base as scen
 
     console = console or Console()
@@ -128,12 +138,31 @@ def run_window(
 
     out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_window"
     check_out(out, force=force, in_place=True)
+    from dynslip.data.evaluations import EvaluationLog, search_key
+    from dynslip.data.lock import out_lock
+
+    with out_lock(out):  # one search per folder at a time
+        return _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse,
+                       tol, console, EvaluationLog(out, search_key(resolved, field_name, tied)))
+
+
+def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse, tol, console,
+            log) -> dict:
+    """The window search of :func:`run_window` in ``out``, resuming from the evaluations ``log``
+    kept by an earlier, stopped attempt of the same search (each evaluation is kept as it ends)."""
+    from dynslip.data.files import write_json, write_result_marker
+
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
+    known, known_errors = log.load()
+    if known:
+        console.print(f"resuming: {len(known)} evaluations kept by an earlier attempt ({log.path})")
     lines = []
     depths: dict[float, float] = {}
+    errors: dict[float, str] = {}
 
     def progress(mu, v):
+        log.record(mu, v, errors.get(float(mu)))
         word = {True: "trapped", False: "not trapped", None: "FAILED or unresolved"}[v]
         lines.append(f"{field_name} = {mu:.6g}: {word}")
         console.print(f"  {field_name} = {mu:.6g}: {word}")
@@ -155,7 +184,11 @@ def run_window(
         console=None,
         progress=progress,
         depths=depths,
+        known=known,
+        errors=errors,
     )
+    for mu, err in known_errors.items():  # the reasons of failed points kept by an earlier attempt
+        res.errors.setdefault(mu, err)
     from dynslip.analysis.convergence import critical_edge
 
     result = {

@@ -20,6 +20,11 @@ A run writes into a fresh staging folder ``<out>.staging-XXXXXXXX/`` that holds 
 so no file of the user's, such as ``<out>.old``, is touched). A run that fails or is
 interrupted (SIGINT, SIGTERM) is kept, readable, as ``<out>.incomplete-<UTC time>/``
 with the reason in ``INCOMPLETE``; nothing of an earlier run is deleted.
+
+One run at a time per output folder (:mod:`dynslip.data.lock`: a second one is refused,
+exit 2, naming the holder). A write that fails (disk full, a file-size limit, an I/O error)
+raises :class:`WriteFailed` (exit 3) naming the file and the cause; the partial file is
+removed, the target untouched.
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip._version import FORMAT_VERSION, __version__
-from dynslip.errors import InputError
+from dynslip.errors import ComputationError, InputError
 
 INCOMPLETE = "INCOMPLETE"
 #: the marker file written with the results into every result folder
@@ -49,8 +54,11 @@ RESULT_DATASETS = ("trajectory.nc", "result.nc", "sweep.nc")
 
 def _atomic_target(path: Path):
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as err:
+        raise WriteFailed(f"writing {str(path)!r} failed: {err.strerror or err}") from None
     os.close(fd)
     umask = os.umask(0)
     os.umask(umask)
@@ -58,11 +66,53 @@ def _atomic_target(path: Path):
     return path, Path(tmp)
 
 
+class WriteFailed(ComputationError):
+    """A result file could not be written (disk full, file-size limit, I/O error): exit 3.
+
+    The target is untouched (the partial file beside it is removed)."""
+
+
+@contextlib.contextmanager
+def _writing(path: Path, tmp: Path):
+    """Write ``tmp`` then rename it ``path``; on an OS error remove ``tmp``, raise :class:`WriteFailed`."""
+    try:
+        yield
+        os.replace(tmp, path)
+    except (OSError, RuntimeError) as err:  # netCDF4 reports HDF5 write errors as RuntimeError
+        reason = _write_failure(err, tmp)
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise WriteFailed(f"writing {path.name} failed: {reason}") from None
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def _write_failure(err, tmp: Path) -> str:
+    """Why a write failed, in words: the file-size limit or a full disk when that is what it met
+    (netCDF4 reports either as a bare "HDF error")."""
+    import resource
+
+    reason = getattr(err, "strerror", None) or str(err) or type(err).__name__
+    try:
+        size = tmp.stat().st_size
+        soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+        if soft != resource.RLIM_INFINITY and size >= soft - 65536:
+            return f"{reason} (the file-size limit of {soft} bytes was reached)"
+        vfs = os.statvfs(tmp.parent)
+        if vfs.f_bavail * vfs.f_frsize < 1 << 20:
+            return f"{reason} (the disk is full)"
+    except (OSError, ValueError):
+        pass
+    return reason
+
+
 def write_text(path, text: str) -> Path:
     """Write ``text`` to ``path`` atomically."""
     path, tmp = _atomic_target(path)
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    with _writing(path, tmp):
+        tmp.write_text(text)
     return path
 
 
@@ -91,16 +141,16 @@ def write_json(path, data: dict) -> Path:
 def write_netcdf(ds: xr.Dataset, path) -> Path:
     """Write a dataset to netCDF4 atomically."""
     path, tmp = _atomic_target(path)
-    ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4")
-    os.replace(tmp, path)
+    with _writing(path, tmp):
+        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4")
     return path
 
 
 def save_figure(fig, path, **kw) -> Path:
     """Save a matplotlib figure atomically (format from the target's suffix)."""
     path, tmp = _atomic_target(path)
-    fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or "png", **kw)
-    os.replace(tmp, path)
+    with _writing(path, tmp):
+        fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or "png", **kw)
     return path
 
 
@@ -158,13 +208,17 @@ def signal_name(exc) -> str:
 
 @contextlib.contextmanager
 def sigterm_raises():
-    """While inside: SIGTERM raises :class:`Terminated` (in the main thread only)."""
+    """While inside: SIGTERM raises :class:`Terminated` (in the main thread only); SIGXFSZ is
+    ignored, so a write past a file-size limit raises :class:`WriteFailed`."""
 
     def handler(signum, frame):
         raise Terminated("SIGTERM")
 
     try:
         previous = signal.signal(signal.SIGTERM, handler)
+        # a file-size limit (RLIMIT_FSIZE) then fails the write with EFBIG (exit 3, earlier
+        # results intact) instead of killing the process mid-write
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     except ValueError:  # not the main thread: leave signals alone
         yield
         return
@@ -357,29 +411,43 @@ class StagedRun:
         self.force_hint = force_hint
         self.staging: Path | None = None
         self.kept: Path | None = None
+        self._lock = contextlib.ExitStack()
 
     def check(self) -> str:
         return check_out(self.out, force=self.force, what=self.what, force_hint=self.force_hint)
 
     def __enter__(self) -> Path:
+        from dynslip.data.lock import out_lock
+
         self.check()
-        self.out.parent.mkdir(parents=True, exist_ok=True)
-        self.staging = Path(
-            tempfile.mkdtemp(prefix=f"{self.out.name}.staging-", dir=self.out.parent)
-        )
-        os.chmod(self.staging, 0o777 & ~_umask())
-        write_text(self.staging / INCOMPLETE, "run in progress\n")
-        write_result_marker(self.staging, self.kind)
+        self._lock.enter_context(out_lock(self.out, self.what))  # one run per --out at a time
+        try:
+            self.check()  # again, now that no other run can change it
+            self.staging = Path(
+                tempfile.mkdtemp(prefix=f"{self.out.name}.staging-", dir=self.out.parent)
+            )
+            os.chmod(self.staging, 0o777 & ~_umask())
+            write_text(self.staging / INCOMPLETE, "run in progress\n")
+            write_result_marker(self.staging, self.kind)
+        except BaseException:
+            if self.staging is not None:
+                shutil.rmtree(self.staging, ignore_errors=True)
+            self._lock.close()
+            raise
         return self.staging
 
     def __exit__(self, exc_type, exc, tb):
+        with self._lock:
+            return self._exit(exc_type, exc, tb)
+
+    def _exit(self, exc_type, exc, tb):
         if exc_type is None:
             self._swap_in()
             return False
         if issubclass(exc_type, KeyboardInterrupt):
             why = f"interrupted by {signal_name(exc)}"
         else:
-            why = f"run did not complete: {exc_type.__name__}: {exc}"
+            why = f"run did not complete: {exc_type.__name__}: {exc}".replace(str(self.staging), "this folder")
         with _signals_held():
             with contextlib.suppress(OSError):
                 if set(os.listdir(self.staging)) <= {INCOMPLETE, RESULT_MARKER}:

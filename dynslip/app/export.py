@@ -1,0 +1,83 @@
+"""``dynslip export TRAJECTORY``: a trajectory as files ParaView opens as a time series.
+
+``--format vtu`` (default): ``sheet_NNNN.vtu`` and ``ball_NNNN.vtu`` per saved frame (meshio)
+and ``trajectory.pvd``, the index ParaView reads (each time step: part 0 the sheet, part 1
+the ball). ``--format xdmf``: ``sheet.xdmf`` and ``ball.xdmf`` (meshio's XDMF time series,
+data inline): an XDMF time series has one geometry, so the points are those of the first
+frame and the motion is the point field ``displacement [mm]`` (ParaView: Warp By Vector,
+scale 1). :mod:`dynslip.data.vtk` has the meshes and fields. The folder is written whole or
+not at all (a staging folder renamed on success).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from dynslip.errors import InputError
+
+FORMATS = ("vtu", "xdmf")
+
+
+def _pvd(entries: list[tuple[float, int, str]]) -> str:
+    """The ParaView collection file (.pvd) indexing the frames (time, part, file)."""
+    root = ET.Element("VTKFile", type="Collection", version="0.1")
+    coll = ET.SubElement(root, "Collection")
+    for t, part, name in entries:
+        ET.SubElement(coll, "DataSet", timestep=repr(float(t)), group="", part=str(part), file=name)
+    ET.indent(root)
+    return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
+
+
+def _write_vtu(ds, folder: Path) -> list[Path]:
+    import meshio
+
+    from dynslip.data.files import write_text
+    from dynslip.data.vtk import ball_mesh, sheet_mesh
+
+    entries = []
+    for k, t in enumerate(ds["time"].values):
+        for part, (stem, mesh) in enumerate((("sheet", sheet_mesh(ds, k)), ("ball", ball_mesh(ds, k)))):
+            name = f"{stem}_{k:04d}.vtu"
+            meshio.write(folder / name, mesh, file_format="vtu")
+            entries.append((float(t), part, name))
+    return [write_text(folder / "trajectory.pvd", _pvd(entries))]
+
+
+def _write_xdmf(ds, folder: Path) -> list[Path]:
+    import numpy as np
+    from meshio.xdmf import TimeSeriesWriter
+
+    from dynslip.data.vtk import ball_mesh, sheet_mesh
+
+    paths = []
+    for stem, make in (("sheet", sheet_mesh), ("ball", ball_mesh)):
+        first = make(ds, 0)
+        path = folder / f"{stem}.xdmf"
+        with TimeSeriesWriter(path, data_format="XML") as w:
+            w.write_points_cells(first.points, first.cells)
+            for k, t in enumerate(ds["time"].values):
+                m = make(ds, k)
+                pd = {**m.point_data, "displacement [mm]": np.asarray(m.points - first.points)}
+                w.write_data(float(t), point_data=pd, cell_data=m.cell_data or None)
+        paths.append(path)
+    return paths
+
+
+def run_export(trajectory, out: Path | None = None, fmt: str = "vtu", console=None, force: bool = False) -> Path:
+    """Export ``trajectory`` into the folder ``out`` (default ``<trajectory folder>/paraview``);
+    return the file to open (``trajectory.pvd`` or ``sheet.xdmf``)."""
+    from dynslip.data.files import StagedRun
+    from dynslip.data.trajectory import open_trajectory
+
+    if fmt not in FORMATS:
+        raise InputError(f"--format {fmt!r}: allowed: {', '.join(FORMATS)}")
+    path = Path(trajectory)
+    ds = open_trajectory(path)
+    out = Path(out) if out is not None else path.parent / "paraview"
+    with StagedRun(out, force=force, kind="export") as staging:
+        (_write_vtu if fmt == "vtu" else _write_xdmf)(ds, staging)
+    main = out / ("trajectory.pvd" if fmt == "vtu" else "sheet.xdmf")
+    if console is not None:
+        console.print(f"{ds.sizes['time']} frames of {path} -> {main}")
+    return main
