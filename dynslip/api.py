@@ -15,8 +15,8 @@ Example::
 Bad input raises :class:`~dynslip.errors.InputError` (one line naming the field); a
 computation that ran and failed raises :class:`~dynslip.errors.ComputationError` whose
 ``partial`` holds what was computed (a :class:`RunResult`, a sweep's dataset or a window's
-dictionary). Without ``out`` nothing is kept on disk (the runners write into a temporary
-folder, read back into memory and deleted); with ``out`` the folder follows the same rules
+dictionary). Without ``out`` a run writes nothing: its datasets and summary are kept in
+memory (no figures are drawn); with ``out`` the folder follows the same rules
 as the command line (:mod:`dynslip.data.files`): checked before anything is computed,
 replaced only by a run that succeeded, a failed run kept as ``<out>.incomplete-<time>/``.
 """
@@ -84,6 +84,14 @@ def _read(scn, folder: Path, out: Path | None) -> RunResult:
     return RunResult(scenario=scn, summary=summary, dataset=dataset, trajectory=trajectory, out=out)
 
 
+def _kept(scn, outs) -> RunResult:
+    """What a run in memory computed (:class:`dynslip.app.outputs.Outputs` without a folder)."""
+    dataset = outs.dataset()
+    trajectory = dataset if getattr(scn, "kind", None) == "forming" else None
+    return RunResult(scenario=scn, summary=outs.summary or {}, dataset=dataset,
+                     trajectory=trajectory, out=None)
+
+
 def _failed(err: Exception, partial, folder: Path | None = None) -> ComputationError:
     """``err`` as a :class:`ComputationError` carrying ``partial``; a temporary folder named
     in its message is replaced by where the partial result now is."""
@@ -106,6 +114,7 @@ def run(scn, out=None, *, force: bool = False, console=None) -> RunResult:
     for the progress and the summary table (default: quiet).
     """
     from dynslip.app import kinds
+    from dynslip.app.outputs import Outputs
     from dynslip.errors import MaterialRangeError
 
     console = _console(console)
@@ -121,17 +130,15 @@ def run(scn, out=None, *, force: bool = False, console=None) -> RunResult:
             raise failed from err
         return _read(scn, out, out)
     kinds.preflight(scn, console)  # bad input before anything runs
-    with tempfile.TemporaryDirectory(prefix="dynslip-run-") as tmp:
-        folder = Path(tmp) / "run"
-        folder.mkdir()
-        try:
-            kinds.run(scn, folder, console)
-        except (ComputationError, MaterialRangeError) as err:
-            failed = _failed(err, _read(scn, folder, None), folder)
-            if failed is err:
-                raise
-            raise failed from err
-        return _read(scn, folder, None)
+    outs = Outputs(None)  # in memory: no file written, none read back
+    try:
+        kinds.run(scn, outs, console)
+    except (ComputationError, MaterialRangeError) as err:
+        failed = _failed(err, _kept(scn, outs))
+        if failed is err:
+            raise
+        raise failed from err
+    return _kept(scn, outs)
 
 
 def sweep(path, out=None, *, mode: str | None = None, force: bool = False, console=None):

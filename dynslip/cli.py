@@ -178,31 +178,12 @@ def cmd_sweep(args) -> int:
 def cmd_window(args) -> int:
     from dynslip.app.window import parse_nodes, run_window, run_window_nodes
 
+    kw = dict(overrides=args.set or [], lo=args.lo, hi=args.hi, coarse=args.coarse, tol=args.tol,
+              out=Path(args.out) if args.out else None, console=_console(), force=args.force)
     if args.nodes:
-        run_window_nodes(
-            Path(args.scenario),
-            parse_nodes(args.nodes),
-            overrides=args.set or [],
-            lo=args.lo,
-            hi=args.hi,
-            coarse=args.coarse,
-            tol=args.tol,
-            out=Path(args.out) if args.out else None,
-            console=_console(),
-            force=args.force,
-        )
-        return 0
-    run_window(
-        Path(args.scenario),
-        overrides=args.set or [],
-        lo=args.lo,
-        hi=args.hi,
-        coarse=args.coarse,
-        tol=args.tol,
-        out=Path(args.out) if args.out else None,
-        console=_console(),
-        force=args.force,
-    )
+        run_window_nodes(Path(args.scenario), parse_nodes(args.nodes), **kw)
+    else:
+        run_window(Path(args.scenario), **kw)
     return 0
 
 

@@ -4,6 +4,7 @@ disk, ``out=`` follows the command line's folder rules, and errors carry what wa
 
 import re
 import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -65,6 +66,25 @@ def test_run_in_memory_writes_nothing(tmp_path, monkeypatch, scenarios_dir):
     assert res.summary["status"] == "ok" and res.summary["n_nodes"] == 30
     assert res.dataset.attrs["kind"] == "static" and res.dataset["theta"].size == 30
     assert list(tmp_path.iterdir()) == []
+
+
+def test_run_in_memory_makes_no_file_round_trip(tmp_path, monkeypatch, scenarios_dir):
+    """Without ``out`` no file is written or read (no temporary folder either): every writer and
+    reader of the data layer fails the test; the result equals the folder's files."""
+    from dynslip.data import files
+
+    scn = dynslip.load(scenarios_dir / "paper_neohookean.yaml", set=SMALL_STATIC)
+    on_disk = dynslip.run(scn, out=tmp_path / "o")
+    with monkeypatch.context() as m:
+        for name in ("write_netcdf", "write_json", "write_text", "save_figure"):
+            m.setattr(files, name, lambda *a, **k: pytest.fail("a file was written"))
+        m.setattr(xr, "load_dataset", lambda *a, **k: pytest.fail("a file was read back"))
+        m.setattr(tempfile, "TemporaryDirectory", lambda *a, **k: pytest.fail("a temporary folder"))
+        res = dynslip.run(scn)
+    timing = ("t_bvp_s", "t_search_s")  # wall-clock times of this process, not results
+    assert ({k: v for k, v in res.summary.items() if k not in timing}
+            == {k: v for k, v in on_disk.summary.items() if k not in timing})
+    xr.testing.assert_allclose(res.dataset, on_disk.dataset, rtol=0, atol=0)
 
 
 def test_run_out_follows_the_folder_rules(tmp_path, scenarios_dir):

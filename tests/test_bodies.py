@@ -43,8 +43,13 @@ BODIES = {
     "cone": Cone(radius=1.0, z_base=-0.5, z_apex=1.0),
     "cone_down": Cone(radius=0.6, z_base=0.5, z_apex=-0.4),
     "torus": Torus(ring_radius=1.5, minor_radius=0.3, centre_z=-0.2),
-    "profile": Profile([Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0), Line((1.0, 0.0), (1.0, -1.0)),
-                        Arc((0.0, -1.0), 1.0, 0.0, -math.pi / 2)]),
+    "profile": Profile(
+        [
+            Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0),
+            Line((1.0, 0.0), (1.0, -1.0)),
+            Arc((0.0, -1.0), 1.0, 0.0, -math.pi / 2),
+        ]
+    ),
 }
 
 
@@ -57,8 +62,9 @@ def project(body, x, z):
 @eqx.filter_jit
 def grad_distance(body, x, z):
     """(d distance / dx, d distance / dz) per point, by jax.grad."""
-    return jax.vmap(jax.grad(lambda xi, zi: body.distance(xi, zi), argnums=(0, 1)),
-                    in_axes=(0, None))(x, z)
+    return jax.vmap(
+        jax.grad(lambda xi, zi: body.distance(xi, zi), argnums=(0, 1)), in_axes=(0, None)
+    )(x, z)
 
 
 def proj(body, x, z=0.0):
@@ -98,7 +104,7 @@ def test_profile_kernel_reproduces_the_closed_form_sphere():
     """The generic line/arc projection, given the sphere's one arc, gives the closed form."""
     arc = Profile([Arc((0.0, 0.3), 0.7, math.pi / 2, -math.pi / 2)])
     x = _rng_points(300, [0.0, -1.5], [1.8, 2.0], seed=1)
-    for a, b in zip(proj(arc, x, 0.2), proj(BODIES["sphere"], x, 0.2)):
+    for a, b in zip(proj(arc, x, 0.2), proj(BODIES["sphere"], x, 0.2), strict=False):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
 
 
@@ -228,7 +234,7 @@ def test_position_is_a_shift_along_the_axis():
     for body in (COIN, BODIES["cone"], BODIES["tube"]):
         moved = proj(body, x, 0.45)
         shifted = proj(body, x - np.array([0.0, 0.45]), 0.0)
-        for a, b in zip(moved, shifted):
+        for a, b in zip(moved, shifted, strict=False):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
 
 
@@ -324,27 +330,38 @@ def test_meridian_points_lie_on_the_surface():
 # ---------------------------------------------------------------- validation
 
 
-@pytest.mark.parametrize("make, words", [
-    (lambda: Sphere(radius=0.0), "radius 0"),
-    (lambda: Sphere(radius=-1.0), "must be > 0"),
-    (lambda: Disc(radius=1.0, thickness=0.0, edge_radius=0.1), "thickness"),
-    (lambda: Disc(radius=1.0, thickness=0.2, edge_radius=-0.1), "edge radius"),
-    (lambda: Disc(radius=1.0, thickness=0.2, edge_radius=0.15), "at most half the thickness"),
-    (lambda: Torus(ring_radius=0.2, minor_radius=0.3), "must exceed"),
-    (lambda: Torus(ring_radius=1.0, minor_radius=0.0), "minor radius"),
-    (lambda: Cylinder(radius=1.0, z_bottom=0.0, z_top=0.0), "height"),
-    (lambda: Cylinder(radius=1.0, z_bottom=0.0, z_top=1.0, inner_radius=1.2), "inner radius"),
-    (lambda: Cone(radius=-1.0, z_base=0.0, z_apex=1.0), "cone radius"),
-    (lambda: Profile([Arc((0.0, 0.0), -1.0, math.pi / 2, -math.pi / 2)]), "arc radius"),
-    (lambda: Profile([Line((0.0, 1.0), (0.0, 1.0))]), "zero length"),
-    (lambda: Profile([Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0), Line((1.0, -0.1), (1.0, -1.0))]),
-     "not connected"),
-    (lambda: Profile([Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0), Line((1.0, 0.0), (0.0, -1.0))]),
-     "not smooth"),
-    (lambda: Profile([Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0)]), "not closed"),
-    (lambda: Profile([Arc((0.0, 0.0), 1.0, -math.pi / 2, math.pi / 2)]), "solid on its left"),
-    (lambda: Profile([Arc((-0.5, 0.0), 1.0, math.pi / 2, -math.pi / 2)]), "crosses the axis"),
-])
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda: Sphere(radius=0.0), "radius 0"),
+        (lambda: Sphere(radius=-1.0), "must be > 0"),
+        (lambda: Disc(radius=1.0, thickness=0.0, edge_radius=0.1), "thickness"),
+        (lambda: Disc(radius=1.0, thickness=0.2, edge_radius=-0.1), "edge radius"),
+        (lambda: Disc(radius=1.0, thickness=0.2, edge_radius=0.15), "at most half the thickness"),
+        (lambda: Torus(ring_radius=0.2, minor_radius=0.3), "must exceed"),
+        (lambda: Torus(ring_radius=1.0, minor_radius=0.0), "minor radius"),
+        (lambda: Cylinder(radius=1.0, z_bottom=0.0, z_top=0.0), "height"),
+        (lambda: Cylinder(radius=1.0, z_bottom=0.0, z_top=1.0, inner_radius=1.2), "inner radius"),
+        (lambda: Cone(radius=-1.0, z_base=0.0, z_apex=1.0), "cone radius"),
+        (lambda: Profile([Arc((0.0, 0.0), -1.0, math.pi / 2, -math.pi / 2)]), "arc radius"),
+        (lambda: Profile([Line((0.0, 1.0), (0.0, 1.0))]), "zero length"),
+        (
+            lambda: Profile(
+                [Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0), Line((1.0, -0.1), (1.0, -1.0))]
+            ),
+            "not connected",
+        ),
+        (
+            lambda: Profile(
+                [Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0), Line((1.0, 0.0), (0.0, -1.0))]
+            ),
+            "not smooth",
+        ),
+        (lambda: Profile([Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0)]), "not closed"),
+        (lambda: Profile([Arc((0.0, 0.0), 1.0, -math.pi / 2, math.pi / 2)]), "solid on its left"),
+        (lambda: Profile([Arc((-0.5, 0.0), 1.0, math.pi / 2, -math.pi / 2)]), "crosses the axis"),
+    ],
+)
 def test_bad_geometry_is_refused_in_words(make, words):
     with pytest.raises(BodyGeometryError, match=words):
         make()
@@ -354,18 +371,26 @@ def test_bad_geometry_is_refused_in_words(make, words):
 def test_self_crossing_profile_is_refused():
     """A smooth profile from the axis to the axis that runs out along z = 1, three quarters
     round a circle, and straight up through its own first line to the axis at z = 2."""
-    segs = [Line((0.0, 1.0), (1.0, 1.0)),
-            Arc((1.0, 0.5), 0.5, math.pi / 2, -math.pi),  # ends at (0.5, 0.5) heading up
-            Line((0.5, 0.5), (0.5, 1.5)),  # crosses the first line at (0.5, 1)
-            Arc((0.0, 1.5), 0.5, 0.0, math.pi / 2)]  # to the axis at (0, 2)
+    segs = [
+        Line((0.0, 1.0), (1.0, 1.0)),
+        Arc((1.0, 0.5), 0.5, math.pi / 2, -math.pi),  # ends at (0.5, 0.5) heading up
+        Line((0.5, 0.5), (0.5, 1.5)),  # crosses the first line at (0.5, 1)
+        Arc((0.0, 1.5), 0.5, 0.0, math.pi / 2),
+    ]  # to the axis at (0, 2)
     with pytest.raises(BodyGeometryError, match="crosses itself"):
         Profile(segs)
 
 
 def test_valid_profile_ring_and_pin():
     """A closed ring (a stadium, not touching the axis) and a push pin's head and point pass."""
-    ring = Profile([Line((1.0, 0.2), (1.5, 0.2)), Arc((1.5, 0.0), 0.2, math.pi / 2, -math.pi / 2),
-                    Line((1.5, -0.2), (1.0, -0.2)), Arc((1.0, 0.0), 0.2, -math.pi / 2, -3 * math.pi / 2)])
+    ring = Profile(
+        [
+            Line((1.0, 0.2), (1.5, 0.2)),
+            Arc((1.5, 0.0), 0.2, math.pi / 2, -math.pi / 2),
+            Line((1.5, -0.2), (1.0, -0.2)),
+            Arc((1.0, 0.0), 0.2, -math.pi / 2, -3 * math.pi / 2),
+        ]
+    )
     assert ring.closed
     assert ring.length == pytest.approx(1.0 + 2 * math.pi * 0.2, abs=1e-14)
     d, n, _, _ = proj(ring, np.array([[1.25, 0.5], [0.7, 0.0], [1.25, 0.0]]))
@@ -385,8 +410,9 @@ def test_overlap_and_penetration_depths():
     neck = Torus(ring_radius=0.635, minor_radius=0.05, centre_z=0.0)
     h = math.sqrt(1.05**2 - 0.635**2)
     assert not overlap(BALL, neck, za=h)
-    assert penetration(BALL, neck, za=h - 0.01) == pytest.approx(1.05 - math.hypot(0.635, h - 0.01),
-                                                                abs=1e-12)
+    assert penetration(BALL, neck, za=h - 0.01) == pytest.approx(
+        1.05 - math.hypot(0.635, h - 0.01), abs=1e-12
+    )
     # one inside the other overlaps; moving the coin off the ball clears it
     big = Cylinder(radius=3.0, z_bottom=-3.0, z_top=3.0)
     assert overlap(BALL, big) and overlap(big, BALL)
@@ -398,7 +424,11 @@ def test_inside():
     assert inside(BALL, pts).tolist() == [True, True, False, True, False]
     assert inside(BALL, pts, z=3.0).tolist() == [False] * 5
     tube = BODIES["tube"]
-    assert inside(tube, np.array([[2.6, -3.0], [2.0, -3.0], [2.6, -0.5]])).tolist() == [True, False, False]
+    assert inside(tube, np.array([[2.6, -3.0], [2.0, -3.0], [2.6, -0.5]])).tolist() == [
+        True,
+        False,
+        False,
+    ]
 
 
 # ---------------------------------------------------------------- trapped criteria

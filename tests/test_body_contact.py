@@ -62,8 +62,10 @@ def test_ball_as_a_body_gives_todays_contact():
     e_body = float(body_energy(BALL, rho, z, jnp.array([zb])))
     assert abs(e_body - e_today) <= 1e-12 * abs(e_today)
     g_today = jax.grad(SHEET.penalty_energy, argnums=(0, 1, 2))(rho, z, zb)
-    g_body = jax.grad(lambda a, b, c_: body_energy(BALL, a, b, c_[None]), argnums=(0, 1, 2))(rho, z, zb)
-    for a, b in zip(g_body, g_today):
+    g_body = jax.grad(lambda a, b, c_: body_energy(BALL, a, b, c_[None]), argnums=(0, 1, 2))(
+        rho, z, zb
+    )
+    for a, b in zip(g_body, g_today, strict=False):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * float(np.max(np.abs(g_today[1]))))
 
 
@@ -73,8 +75,15 @@ def test_a_node_feels_every_body_it_penetrates():
     one, exactly zero from the other."""
     ball = Sphere()
     ring = Torus(ring_radius=1.0, minor_radius=0.3, centre_z=0.0)  # overlaps the ball's equator
-    x = jnp.array([[0.8, 0.0], [math.sin(0.5) * 0.9995, math.cos(0.5) * 0.9995], [1.2995, 0.0],
-                   [1.0, 0.2997], [3.0, 0.0]])
+    x = jnp.array(
+        [
+            [0.8, 0.0],
+            [math.sin(0.5) * 0.9995, math.cos(0.5) * 0.9995],
+            [1.2995, 0.0],
+            [1.0, 0.2997],
+            [3.0, 0.0],
+        ]
+    )
     c = forces((ball, ring), x, jnp.zeros(2))
     p = np.asarray(c.pressure)
     both, ball_only, ring_side, ring_top, none = range(5)
@@ -98,8 +107,11 @@ def test_a_node_feels_every_body_it_penetrates():
 def test_force_is_minus_the_gradient_of_the_energy_for_several_bodies():
     """sum_k p_ik n_k = -d/dx_i sum_k phi(-d_k), and the axial force on each body is the
     derivative in its position, -sum_i A_i p_ik n_k,z, for a ball, a coin on it and a ring."""
-    bodies = (Sphere(), Disc(radius=0.6, thickness=0.09, edge_radius=0.015, centre_z=1.04),
-              Torus(ring_radius=0.635, minor_radius=0.05, centre_z=-0.78))
+    bodies = (
+        Sphere(),
+        Disc(radius=0.6, thickness=0.09, edge_radius=0.015, centre_z=1.04),
+        Torus(ring_radius=0.635, minor_radius=0.05, centre_z=-0.78),
+    )
     zs = jnp.array([0.0, -0.003, 0.001])
     rng = np.random.default_rng(1)
     th = np.linspace(0.0, math.pi, MESH.n)
@@ -109,12 +121,16 @@ def test_force_is_minus_the_gradient_of_the_energy_for_several_bodies():
     c = forces(bodies, x, zs)
     p = np.asarray(c.pressure)
     assert (p[1] > 0).sum() >= 2 and (p[2] > 0).sum() >= 1  # coin and ring touched too
-    g_rho, g_z, g_zs = jax.grad(lambda a, b, s: body_energy(bodies, a, b, s), argnums=(0, 1, 2))(rho, z, zs)
+    g_rho, g_z, g_zs = jax.grad(lambda a, b, s: body_energy(bodies, a, b, s), argnums=(0, 1, 2))(
+        rho, z, zs
+    )
     f = np.asarray(jnp.sum(c.force, axis=0)) * np.asarray(MESH.area)[:, None]
     scale = float(np.max(np.abs(f)))
     np.testing.assert_allclose(-np.asarray(g_rho), f[:, 0], atol=1e-12 * scale)
     np.testing.assert_allclose(-np.asarray(g_z), f[:, 1], atol=1e-12 * scale)
-    on_body = -np.sum(np.asarray(MESH.area) * np.asarray(c.pressure) * np.asarray(c.normal[..., 1]), axis=1)
+    on_body = -np.sum(
+        np.asarray(MESH.area) * np.asarray(c.pressure) * np.asarray(c.normal[..., 1]), axis=1
+    )
     np.testing.assert_allclose(-np.asarray(g_zs), on_body, atol=1e-12 * scale)
 
 
@@ -128,8 +144,9 @@ def test_chord_depths_against_every_body():
     r = 1.0 + rng.uniform(-2e-3, 2e-2, (3, 12))
     zb = np.array([0.0, 0.1, -0.2])
     rho, z = r * np.sin(th), zb[:, None] + r * np.cos(th)
-    np.testing.assert_allclose(chord_depths(Sphere(), rho, z, zb), sheet_chord_depths(rho, z, zb),
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        chord_depths(Sphere(), rho, z, zb), sheet_chord_depths(rho, z, zb), rtol=0, atol=1e-12
+    )
     ring = Torus(ring_radius=1.5, minor_radius=0.3, centre_z=-0.2)
     d = chord_depths(ring, np.array([1.1, 1.9]), np.array([-0.1, -0.1]), 0.0)
     np.testing.assert_allclose(d, [0.2], atol=1e-12)

@@ -20,7 +20,7 @@ from dynslip.errors import ComputationError, InputError
 from dynslip.physics import sphere
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Settings, simulate
 from dynslip.schema.base import validate_data
@@ -36,24 +36,17 @@ MODEL = SheetModel(make_mesh(NODES, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), j
 def push_protocol(speed=0.2, depth=-1.5, hold=2.0, factor=1.0, ball_z0=0.0):
     """Push the rim from just above the ball to ``depth`` at ``speed`` (R/s), then hold."""
     stages = (
-        Stage("push_down", StopRule("duration", duration=(Z0 - depth) / speed), clamp_vz=-speed),
-        Stage("hold", StopRule("duration", duration=hold)),
+        Stage("push_down", Duration(duration=(Z0 - depth) / speed), clamp_vz=-speed),
+        Stage("hold", Duration(duration=hold)),
     )
     return Protocol(stages, clamp_rho0=RIM, clamp_z0=Z0, ball_z0=ball_z0).scaled(factor)
 
 
 def run(protocol, mu=0.8, eps=1e-3, rtol=1e-5, atol=1e-7, save=1.0, pre=PRE):
-    return simulate(
-        MODEL,
-        protocol,
-        friction=Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(eps)),
-        eps=eps,
-        drag=0.1,
-        ball_drag=0.1 * 4 * math.pi,
-        pre_stretch=pre,
-        z_sheet=Z0,
-        settings=Settings(rtol=rtol, atol=atol, save_interval=save),
-    )
+    return simulate(MODEL, protocol, friction=Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(eps)),
+                    eps=eps,
+                    drag=0.1, ball_drag=0.1 * 4 * math.pi, pre_stretch=pre, z_sheet=Z0,
+                    settings=Settings(rtol=rtol, atol=atol, save_interval=save))
 
 
 def residual(res):
@@ -103,11 +96,9 @@ def test_rate_independence(base):
     theta_max = float(np.nanmax(ths[2]))
     d1 = float(np.max(np.abs(ths[0][both] - ths[1][both])))
     d2 = float(np.max(np.abs(ths[1][both] - ths[2][both])))
-    print(
-        f"rate independence: max|dtheta| 1x->2x {d1:.3e}, 2x->4x {d2:.3e} (theta_max "
-        f"{theta_max:.3f}); "
-        f"ratio {d1 / max(d2, 1e-300):.2f}"
-    )
+    print(f"rate independence: max|dtheta| 1x->2x {d1:.3e}, 2x->4x {d2:.3e} (theta_max "
+          f"{theta_max:.3f}); "
+          f"ratio {d1 / max(d2, 1e-300):.2f}")
     assert d1 < 0.01 * theta_max
     assert 1.4 < d1 / d2 < 3.0
 
@@ -117,11 +108,8 @@ def test_smoothing_converges_to_the_ideal_law(base):
     ideal = contact_theta(run(push_protocol(), eps=0.0).frames[-1])
     diffs = []
     for eps in (1e-1, 1e-2, 1e-3):
-        th = (
-            contact_theta(base.frames[-1])
-            if eps == 1e-3
-            else contact_theta(run(push_protocol(), eps=eps).frames[-1])
-        )
+        th = contact_theta(base.frames[-1]) if eps == 1e-3 else contact_theta(run(push_protocol(),
+                                                                                  eps=eps).frames[-1])
         both = np.isfinite(th) & np.isfinite(ideal)
         diffs.append(float(np.max(np.abs(th[both] - ideal[both]))))
     print(f"smoothing: max|theta_eps - theta_ideal| for eps 1e-1, 1e-2, 1e-3: {diffs}")
@@ -158,10 +146,8 @@ def test_end_state_cross_checks_with_the_static_formulas(base):
     rho, z = jnp.asarray(f["rho"]), jnp.asarray(f["z"])
     axial = np.asarray(MODEL.free_span_axial_force(rho, z))[k + 1 :]
     spread = (axial.max() - axial.min()) / abs(axial.mean())
-    print(
-        f"free span axial force: mean {axial.mean():.4f}, spread {spread:.2e}, clamp "
-        f"{f['clamp_force']:.4f}"
-    )
+    print(f"free span axial force: mean {axial.mean():.4f}, spread {spread:.2e}, clamp "
+          f"{f['clamp_force']:.4f}")
     assert spread < 0.02
     assert axial.mean() == pytest.approx(float(f["clamp_force"]), rel=0.02)
     assert float(f["ball_reaction"]) == pytest.approx(-float(f["clamp_force"]), rel=1e-6)
@@ -173,12 +159,8 @@ def test_flat_sheet_without_load_and_uniform_stretch_without_ball_stay_put():
     2 pi r_edge lambda T_eq(lambda)."""
     from dynslip.physics.materials import relaxed_tensions
 
-    prot = Protocol(
-        (Stage("rest", StopRule("duration", duration=4.0)),),
-        clamp_rho0=RIM,
-        clamp_z0=Z0,
-        ball_z0=-50.0,
-    )
+    prot = Protocol((Stage("rest", Duration(duration=4.0)),), clamp_rho0=RIM,
+                    clamp_z0=Z0, ball_z0=-50.0)
     for pre in (1.0, 1.3):
         prot_pre = Protocol(prot.stages, clamp_rho0=RIM * pre / PRE, clamp_z0=Z0, ball_z0=-50.0)
         res = run(prot_pre, pre=pre)
@@ -188,9 +170,8 @@ def test_flat_sheet_without_load_and_uniform_stretch_without_ball_stay_put():
         assert np.max(np.abs(f1["z"] - f0["z"])) < 1e-10
         t_eq = float(relaxed_tensions(MAT, jnp.asarray(pre), jnp.asarray(pre))[0])
         r_edge = float(MODEL.mesh.rbar[-1])
-        assert float(f1["clamp_force_rho"]) == pytest.approx(
-            2 * np.pi * r_edge * pre * t_eq, rel=1e-9, abs=1e-12
-        )
+        assert float(f1["clamp_force_rho"]) == pytest.approx(2 * np.pi * r_edge * pre * t_eq,
+                                                             rel=1e-9, abs=1e-12)
         assert np.allclose(f1["T_theta"], t_eq, rtol=1e-9, atol=1e-12)
 
 
@@ -198,15 +179,11 @@ def test_frictionless_sheet_slides_off():
     """mu = 0: the pushed sheet cannot hold a pocket; letting the clamp go, the sheet leaves
     the ball (no contact past the equator)."""
     stages = (
-        Stage("push_down", StopRule("duration", duration=(Z0 + 1.5) / 0.2), clamp_vz=-0.2),
-        Stage("let_go", StopRule("duration", duration=3.0), clamp_mode=CLAMP_FORCE),
-        Stage(
-            "release",
-            StopRule("duration", duration=3.0),
-            clamp_mode=CLAMP_FORCE,
-            clamp_force_start=(0.0, 0.0),
-            ball_mode=BALL_FORCE,
-        ),
+        Stage("push_down", Duration(duration=(Z0 + 1.5) / 0.2), clamp_vz=-0.2),
+        Stage("let_go", Duration(duration=3.0), clamp_mode=CLAMP_FORCE),
+        Stage("release", Duration(duration=3.0), clamp_mode=CLAMP_FORCE,
+              clamp_force_start=(0.0, 0.0),
+              ball_mode=BALL_FORCE),
     )
     res = run(Protocol(stages, clamp_rho0=RIM, clamp_z0=Z0), mu=0.0, eps=0.0)
     assert res.failed is None
@@ -227,85 +204,27 @@ def _scenario(**physics):
     [
         ({"stages": []}, "empty protocol"),
         ({"stages": [{"name": "a", "duration_s": 1}, {"name": "a", "duration_s": 1}]}, "duplicate"),
-        (
-            {
-                "stages": [
-                    {
-                        "name": "a",
-                        "clamp_to_z_mm": -10,
-                        "clamp_speed_mm_s": 1,
-                        "clamp_velocity_mm_s": 2,
-                    }
-                ]
-            },
-            "overlapping",
-        ),
-        (
-            {
-                "stages": [
-                    {"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": 1, "duration_s": 3}
-                ]
-            },
-            "overlapping",
-        ),
+        ({"stages": [{"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": 1,
+                      "clamp_velocity_mm_s": 2}]},
+         "overlapping"),
+        ({"stages": [{"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": 1, "duration_s": 3}]},
+         "overlapping"),
         ({"stages": [{"name": "a", "clamp_to_z_mm": 20.4, "clamp_speed_mm_s": 1}]}, "empty stage"),
         ({"rim_radius_mm": 15.0}, "inside the ball"),
-        (
-            {
-                "stages": [
-                    {"name": "a", "clamp_velocity_mm_s": 0, "duration_s": 10},
-                    {"name": "b", "duration_s": 5},
-                ],
-                "rim_radius_mm": 19.0,
-            },
-            "inside the ball",
-        ),
+        ({"stages": [{"name": "a", "clamp_velocity_mm_s": 0, "duration_s": 10},
+                     {"name": "b", "duration_s": 5}], "rim_radius_mm": 19.0}, "inside the ball"),
         ({"stages": [{"name": "a", "duration_s": -1}]}, "greater than 0"),
-        (
-            {"stages": [{"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": -2}]},
-            "clamp_speed_mm_s",
-        ),
-        (
-            {
-                "stages": [
-                    {
-                        "name": "a",
-                        "duration_s": 5,
-                        "until": "clamp_force_below",
-                        "force_threshold_N": 0.1,
-                    }
-                ]
-            },
-            "can never hold",
-        ),
-        (
-            {
-                "stages": [
-                    {
-                        "name": "a",
-                        "duration_s": 5,
-                        "until": "rest",
-                        "rest_rate_mm_s": 0.1,
-                        "rest_hold_s": 9,
-                    }
-                ]
-            },
-            "can never hold",
-        ),
-        (
-            {
-                "stages": [
-                    {
-                        "name": "a",
-                        "duration_s": 5,
-                        "until": "clamp_force_below",
-                        "force_threshold_N": 0,
-                        "clamp_velocity_mm_s": 1,
-                    }
-                ]
-            },
-            "greater than 0",
-        ),
+        ({"stages": [{"name": "a", "clamp_to_z_mm": -10, "clamp_speed_mm_s": -2}]},
+         "clamp_speed_mm_s"),
+        ({"stages": [{"name": "a", "duration_s": 5, "until": "clamp_force_below",
+                      "force_threshold_N": 0.1}]},
+         "can never hold"),
+        ({"stages": [{"name": "a", "duration_s": 5, "until": "rest", "rest_rate_mm_s": 0.1,
+                      "rest_hold_s": 9}]},
+         "can never hold"),
+        ({"stages": [{"name": "a", "duration_s": 5, "until": "clamp_force_below",
+                      "force_threshold_N": 0,
+                      "clamp_velocity_mm_s": 1}]}, "greater than 0"),
     ],
 )
 def test_bad_input_is_one_line(physics, needle):
@@ -323,22 +242,10 @@ def test_shipped_method2_validates(scenarios_dir):
 
 
 def test_cli_bad_input_exit_2(tmp_path, scenarios_dir):
-    out = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "dynslip.cli",
-            "run",
-            str(scenarios_dir / "method2.yaml"),
-            "--out",
-            str(tmp_path / "o"),
-            "--set",
-            "physics.rim_radius_mm=10",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    out = subprocess.run([sys.executable, "-m", "dynslip.cli", "run",
+                          str(scenarios_dir / "method2.yaml"),
+                          "--out", str(tmp_path / "o"), "--set", "physics.rim_radius_mm=10"],
+                         capture_output=True, text=True, timeout=300)
     assert out.returncode == 2, out.stderr
     assert "Traceback" not in out.stderr + out.stdout
     assert len((out.stderr + out.stdout).strip().splitlines()) == 1
@@ -351,23 +258,11 @@ def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir)
     import xarray as xr
 
     out = tmp_path / "o"
-    cmd = [
-        sys.executable,
-        "-m",
-        "dynslip.cli",
-        "run",
-        str(scenarios_dir / "method2.yaml"),
-        "--out",
-        str(out),
-        "--set",
-        "numerics.nodes=12",
-        "--set",
-        "numerics.max_steps=100",
-        "--set",
-        "numerics.solver=kvaerno5",
-        "--set",
-        "numerics.max_chord_depth=1",
-    ]  # 12 nodes: coarse chords
+    cmd = [sys.executable, "-m", "dynslip.cli", "run", str(scenarios_dir / "method2.yaml"),
+           "--out", str(out),
+           "--set", "numerics.nodes=12", "--set", "numerics.max_steps=100",
+           # 12 nodes: coarse chords
+           "--set", "numerics.solver=kvaerno5", "--set", "numerics.max_chord_depth=1"]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert res.returncode == 3, res.stderr[-2000:]
     text = res.stderr + res.stdout
@@ -382,9 +277,8 @@ def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir)
 
 def test_runner_raises_computation_error_not_a_verdict(tmp_path):
     """Driven from Python: a failed run raises ComputationError (never 'not trapped')."""
-    sc = validate_data(
-        {"kind": "forming", "numerics": {"nodes": 12, "max_steps": 100, "solver": "kvaerno5"}}, "x"
-    )
+    sc = validate_data({"kind": "forming", "numerics": {"nodes": 12, "max_steps": 100,
+                                                        "solver": "kvaerno5"}}, "x")
     with pytest.raises(ComputationError):
         run_scenario(sc, tmp_path, None)
 
@@ -398,20 +292,12 @@ def test_mesh_convergence_of_the_end_state():
     contact region of the held push-down end state; report the measured order."""
     thetas = []
     for n in (17, 33, 65):
-        model = SheetModel(
-            make_mesh(n, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
-        )
-        res = simulate(
-            model,
-            push_protocol(),
-            friction=Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3)),
-            eps=1e-3,
-            drag=0.1,
-            ball_drag=0.1 * 4 * math.pi,
-            pre_stretch=PRE,
-            z_sheet=Z0,
-            settings=Settings(save_interval=1.0),
-        )
+        model = SheetModel(make_mesh(n, RIM / PRE), MAT, Penalty(jnp.asarray(1e4),
+                                                                 jnp.asarray(1e-3)))
+        res = simulate(model, push_protocol(), friction=Coulomb(mu=jnp.asarray(0.8),
+                                                                eps=jnp.asarray(1e-3)),
+                       eps=1e-3, drag=0.1, ball_drag=0.1 * 4 * math.pi, pre_stretch=PRE, z_sheet=Z0,
+                       settings=Settings(save_interval=1.0))
         assert res.failed is None
         step = (n - 1) // 16
         thetas.append(np.asarray(res.frames[-1]["theta"])[::step])
@@ -420,10 +306,8 @@ def test_mesh_convergence_of_the_end_state():
     d1 = float(np.max(np.abs(thetas[0][both] - thetas[1][both])))
     d2 = float(np.max(np.abs(thetas[1][both] - thetas[2][both])))
     order = math.log2(d1 / d2)
-    print(
-        f"mesh convergence: max|dtheta| 17->33 {d1:.3e}, 33->65 {d2:.3e}, measured order "
-        f"{order:.2f}"
-    )
+    print(f"mesh convergence: max|dtheta| 17->33 {d1:.3e}, 33->65 {d2:.3e}, measured order "
+          f"{order:.2f}")
     assert d2 < d1
     assert order > 0.5
 
@@ -459,11 +343,6 @@ def test_let_go_method2_traps_the_ball(tmp_path, scenarios_dir):
     assert s["trapped"] is True
     assert s["theta_max"] > math.pi / 2
     assert_energy_closes(s)
-    for name in (
-        "meridian.png",
-        "theta_rbar.png",
-        "state_map.png",
-        "trajectory.nc",
-        "summary.json",
-    ):
+    for name in ("meridian.png", "theta_rbar.png", "state_map.png", "trajectory.nc",
+                 "summary.json"):
         assert (tmp_path / name).exists()

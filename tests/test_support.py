@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dynslip.physics.friction import Coulomb
-from dynslip.physics.protocols import BALL_FORCE, Protocol, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, Duration, Protocol, Stage
 from dynslip.physics.simulate import Settings, StageArgs, simulate
 from test_forming import MODEL, PRE, RIM, Z0, residual
 
@@ -25,27 +25,12 @@ W = 1e-3
 
 def _args(support):
     z = jnp.asarray(0.0)
-    return StageArgs(
-        t0=z,
-        clamp_mode=jnp.asarray(0),
-        vzc=z,
-        vrhoc=z,
-        fc0=jnp.zeros(2),
-        fc1=jnp.zeros(2),
-        ball_mode=jnp.asarray(BALL_FORCE),
-        vzb=z,
-        f0=z,
-        f1=z,
-        ramp=jnp.asarray(1.0),
-        friction=Coulomb(mu=jnp.asarray(1.0)),
-        eps=z,
-        drag=jnp.asarray(0.1),
-        ball_drag=jnp.asarray(1.0),
-        weight=z,
-        support=jnp.asarray(support),
-        support_z=jnp.asarray(0.0),
-        support_k=jnp.asarray(K),
-    )
+    return StageArgs(t0=z, clamp_mode=jnp.asarray(0), vzc=z, vrhoc=z, fc0=jnp.zeros(2),
+                     fc1=jnp.zeros(2),
+                     ball_mode=jnp.asarray(BALL_FORCE), vzb=z, f0=z, f1=z, ramp=jnp.asarray(1.0),
+                     friction=Coulomb(mu=jnp.asarray(1.0)), eps=z, drag=jnp.asarray(0.1),
+                     ball_drag=jnp.asarray(1.0), weight=z, support=jnp.asarray(support),
+                     support_z=jnp.asarray(0.0), support_k=jnp.asarray(K))
 
 
 def test_support_force_is_unilateral_closed_form():
@@ -62,31 +47,14 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
     speed, depth = 0.2, -1.5
     pull_up = 20.0  # G h0 R, more than the sheet's pull at the end of the push (about 8.8)
     stages = (
-        Stage(
-            "push_down",
-            StopRule("duration", duration=(Z0 - depth) / speed),
-            clamp_vz=-speed,
-            ball_mode=BALL_FORCE,
-            ball_force_start=0.0,
-            ball_force_end=0.0,
-            support=True,
-        ),
-        Stage(
-            "hold",
-            StopRule("duration", duration=2.0),
-            ball_mode=BALL_FORCE,
-            ball_force_start=0.0,
-            ball_force_end=0.0,
-            support=True,
-        ),
-        Stage(
-            "lift",
-            StopRule("duration", duration=4.0),
-            ball_mode=BALL_FORCE,
-            ball_force_start=0.0,
-            ball_force_end=pull_up,
-            support=True,
-        ),
+        Stage("push_down", Duration(duration=(Z0 - depth) / speed), clamp_vz=-speed,
+              ball_mode=BALL_FORCE, ball_force_start=0.0, ball_force_end=0.0, support=True),
+        Stage("hold", Duration(duration=2.0), ball_mode=BALL_FORCE,
+              ball_force_start=0.0,
+              ball_force_end=0.0, support=True),
+        Stage("lift", Duration(duration=4.0), ball_mode=BALL_FORCE,
+              ball_force_start=0.0,
+              ball_force_end=pull_up, support=True),
     )
     res = simulate(MODEL, Protocol(stages, clamp_rho0=RIM, clamp_z0=Z0, ball_z0=0.0),
                    friction=Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3)), eps=1e-3, drag=0.1,
@@ -107,11 +75,9 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
     assert abs(float(end["ball_reaction"]) - pull_up) < 1e-12  # only the applied pull, no support
     r, _ = residual(res)
     assert r < 1e-2, r
-    print(
-        f"support: clamp pull {cz:.4f}, support force {fs:.4f}, sink {-zb:.3e} R (closed form "
-        f"{d:.3e}); "
-        f"lift-off to z_b = {float(end['ball_z']):.3e} R; energy residual / work {r:.2e}"
-    )
+    print(f"support: clamp pull {cz:.4f}, support force {fs:.4f}, sink {-zb:.3e} R (closed form "
+          f"{d:.3e}); "
+          f"lift-off to z_b = {float(end['ball_z']):.3e} R; energy residual / work {r:.2e}")
 
 
 @pytest.mark.parametrize("preload_N", [None, -1.0])
@@ -137,17 +103,9 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N)
     applied = -0.05 * t  # G h0 R: the ramp (down)
     stage = np.ones_like(t, dtype=int)
     stage[:2] = 0
-    first = (
-        {"name": "rest", "ball": "free", "until": "duration"}
-        if preload_N is None
-        else {
-            "name": "preload",
-            "ball": "pull",
-            "ball_force_N": preload_N,
-            "until": "duration",
-            "duration_s": 1.0,
-        }
-    )
+    first = ({"name": "rest", "ball": "free", "until": "duration"} if preload_N is None else
+             {"name": "preload", "ball": "pull", "ball_force_N": preload_N, "until": "duration",
+              "duration_s": 1.0})
     sc = {
         "physics": {
             "stages": [
@@ -167,25 +125,18 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N)
     rbar = np.linspace(0.0, 2.0, 5)
     zb = z_mm / r_mm
     z = np.stack([zb + 1.0, zb + 0.9] + [np.full_like(zb, c) for c in (0.5, 0.2, 0.0)], axis=1)
-    ds = xr.Dataset(
-        {
-            "ball_z": ("time", zb),
-            "ball_reaction": ("time", applied),
-            "stage": ("time", stage),
-            "z": (("time", "rbar"), z),
-        },
-        coords={"time": t, "rbar": rbar},
-        attrs={"scenario": json.dumps(sc), "force_scale_N": fs, "R_m": r_mm * 1e-3},
-    )
+    ds = xr.Dataset({"ball_z": ("time", zb), "ball_reaction": ("time", applied), "stage": ("time",
+                                                                                           stage),
+                     "z": (("time", "rbar"), z)},
+                    coords={"time": t, "rbar": rbar},
+                    attrs={"scenario": json.dumps(sc), "force_scale_N": fs, "R_m": r_mm * 1e-3})
     m = force_ramp_metrics(ds)
-    speed = np.abs(
-        np.gradient(z_mm, t)
-    )  # what the metric sees (centred differences of the saved frames)
+    # what the metric sees (centred differences of the saved frames)
+    speed = np.abs(np.gradient(z_mm, t))
     last = int(np.flatnonzero((stage == 1) & (speed < 0.1))[-1])
     assert m["torn_out"] is True
-    assert (
-        m["time_s"] == t[last] and last == 12
-    )  # frame 13 sees the tear-out step in its centred difference
+    # frame 13 sees the tear-out step in its centred difference
+    assert m["time_s"] == t[last] and last == 12
     assert m["release_force_N"] == applied[last] * fs
     eta_b = ball_drag_coefficient(tau, 1.0)
     assert abs(m["drag_share"] - eta_b * speed[last] / r_mm / abs(applied[last])) < 1e-12

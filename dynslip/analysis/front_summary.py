@@ -202,7 +202,7 @@ def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict
     and rest time (positive: rest spreads outward).
     """
     fronts = fronts_dataset(ds) if fronts is None else fronts
-    rest_speed = _rest_speed(fronts)
+    rest_speed = rest_speed_of(fronts)
     names = stage_names(ds)
     t = np.asarray(ds["time"].values, dtype=float)
     stage = np.asarray(ds["stage"].values).astype(int)
@@ -291,6 +291,6 @@ def _spearman(x: np.ndarray, y: np.ndarray) -> float | None:
     return float(rho) if np.isfinite(rho) else None
 
 
-def _rest_speed(fronts: xr.Dataset | None) -> float | None:
+def rest_speed_of(fronts: xr.Dataset | None) -> float | None:
     v = None if fronts is None else fronts.attrs.get("rest_speed", "none")
     return None if v is None or isinstance(v, str) else float(v)

@@ -9,24 +9,23 @@ run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import jax.numpy as jnp
 import numpy as np
 
 from dynslip.analysis.summary import summarize
+from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import ComputationError
 
-__all__ = ["run_forming", "resolve_start", "build_core", "to_dataset", "summarize", "FLUSH_FRAMES"]
+__all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "summarize",
+           "FLUSH_FRAMES"]
 
 FLUSH_FRAMES = 25
 
 
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
-    from dynslip.physics.friction import make_friction
     from dynslip.physics.protocols import ball_drag_coefficient
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import Settings
@@ -61,14 +60,7 @@ def build_core(sc):
         max_chord_depth=nu.max_chord_depth,
     )
     kwargs = dict(
-        friction=make_friction(
-            p.friction.law,
-            mu=p.friction.mu,
-            mu_s=p.friction.mu_s,
-            mu_k=p.friction.mu_k,
-            d_c=p.friction.d_c_mm / r,
-            eps=nu.friction_smoothing,
-        ),
+        friction=p.friction.core(r, nu.friction_smoothing),
         eps=nu.friction_smoothing,
         drag=nu.drag_time_s,
         ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
@@ -139,18 +131,18 @@ def resolve_start(sc, console=None):
     return sc._start
 
 
-def run_forming(sc, out: Path, console=None) -> dict:
-    """Run a forming scenario into ``out``; return the summary (raises ComputationError on
-    failure)."""
+def run_forming(sc, out, console=None) -> dict:
+    """Run a forming scenario into ``out`` (a folder, or :class:`dynslip.app.outputs.Outputs`:
+    in memory without a folder); return the summary (raises ComputationError on failure)."""
     from rich.console import Console
 
     from dynslip.errors import MaterialRangeError  # noqa: F401  (documented error type)
     from dynslip.physics.simulate import simulate
-    from dynslip.plot.forming import make_figures
 
     console = console or Console(stderr=True)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    outs = Outputs.of(out)
+    if outs.writes:
+        outs.folder.mkdir(parents=True, exist_ok=True)
     model, protocol, kw = build_core(sc)
     start, start_info = resolve_start(sc, console) or (None, None)
     names = protocol.names
@@ -169,7 +161,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
             else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
         )
         ds = to_dataset(sc, frames, rbar, e0, complete, names, start_info)
-        io.write_netcdf(ds, out / "trajectory.nc")
+        outs.netcdf(ds, "trajectory.nc")
         return ds
 
     def on_frame(rec):
@@ -182,7 +174,7 @@ def run_forming(sc, out: Path, console=None) -> dict:
             t=rec["time"],
             description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})",
         )
-        if len(frames_seen) % FLUSH_FRAMES == 0:
+        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file
             flush(frames_seen)
 
     try:
@@ -197,13 +189,26 @@ def run_forming(sc, out: Path, console=None) -> dict:
     if result.failed:
         ds = flush(result.frames)
         if ds is not None:
-            io.write_json(out / "summary.json", summarize(sc, ds, result))
+            outs.json(summarize(sc, ds, result))
         raise ComputationError(
-            f"{result.failed}; partial trajectory kept in {out / 'trajectory.nc'}"
+            f"{result.failed}; partial trajectory kept in {outs.where('trajectory.nc')}"
         )
+    summary = finish(sc, model, result, outs, names, start_info)
+    _print_summary(console, summary)
+    return summary
+
+
+def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
+    """What a forming run makes of the driver's finished result (a single run's or a member's
+    of a lockstep batch): the trajectory checked against its contract, the summary (with the
+    release metrics of a ``start_from`` run), the figures where ``outs`` writes; returns the
+    summary."""
+    from dynslip.plot.forming import make_figures
+
+    rbar = np.asarray(model.mesh.rbar)
     ds = to_dataset(sc, result.frames, rbar, result.e0, True, names, start_info)
     io.check_units(ds)
-    io.write_netcdf(ds, out / "trajectory.nc")
+    outs.netcdf(ds, "trajectory.nc")
     summary = summarize(sc, ds, result)
     if start_info is not None:
         from dynslip.analysis.release import release_metrics
@@ -215,10 +220,11 @@ def run_forming(sc, out: Path, console=None) -> dict:
         # the sweep's variable (N): the ramped force at tear-out where measured so, else the peak
         summary["release_force"] = (ramp["release_force_N"] if ramp is not None
                                     else summary["release"]["peak_force_N"])
-        plot_release(ds, summary["release"], out)
-    io.write_json(out / "summary.json", summary)
-    make_figures(ds, out, summary.get("outcome"))
-    _print_summary(console, summary)
+        if outs.writes:
+            plot_release(ds, summary["release"], outs.folder)
+    outs.json(summary)
+    if outs.writes:
+        make_figures(ds, outs.folder, summary.get("outcome"))
     return summary
 
 

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from dynslip.app import forming, static
+from dynslip.app.outputs import Outputs
 from dynslip.errors import InputError
 
 __all__ = ["RUNNERS", "PREFLIGHTS", "runner", "preflight", "run", "run_into"]
@@ -46,8 +47,9 @@ def preflight(scn, console=None) -> None:
 
 
 def run(scn, out, console=None) -> dict:
-    """Run ``scn`` into the folder ``out`` (its files written there); return its summary."""
-    return runner(scn.kind)(scn, Path(out), console)
+    """Run ``scn`` into the folder ``out`` (its files written there), or into
+    :class:`~dynslip.app.outputs.Outputs` (in memory without a folder); return its summary."""
+    return runner(scn.kind)(scn, out if isinstance(out, Outputs) else Path(out), console)
 
 
 def _inside(path, folder: Path) -> bool:

@@ -11,8 +11,6 @@ writes what it computed (``complete = 0``, summary ``status: failed``) and raise
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from dynslip.analysis.cylinder import cylinder_study, cylinder_summary
@@ -26,10 +24,12 @@ from dynslip.analysis.static import (
     family_summary,
     figure4_summary,
 )
+from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data.static import cylinder_dataset, family_dataset, figure4_dataset, static_dataset
 from dynslip.errors import ComputationError
 from dynslip.plot.style import MODEL_LABELS as LABEL
+from dynslip.schema.materials import MaterialSpec
 
 __all__ = ["PAPER_MU", "run_static", "run_figure4", "run_family",
            "run_cylinder", "paper_mu"]
@@ -72,42 +72,45 @@ def _table(console, title: str, rows: list[dict]) -> None:
         console.print(f"selection rule: {rows[0]['selection_rule']}")
 
 
-def _fail(res_list, out: Path):
+def _fail(res_list, outs: Outputs):
     msgs = [r["error"] for r in res_list if r["status"] != "ok"]
     if msgs:
-        raise ComputationError("; ".join(msgs) + f" (partial results kept in {out}, complete = 0)")
+        where = outs.folder if outs.writes else outs.where("result.nc")
+        raise ComputationError("; ".join(msgs)
+                               + f" (partial results kept in {where}, complete = 0)")
 
 
-def run_static(sc, out: Path, console) -> dict:
+def run_static(sc, out, console) -> dict:
     """``kind: static``: one material, Fig. 4 row."""
     from dynslip.plot.static import save_figure4_row
     from dynslip.schema.static import material_of
 
+    outs = Outputs.of(out)
     p = sc.physics
     mat = material_of(p.material)
     res = compute_static(mat, p.material.model, rbar_max=p.rbar_max, theta_max=p.theta_max,
                          initial_shape=p.initial_shape, selection=p.selection, num=sc.numerics,
                          jm=getattr(p.material, "jm", None))
     ds = static_dataset(res, sc.to_json(), "static", _scales(p))
-    io.write_netcdf(ds, out / "result.nc")
+    outs.netcdf(ds, "result.nc")
     summary = _summary(res)
-    io.write_json(out / "summary.json", summary)
-    if "lambda_theta" in res:
-        save_figure4_row(ds, out / "figure4_row.png")
+    outs.json(summary)
+    if "lambda_theta" in res and outs.writes:
+        save_figure4_row(ds, outs.folder / "figure4_row.png")
     _table(console, f"static: {LABEL.get(res['model'], res['model'])}", [summary])
-    _fail([res], out)
+    _fail([res], outs)
     return summary
 
 
-def run_figure4(sc, out: Path, console) -> dict:
+def run_figure4(sc, out, console) -> dict:
     """``kind: figure4``: Hookean, neo-Hookean, Gent in one 3x3 figure."""
-    from dynslip.physics.materials import make_material
     from dynslip.plot.static import save_figure4
 
+    outs = Outputs.of(out)
     p = sc.physics
     results, sums, dss = [], [], []
     for model in FIGURE4_MODELS:
-        mat = make_material(model, jm=p.jm)
+        mat = MaterialSpec(model=model, jm=p.jm).core()
         res = compute_static(
             mat,
             model,
@@ -124,24 +127,24 @@ def run_figure4(sc, out: Path, console) -> dict:
     ds = figure4_dataset(
         dss, FIGURE4_MODELS, sc.to_json(), all(r["status"] == "ok" for r in results)
     )
-    io.write_netcdf(ds, out / "result.nc")
+    outs.netcdf(ds, "result.nc")
     summary = figure4_summary(sums, bool(ds.attrs["complete"]))
-    io.write_json(out / "summary.json", summary)
-    if all("lambda_theta" in r for r in results):
-        save_figure4(ds, out / "figure4.png")
+    outs.json(summary)
+    if all("lambda_theta" in r for r in results) and outs.writes:
+        save_figure4(ds, outs.folder / "figure4.png")
     _table(console, "Fig. 4: the three models", sums)
-    _fail(results, out)
+    _fail(results, outs)
     return summary
 
 
-def run_family(sc, out: Path, console) -> dict:
+def run_family(sc, out, console) -> dict:
     """``kind: family``: mu along the fully mobilised family of the three models."""
-    from dynslip.physics.materials import make_material
     from dynslip.plot.static import save_family
 
+    outs = Outputs.of(out)
     p, num = sc.physics, sc.numerics
     values = np.linspace(p.switch_from, p.switch_to, num.n_members)
-    materials = {model: make_material(model, jm=p.jm) for model in FIGURE4_MODELS}
+    materials = {model: MaterialSpec(model=model, jm=p.jm).core() for model in FIGURE4_MODELS}
     cols, selected = family(
         materials,
         values,
@@ -159,30 +162,33 @@ def run_family(sc, out: Path, console) -> dict:
     ds.attrs.update(io.provenance(sc.to_json(), "family"), **_scales(p), switch_by=p.switch_by,
                     selection_rule=_rule_text(p.selection), complete=1)
     io.check_units(ds)
-    io.write_netcdf(ds, out / "result.nc")
+    outs.netcdf(ds, "result.nc")
     rows, summary = family_summary(cols, selected, models, p.jm, p.selection)
-    io.write_json(out / "summary.json", summary)
-    save_family(ds, out / "family.png")
+    outs.json(summary)
+    if outs.writes:
+        save_family(ds, outs.folder / "family.png")
     _table(console, "fully mobilised family: selected members", rows)
     return summary
 
 
-def run_cylinder(sc, out: Path, console) -> dict:
+def run_cylinder(sc, out, console) -> dict:
     """``kind: cylinder``: capstan bounds and the vertical force in 2D (paper Section 5)."""
     from rich.table import Table
 
     from dynslip.plot.static import save_cylinder
 
+    outs = Outputs.of(out)
     p, num = sc.physics, sc.numerics
     angles = np.linspace(p.theta_max_from, p.theta_max_to, num.n_angles)
     study = cylinder_study(p.mu, angles, num.n_profiles, num.n_nodes, num.seed)
     ds = cylinder_dataset(p.mu, angles, study)
     ds.attrs.update(io.provenance(sc.to_json(), "cylinder"), complete=1)
     io.check_units(ds)
-    io.write_netcdf(ds, out / "result.nc")
+    outs.netcdf(ds, "result.nc")
     summary = cylinder_summary(p.mu, angles, study)
-    io.write_json(out / "summary.json", summary)
-    save_cylinder(ds, out / "cylinder.png")
+    outs.json(summary)
+    if outs.writes:
+        save_cylinder(ds, outs.folder / "cylinder.png")
     tab = Table(title="2D cylinder (paper Section 5)")
     tab.add_column("quantity")
     tab.add_column("value", justify="right")

@@ -181,9 +181,9 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
 
 
 def _jsonable_summary(summary: dict) -> dict:
-    from dynslip.data.files import _jsonable
+    from dynslip.data.files import jsonable
 
-    return json.loads(json.dumps(_jsonable(summary), default=str))
+    return json.loads(json.dumps(jsonable(summary), default=str))
 
 
 def execute_member(
@@ -373,11 +373,12 @@ def _batchable(m: Member) -> bool:
 
 
 def _forming_outputs(sc, model, result, out: Path | None) -> dict:
-    """What :func:`dynslip.app.forming.run_forming` makes of a driver result: the summary
-    (raises :class:`ComputationError` for a failed run), with its files in ``out`` when given
-    (``keep_runs``; the figures too)."""
+    """What :func:`dynslip.app.forming.finish` makes of a lockstep member's result: the
+    summary (raises :class:`ComputationError` for a failed run), with its files in ``out``
+    when given (``keep_runs``; the figures too)."""
     from dynslip.analysis.summary import summarize
-    from dynslip.app.forming import to_dataset
+    from dynslip.app.forming import finish, to_dataset
+    from dynslip.app.outputs import Outputs
     from dynslip.data import files as io
 
     names = [s.name for s in sc.physics.stages]
@@ -391,16 +392,7 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
             io.write_netcdf(ds, out / "trajectory.nc")
             io.write_json(out / "summary.json", summarize(sc, ds, result))
         raise ComputationError(f"{result.failed}; partial trajectory kept in {where}")
-    ds = to_dataset(sc, result.frames, rbar, result.e0, True, names)
-    io.check_units(ds)
-    summary = summarize(sc, ds, result)
-    if out is not None:
-        from dynslip.plot.forming import make_figures
-
-        io.write_netcdf(ds, out / "trajectory.nc")
-        io.write_json(out / "summary.json", summary)
-        make_figures(ds, out, summary.get("outcome"))
-    return summary
+    return finish(sc, model, result, Outputs(out), names)
 
 
 def run_forming_batch(

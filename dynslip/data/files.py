@@ -66,11 +66,11 @@ def write_text(path, text: str) -> Path:
     return path
 
 
-def _jsonable(obj):
+def jsonable(obj):
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, (np.floating, float)):
         v = float(obj)
         return v if np.isfinite(v) else None
@@ -79,13 +79,13 @@ def _jsonable(obj):
     if isinstance(obj, (np.bool_,)):
         return bool(obj)
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     return obj
 
 
 def write_json(path, data: dict) -> Path:
     """Write ``data`` as indented JSON atomically (NaN and inf become null)."""
-    return write_text(path, json.dumps(_jsonable(data), indent=2) + "\n")
+    return write_text(path, json.dumps(jsonable(data), indent=2) + "\n")
 
 
 def write_netcdf(ds: xr.Dataset, path) -> Path:

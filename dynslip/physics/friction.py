@@ -45,6 +45,7 @@ import jax.numpy as jnp
 
 __all__ = [
     "AbstractFriction",
+    "FRICTION_LAWS",
     "Coulomb",
     "SlipWeakening",
     "soft_threshold",
@@ -179,8 +180,15 @@ class SlipWeakening(AbstractFriction):
         return jnp.where(heals(slip_speed, normal, heal_rate), 0.0, internal)
 
 
+#: the one registry of friction laws: a law's name (the schema's ``law``) -> its class; the
+#: schema builds them (:meth:`dynslip.schema.forming.FrictionSpec.core`)
+FRICTION_LAWS: dict[str, type[AbstractFriction]] = {"coulomb": Coulomb,
+                                                     "slip_weakening": SlipWeakening}
+
+
 def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0) -> AbstractFriction:
-    """A friction law by name (``coulomb`` or ``slip_weakening``), parameters as jnp scalars."""
+    """A friction law by name (:data:`FRICTION_LAWS`), parameters as jnp scalars, for code that
+    holds no schema (the benchmarks, and tests of the physics alone)."""
     f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
     if law == "coulomb":
         return Coulomb(mu=f(mu), eps=f(eps))

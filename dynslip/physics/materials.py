@@ -49,6 +49,7 @@ __all__ = [
     "relaxed_tensions",
     "check_range",
     "make_material",
+    "MATERIALS",
 ]
 
 
@@ -240,14 +241,18 @@ def check_range(material: AbstractMaterial, lt, lp, where: str = "") -> None:
         )
 
 
+#: the one registry of materials: a model's name (the schema's ``model``) -> its class; the
+#: schema builds them (:meth:`dynslip.schema.materials.MaterialSpec.core`)
+MATERIALS: dict[str, type[AbstractMaterial]] = {
+    "hookean": Hookean, "neo_hookean": NeoHookean, "mooney_rivlin": MooneyRivlin, "gent": Gent,
+}
+
+
 def make_material(model: str, *, jm: float = 50.0, c1: float = 0.5, c2: float = 0.0):
-    """Material from its name: ``hookean``, ``neo_hookean``, ``mooney_rivlin``, ``gent``."""
-    if model == "hookean":
-        return Hookean()
-    if model == "neo_hookean":
-        return NeoHookean()
-    if model == "mooney_rivlin":
-        return MooneyRivlin(c1=float(c1), c2=float(c2))
-    if model == "gent":
-        return Gent(jm=float(jm))
-    raise ValueError(f"unknown material model {model!r}")
+    """Material from its name (:data:`MATERIALS`), for code that holds no schema (the
+    benchmarks, and tests of the physics alone); the package builds materials through the
+    schema."""
+    if model not in MATERIALS:
+        raise ValueError(f"unknown material model {model!r}")
+    params = {"mooney_rivlin": {"c1": float(c1), "c2": float(c2)}, "gent": {"jm": float(jm)}}
+    return MATERIALS[model](**params.get(model, {}))

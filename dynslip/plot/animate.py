@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from dynslip.analysis.front_summary import _rest_speed, fronts_dataset
+from dynslip.analysis.front_summary import fronts_dataset, rest_speed_of
 from dynslip.analysis.fronts import motion_state
 from dynslip.data.trajectory import open_trajectory, stage_names, time_indices
 from dynslip.errors import InputError
@@ -95,7 +95,7 @@ class _Renderer:
         self.ax = self.fig.add_subplot(gs[0])
         self.ax_map = self.fig.add_subplot(gs[1])
         self.t = np.asarray(ds["time"].values, dtype=float)
-        self.state = motion_state(ds, _rest_speed(fronts))
+        self.state = motion_state(ds, rest_speed_of(fronts))
         self.rho = np.asarray(ds["rho"].transpose("time", "rbar").values, dtype=float)
         self.z = np.asarray(ds["z"].transpose("time", "rbar").values, dtype=float)
         self.names = stage_names(ds)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from dynslip.analysis.front_summary import _rest_speed
+from dynslip.analysis.front_summary import rest_speed_of
 from dynslip.analysis.fronts import BIRTH_EVENTS, DEATH_EVENTS, motion_state
 from dynslip.data.files import save_figure
 from dynslip.data.trajectory import stage_names
@@ -32,7 +32,7 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     ax.pcolormesh(
         _edges(rbar),
         _edges(t),
-        motion_state(ds, _rest_speed(fronts)),
+        motion_state(ds, rest_speed_of(fronts)),
         cmap=cmap,
         norm=norm,
         shading="flat",

@@ -6,7 +6,7 @@ Heights are measured from the ball centre, upward. See docs/forming.md.
 
 Longer than 400 lines: one validated model per section of the forming scenario (friction,
 stage, numerics, physics, the scenario), each field with its bounds, unit and
-description, and the protocol the validated stages build; a field per argument line.
+description, and the protocol the validated stages build.
 """
 
 from __future__ import annotations
@@ -21,17 +21,11 @@ from dynslip.physics.reference import MEASURED_MU_K, MEASURED_MU_S
 from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.materials import MaterialSpec
 
-__all__ = [
-    "FormingScenario",
-    "FormingPhysics",
-    "FormingNumerics",
-    "StageSpec",
-    "MaterialSpec",
-    "FrictionSpec",
-]
+__all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec",
+           "FrictionSpec"]
 
-# : bounds of the loading path: the longest time of a stage (s), the most stages, the most saved
-# frames
+#: bounds of the loading path: the longest time of a stage (s), the most stages, the most saved
+#: frames
 MAX_TIME_S = 1e6
 MAX_STAGES = 100
 MAX_FRAMES = 1_000_000
@@ -42,42 +36,27 @@ class FrictionSpec(Strict):
     weakening (physics.md Section 4, "Friction"; docs/forming.md)."""
 
     law: Literal["coulomb", "slip_weakening"] = F(
-        "coulomb",
-        description="coulomb: ideal Coulomb (mu), overdamped soft threshold; slip_weakening: "
+        "coulomb", description="coulomb: ideal Coulomb (mu), overdamped soft threshold; "
+                               "slip_weakening: "
         "static/kinetic, mu falls from mu_s to mu_k over a slip distance d_c_mm, reset when the "
-        "node sticks",
-    )
+        "node sticks")
     mu: float = F(1.15, ge=0, le=10, description="friction coefficient of law: coulomb")
-    mu_s: float = F(
-        MEASURED_MU_S,
-        ge=0,
-        le=10,
-        description=f"static coefficient of law: slip_weakening (paper: {MEASURED_MU_S:g})",
-    )
-    mu_k: float = F(
-        MEASURED_MU_K,
-        ge=0,
-        le=10,
-        description=f"kinetic coefficient of law: slip_weakening (paper: {MEASURED_MU_K:g}); <= "
-            f"mu_s",
-    )
-    d_c_mm: float = F(
-        0.4,
-        unit="mm",
-        gt=0,
-        le=1e4,
-        description="weakening slip distance of law: slip_weakening, "
-        "in (0, 1e4] mm; the mesh "
-        "must be much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)",
-    )
+    mu_s: float = F(MEASURED_MU_S, ge=0, le=10,
+                    description=f"static coefficient of law: slip_weakening (paper: "
+                                f"{MEASURED_MU_S:g})")
+    mu_k: float = F(MEASURED_MU_K, ge=0, le=10,
+                    description=f"kinetic coefficient of law: slip_weakening (paper: "
+                                f"{MEASURED_MU_K:g}); <= mu_s")
+    d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4, description="weakening slip distance of law: "
+                                                                "slip_weakening, "
+                      "in (0, 1e4] mm; the mesh "
+                      "must be much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
 
     @model_validator(mode="after")
     def _order(self):
         if self.mu_k > self.mu_s:
-            raise ValueError(
-                f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction must not exceed "
-                f"static)"
-            )
+            raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction "
+                             f"must not exceed static)")
         return self
 
     @property
@@ -85,159 +64,124 @@ class FrictionSpec(Strict):
         """The coefficient a reader compares mu_mobilised_max with: mu, or mu_s."""
         return self.mu if self.law == "coulomb" else self.mu_s
 
+    def core(self, ball_radius_mm: float, eps: float):
+        """The core friction law (:data:`dynslip.physics.friction.FRICTION_LAWS`): lengths by
+        the ball radius, ``eps`` the force-space smoothing (G h0 / R)."""
+        import jax.numpy as jnp
+
+        from dynslip.physics.friction import FRICTION_LAWS
+
+        f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+        params = {"coulomb": {"mu": f(self.mu)},
+                  "slip_weakening": {"mu_s": f(self.mu_s), "mu_k": f(self.mu_k),
+                                     "d_c": f(self.d_c_mm / ball_radius_mm)}}[self.law]
+        return FRICTION_LAWS[self.law](**params, eps=f(eps))
+
 
 class StageSpec(Strict):
     """One stage: clamp motion, what holds the ball, and when the stage ends."""
 
     name: str = F(..., min_length=1, description="stage name (unique)")
-    clamp_to_z_mm: float | None = F(
-        None,
-        unit="mm",
-        ge=-1e4,
-        le=1e4,
-        description="clamp height to move to (from the ball centre), in [-1e4, 1e4] mm; "
-        "needs clamp_speed_mm_s",
-    )
-    clamp_speed_mm_s: float | None = F(
-        None,
-        unit="mm/s",
-        ge=1e-6,
-        le=1e4,
-        description="speed of a clamp_to_z_mm move, in [1e-6, 1e4] mm/s",
-    )
-    clamp_velocity_mm_s: float = F(
-        0.0,
-        unit="mm/s",
-        ge=-1e4,
-        le=1e4,
-        description="signed vertical clamp velocity (up > 0) for stages ended by a condition "
-        "or duration, in [-1e4, 1e4] mm/s",
-    )
-    duration_s: float | None = F(
-        None,
-        unit="s",
-        gt=0,
-        le=MAX_TIME_S,
-        description="stage duration, in (0, 1e6] s; for condition stages the longest it may run",
-    )
+    clamp_to_z_mm: float | None = F(None, unit="mm", ge=-1e4, le=1e4,
+                                    description="clamp height to move to (from the ball centre), "
+                                                "in [-1e4, 1e4] mm; "
+                                    "needs clamp_speed_mm_s")
+    clamp_speed_mm_s: float | None = F(None, unit="mm/s", ge=1e-6, le=1e4,
+                                       description="speed of a clamp_to_z_mm move, in [1e-6, 1e4] "
+                                                   "mm/s")
+    clamp_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
+                                   description="signed vertical clamp velocity (up > 0) for stages "
+                                               "ended by a condition "
+                                   "or duration, in [-1e4, 1e4] mm/s")
+    duration_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
+                                 description="stage duration, in (0, 1e6] s; for condition stages "
+                                             "the longest it may run")
     until: Literal[
         "duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above"
     ] = F(
         "duration",
-        description="stop rule: the duration, the clamp's axial force below a threshold, rest, "
+        description="stop rule: the duration, the clamp's axial force below a "
+        "threshold, rest, "
         "the contact edge's polar angle below theta_stop_rad, or the ball's speed above "
         "ball_speed_mm_s (a pull "
         "has torn the ball out)",
     )
-    ball_speed_mm_s: float | None = F(
-        None,
-        unit="mm/s",
-        gt=0,
-        le=1e3,
-        description="until: ball_speed_above: the ball-speed threshold",
-    )
-    ball_force_N: float | None = F(
-        None,
-        unit="N",
-        ge=-1e3,
-        le=1e3,
-        description="ball: pull: the applied force on the ball at the stage's end (up > 0; "
-        "toward the pocket's opening < 0), ramped linearly from 0 over duration_s",
-    )
-    theta_stop_rad: float | None = F(
-        None,
-        unit="rad",
-        gt=0,
-        lt=math.pi,
-        description="until: theta_max_below: the polar angle (pi/2: opening radius R)",
-    )
-    ball_velocity_mm_s: float = F(
-        0.0,
-        unit="mm/s",
-        ge=-1e4,
-        le=1e4,
-        description="signed velocity (up > 0), in [-1e4, 1e4] mm/s, of a held ball (ball: "
-        "hold); the pole of the "
-        "ball points up, the pocket's opening down",
-    )
-    force_threshold_N: float | None = F(
-        None,
-        unit="N",
-        gt=0,
-        le=1e6,
-        description="threshold of until: clamp_force_below, in (0, 1e6] N",
-    )
-    rest_rate_mm_s: float | None = F(
-        None,
-        unit="mm/s",
-        gt=0,
-        le=1e4,
-        description="until: rest: largest slip speed and ball speed below this, in (0, 1e4] mm/s",
-    )
+    ball_speed_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e3,
+                                      description="until: ball_speed_above: the ball-speed "
+                                                  "threshold")
+    ball_force_N: float | None = F(None, unit="N", ge=-1e3, le=1e3,
+                                   description="ball: pull: the applied force on the ball at the "
+                                               "stage's end (up > 0; "
+                                   "toward the pocket's opening < 0), ramped linearly from 0 over "
+                                   "duration_s")
+    theta_stop_rad: float | None = F(None, unit="rad", gt=0, lt=math.pi,
+                                     description="until: theta_max_below: the polar angle (pi/2: "
+                                                 "opening radius R)")
+    ball_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
+                                  description="signed velocity (up > 0), in [-1e4, 1e4] mm/s, of a "
+                                              "held ball (ball: "
+                                  "hold); the pole of the "
+                                  "ball points up, the pocket's opening down")
+    force_threshold_N: float | None = F(None, unit="N", gt=0, le=1e6,
+                                        description="threshold of until: clamp_force_below, in (0, "
+                                                    "1e6] N")
+    rest_rate_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e4,
+                                     description="until: rest: largest slip speed and ball speed "
+                                                 "below this, "
+                                     "in (0, 1e4] mm/s")
     rest_hold_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
                                   description="until: rest: for this long, in (0, 1e6] s")
     clamp: Literal["move", "let_go", "free"] = F(
-        "move",
-        description="move: the clamp holds the edge and moves as given; let_go: its force on the "
-            "sheet is "
-        "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held",
-    )
+        "move", description="move: the clamp holds the edge and moves as given; let_go: its force "
+                            "on the sheet is "
+        "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held")
     ball: Literal["hold", "release", "free", "support", "pull"] = F(
-        "hold",
-        description="hold: ball held in place; release: the hold's reaction ramped to zero over "
-            "the "
+        "hold", description="hold: ball held in place; release: the hold's reaction ramped to zero "
+                            "over the "
         "stage; free: no hold; support: the ball rests on the bottle neck (a rigid unilateral "
         "support below it: "
         "the pocket may lift it off); pull: a force ramped from 0 (from the previous stage's final "
         "force when that "
-        "stage is a pull too: a preload, then a ramp) to ball_force_N over the stage",
-    )
+        "stage is a pull too: a preload, then a ramp) to ball_force_N over the stage")
 
     @model_validator(mode="after")
     def _consistent(self):
         if self.clamp != "move" and (
             self.clamp_to_z_mm is not None or self.clamp_velocity_mm_s != 0.0
         ):
-            raise ValueError(
-                f"clamp: {self.clamp} prescribes no clamp motion; drop clamp_to_z_mm / "
-                f"clamp_velocity_mm_s"
-            )
+            raise ValueError(f"clamp: {self.clamp} prescribes no clamp motion; drop clamp_to_z_mm "
+                             f"/ clamp_velocity_mm_s")
         if self.clamp_to_z_mm is not None:
             if self.clamp_speed_mm_s is None:
                 raise ValueError("clamp_to_z_mm needs clamp_speed_mm_s")
             if self.clamp_velocity_mm_s != 0.0:
-                raise ValueError(
-                    "overlapping clamp motions: give clamp_to_z_mm (with clamp_speed_mm_s) "
-                    "or clamp_velocity_mm_s, not both"
-                )
+                raise ValueError("overlapping clamp motions: give clamp_to_z_mm (with "
+                                 "clamp_speed_mm_s) "
+                                 "or clamp_velocity_mm_s, not both")
             if self.duration_s is not None:
-                raise ValueError(
-                    "overlapping timing: a clamp_to_z_mm move takes |dz|/speed; drop duration_s"
-                )
+                raise ValueError("overlapping timing: a clamp_to_z_mm move takes |dz|/speed; drop "
+                                 "duration_s")
             if self.until != "duration":
                 raise ValueError("a clamp_to_z_mm move ends at its target: use until: duration")
         elif self.clamp_speed_mm_s is not None:
             raise ValueError("clamp_speed_mm_s without clamp_to_z_mm")
         elif self.duration_s is None:
-            raise ValueError(
-                "duration_s is required (the duration, or the longest a condition stage may run)"
-            )
+            raise ValueError("duration_s is required (the duration, or the longest a condition "
+                             "stage may run)")
         if self.until == "clamp_force_below":
             if self.force_threshold_N is None:
                 raise ValueError("until: clamp_force_below needs force_threshold_N")
             if self.clamp != "move":
-                raise ValueError(
-                    "until: clamp_force_below needs a clamp that holds the edge (clamp: move)"
-                )
+                raise ValueError("until: clamp_force_below needs a clamp that holds the edge "
+                                 "(clamp: move)")
             if (
                 self.clamp_velocity_mm_s == 0.0
                 and self.ball == "hold"
                 and self.ball_velocity_mm_s == 0.0
             ):
-                raise ValueError(
-                    "until: clamp_force_below with a clamp and ball at rest can never hold "
-                    "(nothing unloads the sheet)"
-                )
+                raise ValueError("until: clamp_force_below with a clamp and ball at rest can never "
+                                 "hold "
+                                 "(nothing unloads the sheet)")
         if self.until == "ball_speed_above" and self.ball_speed_mm_s is None:
             raise ValueError("until: ball_speed_above needs ball_speed_mm_s")
         if (self.ball == "pull") != (self.ball_force_N is not None):
@@ -250,9 +194,8 @@ class StageSpec(Strict):
             if self.rest_rate_mm_s is None or self.rest_hold_s is None:
                 raise ValueError("until: rest needs rest_rate_mm_s and rest_hold_s")
             if self.rest_hold_s >= self.duration_s:
-                raise ValueError(
-                    "until: rest can never hold: rest_hold_s must be shorter than duration_s"
-                )
+                raise ValueError("until: rest can never hold: rest_hold_s must be shorter than "
+                                 "duration_s")
         return self
 
 
@@ -279,49 +222,36 @@ def _default_stages() -> list[StageSpec]:
 class FormingPhysics(Strict):
     """Geometry, material, friction and the loading path (physical units)."""
 
-    ball_radius_mm: float = F(
-        20.0, unit="mm", gt=0, le=1e4, description="ball radius R, in (0, 1e4] mm"
-    )
-    ball_mass_g: float = F(
-        2.7, unit="g", ge=0, le=1e6, description="ball mass (only with gravity on), in [0, 1e6] g"
-    )
-    thickness_um: float = F(
-        150.0, unit="um", gt=0, le=1e6, description="sheet thickness h0, in (0, 1e6] um"
-    )
-    youngs_modulus_MPa: float = F(
-        2.0, unit="MPa", gt=0, le=1e6, description="Young's modulus E (G = E/3), in (0, 1e6] MPa"
-    )
+    ball_radius_mm: float = F(20.0, unit="mm", gt=0, le=1e4,
+                              description="ball radius R, in (0, 1e4] mm")
+    ball_mass_g: float = F(2.7, unit="g", ge=0, le=1e6,
+                           description="ball mass (only with gravity on), in [0, 1e6] g")
+    thickness_um: float = F(150.0, unit="um", gt=0, le=1e6,
+                            description="sheet thickness h0, in (0, 1e6] um")
+    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, le=1e6, description="Young's modulus E (G "
+                                                                             "= E/3), "
+                                  "in (0, 1e6] MPa")
     material: MaterialSpec = MaterialSpec()
     friction: FrictionSpec = FrictionSpec()
-    rim_radius_mm: float = F(
-        50.8,
-        unit="mm",
-        gt=0,
-        le=1e4,
-        description="radius of the held edge (tube rim, or hands), in (0, 1e4] mm",
-    )
-    pre_stretch: float = F(
-        1.05,
-        ge=0.5,
-        le=3.0,
-        description="radial stretch of the held sheet, in [0.5, 3]: method 2, the small stretch "
-        "of the disc clamped on the rim; method 1, the hand pre-stretch (the held disc has "
-        "material radius rim_radius / pre_stretch). Below 1 the held disc is slack: more material "
-        "than the rim's radius, the bound on what a sheet sliding over the rim could feed in "
-        "(docs/forming.md, 'Material fed over the rim')",
-    )
-    sheet_gap_mm: float = F(
-        0.4,
-        unit="mm",
-        gt=0,
-        le=1e4,
-        description="initial height of the flat sheet above the ball top, in (0, 1e4] mm",
-    )
-    gravity: bool = F(
-        False,
-        description="ball weight on (off by default: a downward-opening membrane pocket "
-        "cannot carry it; physics.md Section 4)",
-    )
+    rim_radius_mm: float = F(50.8, unit="mm", gt=0, le=1e4,
+                             description="radius of the held edge (tube rim, or hands), in (0, "
+                                         "1e4] mm")
+    pre_stretch: float = F(1.05, ge=0.5, le=3.0,
+                           description="radial stretch of the held sheet, in [0.5, 3]: method 2, "
+                                       "the small stretch "
+                           "of the disc clamped on the rim; method 1, the hand pre-stretch (the "
+                           "held disc has "
+                           "material radius rim_radius / pre_stretch). Below 1 the held disc is "
+                           "slack: more material "
+                           "than the rim's radius, the bound on what a sheet sliding over the rim "
+                           "could feed in "
+                           "(docs/forming.md, 'Material fed over the rim')")
+    sheet_gap_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
+                            description="initial height of the flat sheet above the ball top, in "
+                                        "(0, 1e4] mm")
+    gravity: bool = F(False, description="ball weight on (off by default: a downward-opening "
+                                         "membrane pocket "
+                      "cannot carry it; physics.md Section 4)")
     stages: list[StageSpec] = F(default_factory=_default_stages, max_length=MAX_STAGES,
                                 description="the loading path, in order (at most 100 stages)")
 
@@ -331,9 +261,8 @@ class FormingPhysics(Strict):
             raise ValueError("stages: empty protocol (need at least one stage)")
         names = [s.name for s in self.stages]
         if len(set(names)) != len(names):
-            raise ValueError(
-                f"stages: duplicate stage names {sorted({n for n in names if names.count(n) > 1})}"
-            )
+            raise ValueError(f"stages: duplicate stage names "
+                             f"{sorted({n for n in names if names.count(n) > 1})}")
         if self.rim_radius_mm <= self.ball_radius_mm:
             raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the ball "
                              f"(radius {self.ball_radius_mm} mm)")
@@ -342,24 +271,21 @@ class FormingPhysics(Strict):
         let_go = False
         for s in self.stages:
             if let_go and s.clamp == "move":
-                raise ValueError(
-                    f"stages.{s.name}: the clamp cannot hold the edge again once it has let go"
-                )
+                raise ValueError(f"stages.{s.name}: the clamp cannot hold the edge again once it "
+                                 f"has let go")
             let_go = let_go or s.clamp != "move"
             if s.clamp_to_z_mm is not None:
                 if not known:
-                    raise ValueError(
-                        f"stages.{s.name}: clamp_to_z_mm after a condition stage (start height "
-                        "unknown): use clamp_velocity_mm_s with duration_s"
-                    )
+                    raise ValueError(f"stages.{s.name}: clamp_to_z_mm after a condition stage "
+                                     f"(start height "
+                                     "unknown): use clamp_velocity_mm_s with duration_s")
                 if abs(s.clamp_to_z_mm - z) < 1e-9:
                     raise ValueError(f"stages.{s.name}: empty stage (clamp already at {z} mm)")
                 if abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s > MAX_TIME_S:
-                    raise ValueError(
-                        f"stages.{s.name}: the clamp_to_z_mm move lasts "
-                        f"{abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s:.3g} s (|dz| / "
-                        "clamp_speed_mm_s); allowed: at most 1e6 s"
-                    )
+                    raise ValueError(f"stages.{s.name}: the clamp_to_z_mm move lasts "
+                                     f"{abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s:.3g} s (|dz| "
+                                     f"/ "
+                                     "clamp_speed_mm_s); allowed: at most 1e6 s")
                 z = s.clamp_to_z_mm
             else:
                 z += s.clamp_velocity_mm_s * s.duration_s
@@ -377,65 +303,42 @@ class FormingNumerics(Strict):
     """Mesh, drag, solver and regularisations (nondimensional unless a unit is given)."""
 
     nodes: int = F(50, ge=6, le=4000, description="nodes from the pole to the clamp, 6..4000")
-    mesh_grading: float = F(
-        1.0,
-        ge=1.0,
-        le=4.0,
-        description="node material radii rbar_i = rbar_edge (i/(N-1))^g: 1 is uniform, g > 1 "
-        "grades the mesh toward the pole (where the push-down stretches the cap most), in "
-        "[1, 4]",
-    )
-    drag_time_s: float = F(
-        0.1,
-        unit="s",
-        gt=0,
-        le=MAX_TIME_S,
-        description="drag time tau = eta R^2/(G h0) of the overdamped sheet; loading is "
-        "slow when a stage lasts >> tau (docs/forming.md)",
-    )
-    ball_drag: float = F(
-        1.0,
-        gt=0,
-        le=1e6,
-        description="ball drag as a multiple of the sheet drag over the ball's "
-        "area 4 pi R^2, in (0, 1e6]",
-    )
+    mesh_grading: float = F(1.0, ge=1.0, le=4.0,
+                            description="node material radii rbar_i = rbar_edge (i/(N-1))^g: 1 is "
+                                        "uniform, g > 1 "
+                            "grades the mesh toward the pole (where the push-down stretches the "
+                            "cap most), in "
+                            "[1, 4]")
+    drag_time_s: float = F(0.1, unit="s", gt=0, le=MAX_TIME_S,
+                           description="drag time tau = eta R^2/(G h0) of the overdamped sheet; "
+                                       "loading is "
+                           "slow when a stage lasts >> tau (docs/forming.md)")
+    ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet drag "
+                                                        "over the ball's "
+                         "area 4 pi R^2, in (0, 1e6]")
     solver: Literal["load_step", "kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F(
-        "load_step",
-        description="load_step (default): quasi-static implicit Euler load increments controlled "
-            "by "
+        "load_step", description="load_step (default): quasi-static implicit Euler load increments "
+                                 "controlled by "
         "Newton's iteration count (first order in time: for slow paths; rtol, atol are Newton's "
         "tolerances); "
-        "kvaerno5: the adaptive 5th-order reference (docs/speed.md says when each is right)",
-    )
-    max_increment: float = F(
-        20.0,
-        gt=0,
-        le=1e4,
-        description="load_step: largest increment in drag times, driven "
-        "stages, in (0, 1e4] (the drag eta A / dt keeps Newton's matrix regular on slack sheet)",
-    )
-    max_increment_free: float = F(
-        5.0,
-        gt=0,
-        le=1e4,
-        description="load_step: largest increment in drag times where "
-        "the ball or the clamp moves under a force (let-go, release, rest), in (0, 1e4]",
-    )
-    newton_max_iter: int = F(
-        20,
-        ge=2,
-        le=100,
-        description="load_step: Newton iterations before an increment is cut, 2..100",
-    )
-    newton_backtrack: int = F(
-        4,
-        ge=0,
-        le=20,
-        description="load_step: at most this many halvings of a Newton "
-        "correction that would raise the residual's max norm (a backtracking safeguard "
-        "that breaks stick/slip cycles at the contact edge; 0: plain Newton), 0..20",
-    )
+        "kvaerno5: the adaptive 5th-order reference (docs/speed.md says when each is right)")
+    max_increment: float = F(20.0, gt=0, le=1e4, description="load_step: largest increment in drag "
+                                                             "times, driven "
+                             "stages, in (0, 1e4] (the drag eta A / dt keeps Newton's matrix "
+                             "regular on slack sheet)")
+    max_increment_free: float = F(5.0, gt=0, le=1e4, description="load_step: largest increment in "
+                                                                 "drag times where "
+                                  "the ball or the clamp moves under a force (let-go, release, "
+                                  "rest), in (0, 1e4]")
+    newton_max_iter: int = F(20, ge=2, le=100, description="load_step: Newton iterations before an "
+                                                           "increment is "
+                             "cut, 2..100")
+    newton_backtrack: int = F(4, ge=0, le=20, description="load_step: at most this many halvings "
+                                                          "of a Newton "
+                              "correction that would raise the residual's max norm (a backtracking "
+                              "safeguard "
+                              "that breaks stick/slip cycles at the contact edge; 0: plain "
+                              "Newton), 0..20")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
         description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "
@@ -445,76 +348,51 @@ class FormingNumerics(Strict):
     atol: float = F(1e-7, gt=0, lt=1, description="absolute tolerance")
     pid_pcoeff: float = F(0.3, ge=0, le=1, description="PID controller proportional coefficient")
     pid_icoeff: float = F(0.3, gt=0, le=1, description="PID controller integral coefficient")
-    penalty_stiffness: float = F(
-        1e4,
-        gt=0,
-        le=1e12,
-        unit="1",
-        description="contact penalty stiffness k, units G h0 / R^3 per reference area, "
-        "in (0, 1e12]",
-    )
-    penalty_width: float = F(
-        1e-3,
-        gt=0,
-        lt=1,
-        description="penalty smoothing width w, units of R (C^2 penalty), in (0, 1)",
-    )
-    friction_smoothing: float = F(
-        1e-3,
-        ge=0,
-        lt=1,
-        description="force-space smoothing epsilon of the Coulomb law, units G h0 / R "
-        "(exactly stuck below mu F_N - epsilon); 0 is the ideal law",
-    )
-    contact_threshold: float = F(
-        1e-2,
-        gt=0,
-        le=1e3,
-        description="contact where the pressure exceeds this (G h0 / R), in (0, 1e3]",
-    )
-    support_stiffness: float = F(
-        1e3,
-        gt=0,
-        le=1e8,
-        description="ball: support: contact stiffness of the bottle neck on the ball, units "
-        "G h0 (force G h0 R per penetration R; 1e3 lets the ball sink ~1e-3 R under a "
-        "force of G h0 R)",
-    )
-    max_steps: int = F(
-        50000, ge=100, le=100_000_000, description="step limit per save segment, 100..1e8"
-    )
-    save_interval_s: float = F(
-        2.0,
-        unit="s",
-        ge=1e-4,
-        le=MAX_TIME_S,
-        description="time between saved frames (and condition checks), in [1e-4, 1e6] s; "
-        "at most 1e6 frames in all",
-    )
-    heal_rate_mm_s: float = F(
-        0.002,
-        unit="mm/s",
-        ge=0,
-        le=1.0,
-        description="healing criterion of slip_weakening: a node's slip distance resets where "
-        "its slip rate is at most this (checked at every save); 0 is the bare force criterion "
-        "S = 0, which a node settling onto its friction limit never reaches (docs/forming.md)",
-    )
-    max_chord_depth: float = F(
-        0.1,
-        gt=0,
-        le=1.0,
-        description="the mesh resolves the contact while no element's straight chord dips "
-        "deeper than this into the ball (units R; 0.1 is about 0.9 rad of arc per element), "
-        "checked on every saved frame (and the pole must not pass through the ball); a run "
-        "that goes past it stops as failed (exit 3: no answer to trapped), in (0, 1]",
-    )
-    trap_reaction_tol: float = F(
-        1e-3,
-        gt=0,
-        lt=1,
-        description="trapped needs |ball reaction| below this (units G h0 R) at the end",
-    )
+    penalty_stiffness: float = F(1e4, gt=0, le=1e12, unit="1",
+                                 description="contact penalty stiffness k, units G h0 / R^3 per "
+                                             "reference area, "
+                                 "in (0, 1e12]")
+    penalty_width: float = F(1e-3, gt=0, lt=1, description="penalty smoothing width w, units of R "
+                                                           "(C^2 penalty), "
+                             "in (0, 1)")
+    friction_smoothing: float = F(1e-3, ge=0, lt=1,
+                                  description="force-space smoothing epsilon of the Coulomb law, "
+                                              "units G h0 / R "
+                                  "(exactly stuck below mu F_N - epsilon); 0 is the ideal law")
+    contact_threshold: float = F(1e-2, gt=0, le=1e3, description="contact where the pressure "
+                                                                 "exceeds this "
+                                 "(G h0 / R), in (0, 1e3]")
+    support_stiffness: float = F(1e3, gt=0, le=1e8,
+                                 description="ball: support: contact stiffness of the bottle neck "
+                                             "on the ball, units "
+                                 "G h0 (force G h0 R per penetration R; 1e3 lets the ball sink "
+                                 "~1e-3 R under a "
+                                 "force of G h0 R)")
+    max_steps: int = F(50000, ge=100, le=100_000_000,
+                       description="step limit per save segment, 100..1e8")
+    save_interval_s: float = F(2.0, unit="s", ge=1e-4, le=MAX_TIME_S,
+                               description="time between saved frames (and condition checks), in "
+                                           "[1e-4, 1e6] s; "
+                               "at most 1e6 frames in all")
+    heal_rate_mm_s: float = F(0.002, unit="mm/s", ge=0, le=1.0,
+                              description="healing criterion of slip_weakening: a node's slip "
+                                          "distance resets where "
+                              "its slip rate is at most this (checked at every save); 0 is the "
+                              "bare force criterion "
+                              "S = 0, which a node settling onto its friction limit never reaches "
+                              "(docs/forming.md)")
+    max_chord_depth: float = F(0.1, gt=0, le=1.0,
+                               description="the mesh resolves the contact while no element's "
+                                           "straight chord dips "
+                               "deeper than this into the ball (units R; 0.1 is about 0.9 rad of "
+                               "arc per element), "
+                               "checked on every saved frame (and the pole must not pass through "
+                               "the ball); a run "
+                               "that goes past it stops as failed (exit 3: no answer to trapped), "
+                               "in (0, 1]")
+    trap_reaction_tol: float = F(1e-3, gt=0, lt=1,
+                                 description="trapped needs |ball reaction| below this (units G h0 "
+                                             "R) at the end")
 
 
 class FormingScenario(ScenarioBase):
@@ -522,13 +400,11 @@ class FormingScenario(ScenarioBase):
 
     kind: Literal["forming"] = "forming"
     start_from: str | None = F(
-        None,
-        description="start from a formed pocket: a saved trajectory.nc (its last frame) or a "
-            "forming "
+        None, description="start from a formed pocket: a saved trajectory.nc (its last frame) or a "
+                          "forming "
         "scenario (run first into outputs/<stem>/, or reused when its saved result matches); "
         "relative paths are "
-        "taken from the working directory, else from the scenario file's folder",
-    )
+        "taken from the working directory, else from the scenario file's folder")
     physics: FormingPhysics = FormingPhysics()
     numerics: FormingNumerics = FormingNumerics()
     _source_dir: Path | None = PrivateAttr(default=None)
@@ -549,11 +425,10 @@ class FormingScenario(ScenarioBase):
         assert isinstance(prot, Protocol)
         frames = sum(s.max_duration for s in prot.stages) / self.numerics.save_interval_s
         if frames > MAX_FRAMES:  # every saved frame is held in memory
-            raise ValueError(
-                f"numerics.save_interval_s = {self.numerics.save_interval_s}: the loading path "
-                f"(at its longest) would save {frames:.3g} frames; allowed: at most "
-                f"{MAX_FRAMES:.0e}"
-            )
+            raise ValueError(f"numerics.save_interval_s = {self.numerics.save_interval_s}: the "
+                             f"loading path "
+                             f"(at its longest) would save {frames:.3g} frames; allowed: at most "
+                             f"{MAX_FRAMES:.0e}")
         return self
 
     # the resolved start state of ``start_from`` (filled in by
@@ -562,31 +437,20 @@ class FormingScenario(ScenarioBase):
 
 
 def _stop_rule(s, duration: float, r: float, fs: float):
-    """The stop rule object (:mod:`dynslip.physics.protocols`, one final class per ``until``)
-    of stage ``s``, its thresholds made nondimensional (lengths by ``r`` mm, forces by ``fs`` N);
-    a condition rule ends the stage at ``duration`` s at the latest."""
-    from dynslip.physics.protocols import (
-        BallSpeedAbove,
-        ClampForceBelow,
-        Duration,
-        Rest,
-        ThetaMaxBelow,
-    )
+    """The stop rule object of stage ``s`` (:data:`dynslip.physics.protocols.STOPS`, the one
+    registry: one final class per ``until``), its thresholds made nondimensional (lengths by
+    ``r`` mm, forces by ``fs`` N); a condition rule ends the stage at ``duration`` s at the
+    latest."""
+    from dynslip.physics.protocols import STOPS
 
-    build = {
-        "duration": lambda: Duration(duration=duration),
-        "clamp_force_below": lambda: ClampForceBelow(
-            force=(s.force_threshold_N or 0.0) / fs, duration=duration
-        ),
-        "theta_max_below": lambda: ThetaMaxBelow(angle=s.theta_stop_rad or 0.0, duration=duration),
-        "ball_speed_above": lambda: BallSpeedAbove(
-            rate=(s.ball_speed_mm_s or 0.0) / r, duration=duration
-        ),
-        "rest": lambda: Rest(
-            rate=(s.rest_rate_mm_s or 0.0) / r, hold=s.rest_hold_s or 0.0, duration=duration
-        ),
+    params = {
+        "duration": lambda: {},
+        "clamp_force_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
+        "theta_max_below": lambda: {"angle": s.theta_stop_rad or 0.0},
+        "ball_speed_above": lambda: {"rate": (s.ball_speed_mm_s or 0.0) / r},
+        "rest": lambda: {"rate": (s.rest_rate_mm_s or 0.0) / r, "hold": s.rest_hold_s or 0.0},
     }
-    return build[s.until]()
+    return STOPS[s.until](**params[s.until](), duration=duration)
 
 
 def build_protocol(sc: FormingScenario):
@@ -615,9 +479,8 @@ def build_protocol(sc: FormingScenario):
         elif s.clamp == "free":
             ckw = {"clamp_mode": CLAMP_FORCE, "clamp_force_start": (0.0, 0.0)}
         if s.ball == "hold":
-            stages.append(
-                Stage(s.name, stop, ball_mode=BALL_HOLD, ball_vz=s.ball_velocity_mm_s / r, **ckw)
-            )
+            stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD,
+                                ball_vz=s.ball_velocity_mm_s / r, **ckw))
         elif s.ball == "release":
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_end=0.0, **ckw))
         elif s.ball == "support":
@@ -638,20 +501,8 @@ def build_protocol(sc: FormingScenario):
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=start,
                                 ball_force_end=s.ball_force_N / fs, **ckw))
         else:
-            stages.append(
-                Stage(
-                    s.name,
-                    stop,
-                    ball_mode=BALL_FORCE,
-                    ball_force_start=0.0,
-                    ball_force_end=0.0,
-                    **ckw,
-                )
-            )
+            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0,
+                                ball_force_end=0.0, **ckw))
         prev_ball = s.ball
-    return Protocol(
-        tuple(stages),
-        clamp_rho0=p.rim_radius_mm / r,
-        clamp_z0=(r + p.sheet_gap_mm) / r,
-        ball_z0=0.0,
-    )
+    return Protocol(tuple(stages), clamp_rho0=p.rim_radius_mm / r,
+                    clamp_z0=(r + p.sheet_gap_mm) / r, ball_z0=0.0)

@@ -48,7 +48,10 @@ class MaterialSpec(Strict):
         return 0.5 - self.c1 if self.c2 is None else self.c2
 
     def core(self):
-        """The core material (:mod:`dynslip.physics.materials`)."""
-        from dynslip.physics.materials import make_material
+        """The core material (:data:`dynslip.physics.materials.MATERIALS`), its parameters
+        from this section."""
+        from dynslip.physics.materials import MATERIALS
 
-        return make_material(self.model, jm=self.jm, c1=self.c1, c2=self.c2_value)
+        params = {"mooney_rivlin": {"c1": float(self.c1), "c2": float(self.c2_value)},
+                  "gent": {"jm": float(self.jm)}}
+        return MATERIALS[self.model](**params.get(self.model, {}))

@@ -1,7 +1,8 @@
 """Rigid axisymmetric bodies by meridian profile (issue 21), one kind a module: the signed
 distance, normal, tangent and surface coordinate of each (:mod:`.base`), the start-of-run
 checks (:mod:`.overlap`), the trapped criteria (:mod:`.trap`) and the penalty contact with
-every body (:mod:`.contact`) and the mesh check against any body (:mod:`.chords`). Lengths by the ball radius R."""
+every body (:mod:`.contact`) and the mesh check against any body (:mod:`.chords`).
+Lengths by the ball radius R."""
 
 from dynslip.physics.bodies.base import (
     AbstractBody,
@@ -27,8 +28,28 @@ from dynslip.physics.bodies.trap import (
 )
 
 __all__ = [
-    "AbstractBody", "AbstractProfileBody", "AbstractTrapCriterion", "Arc", "BodyGeometryError",
-    "Cone", "Contact", "Cylinder", "Disc", "Line", "PastEdgeMidHeight", "PastEquator",
-    "PastWidest", "Profile", "Projection", "Sphere", "Torus", "check_profile", "chord_depths",
-    "contact_energy_density", "contact_forces", "inside", "overlap", "penetration",
+    "AbstractBody",
+    "AbstractProfileBody",
+    "AbstractTrapCriterion",
+    "Arc",
+    "BodyGeometryError",
+    "Cone",
+    "Contact",
+    "Cylinder",
+    "Disc",
+    "Line",
+    "PastEdgeMidHeight",
+    "PastEquator",
+    "PastWidest",
+    "Profile",
+    "Projection",
+    "Sphere",
+    "Torus",
+    "check_profile",
+    "chord_depths",
+    "contact_energy_density",
+    "contact_forces",
+    "inside",
+    "overlap",
+    "penetration",
 ]

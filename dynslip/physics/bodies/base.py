@@ -134,8 +134,12 @@ class AbstractProfileBody(AbstractBody):
         mirror = rho < 0
         xm = jnp.stack([jnp.where(mirror, -rho, rho), x[..., 1] - z], axis=-1)
         p = project_onto_segments(segment_arrays(self.segments), xm)
-        flip = jnp.where(mirror, -1.0, 1.0)[..., None] * jnp.array([1.0, 0.0]) + jnp.array([0.0, 1.0])
-        return Projection(distance=p.distance, normal=flip * p.normal, s=p.s, tangent=flip * p.tangent)
+        flip = jnp.where(mirror, -1.0, 1.0)[..., None] * jnp.array([1.0, 0.0]) + jnp.array(
+            [0.0, 1.0]
+        )
+        return Projection(
+            distance=p.distance, normal=flip * p.normal, s=p.s, tangent=flip * p.tangent
+        )
 
 
 def _samples(seg, m=64):
@@ -169,15 +173,21 @@ def check_profile(segments, smooth: bool = True) -> None:
     for k, seg in enumerate(segments):
         if isinstance(seg, Arc):
             if not seg.radius > 0:
-                raise BodyGeometryError(f"profile segment {k}: arc radius {seg.radius:g}, must be > 0")
+                raise BodyGeometryError(
+                    f"profile segment {k}: arc radius {seg.radius:g}, must be > 0"
+                )
             if not 0 < abs(seg.sweep) <= 2 * math.pi + 1e-12:
                 raise BodyGeometryError(
-                    f"profile segment {k}: arc sweep {seg.sweep:g} rad, must be nonzero and at most 2 pi")
+                    f"profile segment {k}: arc sweep {seg.sweep:g} rad, "
+                    "must be nonzero and at most 2 pi"
+                )
         elif isinstance(seg, Line):
             if not seg.length > JOINT_TOL:
                 raise BodyGeometryError(f"profile segment {k}: line of zero length")
         else:
-            raise BodyGeometryError(f"profile segment {k}: {type(seg).__name__} is neither a line nor an arc")
+            raise BodyGeometryError(
+                f"profile segment {k}: {type(seg).__name__} is neither a line nor an arc"
+            )
         if np.min(_samples(seg, 257)[:, 0]) < -JOINT_TOL:
             raise BodyGeometryError(f"profile segment {k} crosses the axis (rho < 0)")
     for k in range(len(segments) - 1):
@@ -186,17 +196,20 @@ def check_profile(segments, smooth: bool = True) -> None:
         if gap > JOINT_TOL:
             raise BodyGeometryError(
                 f"profile not connected: segment {k} ends at ({a.end[0]:.6g}, {a.end[1]:.6g}), "
-                f"segment {k + 1} starts at ({b.start[0]:.6g}, {b.start[1]:.6g})")
+                f"segment {k + 1} starts at ({b.start[0]:.6g}, {b.start[1]:.6g})"
+            )
         ta, tb = a.tangent_at(1.0), b.tangent_at(0.0)
         if smooth and (abs(float(_cross(ta, tb))) > TANGENT_TOL or float(np.dot(ta, tb)) < 0):
             raise BodyGeometryError(
                 f"profile not smooth where segments {k} and {k + 1} join: tangents "
-                f"({ta[0]:.4g}, {ta[1]:.4g}) and ({tb[0]:.4g}, {tb[1]:.4g})")
+                f"({ta[0]:.4g}, {ta[1]:.4g}) and ({tb[0]:.4g}, {tb[1]:.4g})"
+            )
     first, last = segments[0].start, segments[-1].end
     closed = math.hypot(first[0] - last[0], first[1] - last[1]) <= JOINT_TOL
     if not closed and not (abs(first[0]) <= JOINT_TOL and abs(last[0]) <= JOINT_TOL):
         raise BodyGeometryError(
-            "profile not closed: it must run from the axis to the axis, or end where it starts")
+            "profile not closed: it must run from the axis to the axis, or end where it starts"
+        )
     if closed and smooth:
         ta, tb = segments[-1].tangent_at(1.0), segments[0].tangent_at(0.0)
         if abs(float(_cross(ta, tb))) > TANGENT_TOL or float(np.dot(ta, tb)) < 0:
@@ -209,8 +222,9 @@ def check_profile(segments, smooth: bool = True) -> None:
             if _polylines_cross(polys[i], polys[j]):
                 raise BodyGeometryError(f"profile crosses itself (segments {i} and {j})")
     if not closed:
-        interior = np.concatenate([pp[1:-1] for pp in polys] + [np.array([s.end for s in segments[:-1]])
-                                                                 .reshape(-1, 2)])
+        interior = np.concatenate(
+            [pp[1:-1] for pp in polys] + [np.array([s.end for s in segments[:-1]]).reshape(-1, 2)]
+        )
         if interior.size and np.min(interior[:, 0]) <= JOINT_TOL:
             raise BodyGeometryError("profile touches the axis between its ends")
     pts = np.concatenate(polys, axis=0)
@@ -220,4 +234,5 @@ def check_profile(segments, smooth: bool = True) -> None:
     if area2 >= 0:
         raise BodyGeometryError(
             "profile runs with the solid on its left: list it with the solid on the right "
-            "(clockwise for rho to the right and z up; from the top of the axis down)")
+            "(clockwise for rho to the right and z up; from the top of the axis down)"
+        )

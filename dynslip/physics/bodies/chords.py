@@ -38,7 +38,8 @@ _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
 @eqx.filter_jit
 def _depths(body: AbstractBody, a, b, zpos):
     """Depths (...,) of the chords from ``a`` to ``b`` (..., 2), body displaced by zpos (...)."""
-    depth = lambda u: -body.distance(a + u[..., None] * (b - a), zpos)
+    def depth(u):
+        return -body.distance(a + u[..., None] * (b - a), zpos)
     u = jnp.linspace(0.0, 1.0, _SAMPLES)
     samples = jax.vmap(lambda ui: depth(jnp.full(a.shape[:-1], ui)))(u)  # (S, ...)
     k = jnp.argmax(samples, axis=0)

@@ -65,8 +65,13 @@ def contact_forces(bodies, x_nodes, penalty: Penalty, positions=None) -> Contact
     zs = _positions(bodies, positions)
     proj = [b.project(x_nodes, zs[k]) for k, b in enumerate(bodies)]
     d = jnp.stack([p.distance for p in proj])
-    return Contact(pressure=penalty_pressure(penalty, -d), normal=jnp.stack([p.normal for p in proj]),
-                   distance=d, s=jnp.stack([p.s for p in proj]), tangent=jnp.stack([p.tangent for p in proj]))
+    return Contact(
+        pressure=penalty_pressure(penalty, -d),
+        normal=jnp.stack([p.normal for p in proj]),
+        distance=d,
+        s=jnp.stack([p.s for p in proj]),
+        tangent=jnp.stack([p.tangent for p in proj]),
+    )
 
 
 def contact_energy_density(bodies, x_nodes, penalty: Penalty, positions=None):

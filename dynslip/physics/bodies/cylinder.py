@@ -35,23 +35,33 @@ class Cylinder(AbstractProfileBody):
     edge_radius: float = eqx.field(static=True)
     segments: tuple = eqx.field(static=True)
 
-    def __init__(self, radius: float, z_bottom: float, z_top: float, inner_radius: float = 0.0,
-                 edge_radius: float = 0.0):
+    def __init__(
+        self,
+        radius: float,
+        z_bottom: float,
+        z_top: float,
+        inner_radius: float = 0.0,
+        edge_radius: float = 0.0,
+    ):
         if not radius > 0:
             raise BodyGeometryError(f"cylinder radius {radius:g}, must be > 0")
         if not z_top > z_bottom:
             raise BodyGeometryError(f"cylinder height {z_top - z_bottom:g}, must be > 0")
         if not 0 <= inner_radius < radius:
             raise BodyGeometryError(
-                f"cylinder inner radius {inner_radius:g}, must be >= 0 and below the radius {radius:g}")
+                f"cylinder inner radius {inner_radius:g}, "
+                f"must be >= 0 and below the radius {radius:g}"
+            )
         wall = radius - inner_radius if inner_radius > 0 else radius
         limit = min(0.5 * (z_top - z_bottom), 0.5 * wall if inner_radius > 0 else wall)
         if not 0 <= edge_radius <= limit * (1 + 1e-12):
             raise BodyGeometryError(
                 f"cylinder edge radius {edge_radius:g}, must be >= 0 and at most {limit:g} "
-                "(half the height, and half the wall or the radius)")
+                "(half the height, and half the wall or the radius)"
+            )
         self.radius, self.z_bottom, self.z_top = float(radius), float(z_bottom), float(z_top)
         self.inner_radius, self.edge_radius = float(inner_radius), min(float(edge_radius), limit)
-        self.segments = rounded_box(self.inner_radius, self.radius, self.z_bottom, self.z_top,
-                                    self.edge_radius)
+        self.segments = rounded_box(
+            self.inner_radius, self.radius, self.z_bottom, self.z_top, self.edge_radius
+        )
         check_profile(self.segments, smooth=self.edge_radius > 0)

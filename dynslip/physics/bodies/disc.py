@@ -44,8 +44,11 @@ def rounded_box(r_in: float, r_out: float, z0: float, z1: float, e: float) -> tu
             segs.append(Line((r_in, z0 + e), (r_in, z1 - e)))
             segs.append(Arc((r_in + e, z1 - e), e, -math.pi, -3 * math.pi / 2))
     else:
-        segs += [Line((r_in, z1), (r_out, z1)), Line((r_out, z1), (r_out, z0)),
-                 Line((r_out, z0), (r_in, z0))]
+        segs += [
+            Line((r_in, z1), (r_out, z1)),
+            Line((r_out, z1), (r_out, z0)),
+            Line((r_out, z0), (r_in, z0)),
+        ]
         if r_in > 0:
             segs.append(Line((r_in, z0), (r_in, z1)))
     return tuple(seg for seg in segs if not (isinstance(seg, Line) and seg.length <= 1e-12))
@@ -61,17 +64,25 @@ class Disc(AbstractProfileBody):
     segments: tuple = eqx.field(static=True)
 
     def __init__(self, radius: float, thickness: float, edge_radius: float, centre_z: float = 0.0):
-        for what, v in (("disc radius", radius), ("disc thickness", thickness),
-                        ("disc edge radius", edge_radius)):
+        for what, v in (
+            ("disc radius", radius),
+            ("disc thickness", thickness),
+            ("disc edge radius", edge_radius),
+        ):
             if not v > 0:
                 raise BodyGeometryError(f"{what} {v:g}, must be > 0")
         if edge_radius > 0.5 * thickness * (1 + 1e-12) or edge_radius >= radius:
             raise BodyGeometryError(
                 f"disc edge radius {edge_radius:g}, must be at most half the thickness "
-                f"({0.5 * thickness:g}) and below the radius ({radius:g})")
+                f"({0.5 * thickness:g}) and below the radius ({radius:g})"
+            )
         self.radius, self.thickness = float(radius), float(thickness)
-        self.edge_radius, self.centre_z = min(float(edge_radius), 0.5 * self.thickness), float(centre_z)
+        self.edge_radius, self.centre_z = (
+            min(float(edge_radius), 0.5 * self.thickness),
+            float(centre_z),
+        )
         h2 = 0.5 * self.thickness
-        self.segments = rounded_box(0.0, self.radius, self.centre_z - h2, self.centre_z + h2,
-                                    self.edge_radius)
+        self.segments = rounded_box(
+            0.0, self.radius, self.centre_z - h2, self.centre_z + h2, self.edge_radius
+        )
         check_profile(self.segments)

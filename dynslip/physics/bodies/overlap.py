@@ -37,16 +37,18 @@ def _deepest(a: AbstractBody, b: AbstractBody, za: float, zb: float, n: int) -> 
     return float(np.min(d))
 
 
-def penetration(a: AbstractBody, b: AbstractBody, za: float = 0.0, zb: float = 0.0,
-                n: int = 4001) -> float:
+def penetration(
+    a: AbstractBody, b: AbstractBody, za: float = 0.0, zb: float = 0.0, n: int = 4001
+) -> float:
     """Depth by which the solids ``a`` (displaced by ``za``) and ``b`` (by ``zb``)
     intersect: the deepest point of either surface inside the other, >= 0 (0 when apart or
     touching)."""
     return max(0.0, -_deepest(a, b, za, zb, n), -_deepest(b, a, zb, za, n))
 
 
-def overlap(a: AbstractBody, b: AbstractBody, za: float = 0.0, zb: float = 0.0,
-            tol: float = 1e-9) -> bool:
+def overlap(
+    a: AbstractBody, b: AbstractBody, za: float = 0.0, zb: float = 0.0, tol: float = 1e-9
+) -> bool:
     """Whether the solids intersect by more than ``tol`` (R): bodies that overlap at the
     start of a run."""
     return penetration(a, b, za, zb) > tol

@@ -85,8 +85,10 @@ class Arc(eqx.Module):
 
     def point_at(self, u):
         a = self.start_angle + np.asarray(u, float) * self.sweep
-        return np.stack([self.centre[0] + self.radius * np.cos(a),
-                         self.centre[1] + self.radius * np.sin(a)], axis=-1)
+        return np.stack(
+            [self.centre[0] + self.radius * np.cos(a), self.centre[1] + self.radius * np.sin(a)],
+            axis=-1,
+        )
 
     def tangent_at(self, u):
         a = self.start_angle + np.asarray(u, float) * self.sweep
@@ -127,9 +129,14 @@ def _corners(segments):
     whose tangent is not horizontal (a point); each with its arc length and the bisector of
     the outward normals on either side (the mirror image's across the axis)."""
     out, acc = [], 0.0
-    rot = lambda t: np.array([-t[1], t[0]])
-    closed = math.hypot(segments[0].start[0] - segments[-1].end[0],
-                        segments[0].start[1] - segments[-1].end[1]) <= 1e-9
+    def rot(t):
+        return np.array([-t[1], t[0]])
+    closed = (
+        math.hypot(
+            segments[0].start[0] - segments[-1].end[0], segments[0].start[1] - segments[-1].end[1]
+        )
+        <= 1e-9
+    )
     for k, seg in enumerate(segments):
         if k > 0 or closed:
             prev = segments[k - 1]
@@ -158,8 +165,8 @@ def segment_arrays(segments):
     for seg in segments:
         s0.append(acc)
         acc += seg.length
-    lines = [(seg, s) for seg, s in zip(segments, s0) if isinstance(seg, Line)]
-    arcs = [(seg, s) for seg, s in zip(segments, s0) if isinstance(seg, Arc)]
+    lines = [(seg, s) for seg, s in zip(segments, s0, strict=False) if isinstance(seg, Line)]
+    arcs = [(seg, s) for seg, s in zip(segments, s0, strict=False) if isinstance(seg, Arc)]
     lp0 = np.array([seg.start for seg, _ in lines], float).reshape(-1, 2)
     lp1 = np.array([seg.end for seg, _ in lines], float).reshape(-1, 2)
     ls0 = np.array([s for _, s in lines], float)
@@ -191,8 +198,13 @@ def _feet_on_lines(x, p0, p1, s0):
     ok = (u >= -_SLACK * length) & (u <= (1 + _SLACK) * length)
     signed = jnp.sum(rel * n, axis=-1)
     shape = signed.shape + (2,)
-    return (jnp.where(ok, jnp.abs(signed), jnp.inf), signed, jnp.broadcast_to(n, shape),
-            s0 + jnp.clip(u, 0.0, length), jnp.broadcast_to(t, shape))
+    return (
+        jnp.where(ok, jnp.abs(signed), jnp.inf),
+        signed,
+        jnp.broadcast_to(n, shape),
+        s0 + jnp.clip(u, 0.0, length),
+        jnp.broadcast_to(t, shape),
+    )
 
 
 def _feet_on_arcs(x, c, radius, mid, half, sg, s0):
@@ -211,8 +223,13 @@ def _feet_on_arcs(x, c, radius, mid, half, sg, s0):
     tangent = sg[:, None] * jnp.stack([-radial[..., 1], radial[..., 0]], axis=-1)
     across = m[:, 0] * rel[..., 1] - m[:, 1] * rel[..., 0]
     alpha = jnp.clip(sg * jnp.arctan2(across, along), -half, half)  # angle from m, along the sweep
-    return (jnp.where(ok, jnp.abs(signed), jnp.inf), signed, normal, s0 + radius * (alpha + half),
-            tangent)
+    return (
+        jnp.where(ok, jnp.abs(signed), jnp.inf),
+        signed,
+        normal,
+        s0 + radius * (alpha + half),
+        tangent,
+    )
 
 
 def _at_corners(x, v, sv, bis):
@@ -240,12 +257,15 @@ def project_onto_segments(arrays, x) -> Projection:
         parts.append(_feet_on_arcs(x, ac, ar, amid, ahalf, asg, as0))
     if cv.shape[0]:
         parts.append(_at_corners(x, cv, csv, cbis))
-    absd, signed, normal, s, tang = (jnp.concatenate([p[i] for p in parts], axis=x.ndim - 1)
-                                     for i in range(5))
+    absd, signed, normal, s, tang = (
+        jnp.concatenate([p[i] for p in parts], axis=x.ndim - 1) for i in range(5)
+    )
     # the nearest candidate as a one-hot mask (cheaper than a gather and its scatter-add
     # gradient on a handful of candidates); a tie keeps the first
     k = jnp.argmin(absd, axis=-1)[..., None]  # (..., 1)
     hot = jnp.arange(absd.shape[-1]) == k  # (..., C)
-    pick = lambda a: jnp.sum(jnp.where(hot, a, 0.0), axis=-1)
-    pick2 = lambda a: jnp.sum(jnp.where(hot[..., None], a, 0.0), axis=-2)
+    def pick(a):
+        return jnp.sum(jnp.where(hot, a, 0.0), axis=-1)
+    def pick2(a):
+        return jnp.sum(jnp.where(hot[..., None], a, 0.0), axis=-2)
     return Projection(distance=pick(signed), normal=pick2(normal), s=pick(s), tangent=pick2(tang))

@@ -50,8 +50,14 @@ class Sphere(AbstractBody):
         r = jnp.sqrt(rho**2 + dz**2)
         pos = r > 0
         rs = jnp.where(pos, r, 1.0)
-        n = jnp.where(pos[..., None], jnp.stack([rho / rs, dz / rs], axis=-1), jnp.array([0.0, 1.0]))
+        n = jnp.where(
+            pos[..., None], jnp.stack([rho / rs, dz / rs], axis=-1), jnp.array([0.0, 1.0])
+        )
         sg = jnp.where(rho < 0, -1.0, 1.0)  # rho < 0: the mirror image (physics.bodies.base)
         t = jnp.stack([sg * n[..., 1], -sg * n[..., 0]], axis=-1)
-        return Projection(distance=r - self.radius, normal=n,
-                          s=self.radius * jnp.arctan2(jnp.abs(rho), dz), tangent=t)
+        return Projection(
+            distance=r - self.radius,
+            normal=n,
+            s=self.radius * jnp.arctan2(jnp.abs(rho), dz),
+            tangent=t,
+        )

@@ -38,9 +38,16 @@ class Torus(AbstractProfileBody):
             raise BodyGeometryError(f"torus minor radius {minor_radius:g}, must be > 0")
         if not ring_radius > minor_radius:
             raise BodyGeometryError(
-                f"torus ring radius {ring_radius:g}, must exceed the minor radius {minor_radius:g}")
+                f"torus ring radius {ring_radius:g}, must exceed the minor radius {minor_radius:g}"
+            )
         self.ring_radius, self.minor_radius = float(ring_radius), float(minor_radius)
         self.centre_z = float(centre_z)
-        self.segments = (Arc((self.ring_radius, self.centre_z), self.minor_radius,
-                             math.pi / 2, math.pi / 2 - 2 * math.pi),)
+        self.segments = (
+            Arc(
+                (self.ring_radius, self.centre_z),
+                self.minor_radius,
+                math.pi / 2,
+                math.pi / 2 - 2 * math.pi,
+            ),
+        )
         check_profile(self.segments)

@@ -88,7 +88,9 @@ class PastWidest(AbstractTrapCriterion):
         rho = self.body.point_at(s)[:, 0]
         widest = rho >= rho.max() - 1e-9 * max(1.0, rho.max())
         acc, lo, hi = 0.0, math.inf, -math.inf
-        for seg in self.body.segments:  # exact ends of the widest part: a vertical line or an arc's top
+        for (
+            seg
+        ) in self.body.segments:  # exact ends of the widest part: a vertical line or an arc's top
             u = np.linspace(0.0, 1.0, 2001)
             r = seg.point_at(u)[:, 0]
             on = r >= rho.max() - 1e-9 * max(1.0, rho.max())

@@ -8,23 +8,7 @@ densities by $G h_0/R$, forces by $G h_0 R$. A material point at undeformed radi
 $\bar r$ sits at polar angle $\theta(\bar r)$ on the unit sphere; the sheet is in
 contact from the pole $\bar r = 0$ to $\bar r_{max}$, where $\theta = \theta_{max}$.
 
-Grid formulas (paper Section 3.3, physics.md Section 2), on ``N`` equally spaced nodes
-$\bar r_i = i h$, $h = \bar r_{max}/(N-1)$:
-
-- $\lambda_\theta = d\theta/d\bar r$ (paper eq. (eq_lambda_th)): centred differences, an
-  odd ghost node at the pole ($\theta_{-1} = -\theta_1$) and the second-order one-sided
-  difference $(3\theta_{N-1} - 4\theta_{N-2} + \theta_{N-3})/2h$ at the outer end;
-- $\lambda_\phi = \sin\theta/\bar r$ (eq. (eq_lambda_phi)), $\lambda_\phi = \lambda_\theta$ at the
-pole;
-- $T_\theta, T_\phi$ from :func:`dynslip.physics.materials.tensions` (eqs. (1)-(2), typo fixed);
-- $F_m = dT_\theta/d\theta + (T_\theta - T_\phi)\cot\theta$ with
-  $dT_\theta/d\theta = (dT_\theta/d\bar r)/\lambda_\theta$ (same differences; $T_\theta$ even at
-  the pole, so $F_m = 0$ there);
-- $F_N = T_\theta + T_\phi$; Coulomb $|F_f| \le \mu F_N$ (eq. (FOB)), at rest $F_f = -F_m$;
-- $F_v = 2\pi\int_0^{\theta_{max}} (F_N\cos\theta - F_f\sin\theta)\sin\theta\,d\theta$ (eq.
-(eq_Fz)),
-  trapezoidal in $\bar r$ with $d\theta = \lambda_\theta d\bar r$. At any equilibrium
-  $F_v = 2\pi T_\theta(\theta_{max})\sin^2\theta_{max}$ (physics.md Section 2).
+Grid formulas (paper Section 3.3, physics.md Section 2): :mod:`.grid` states them.
 
 Solvers:
 

@@ -2,26 +2,25 @@ r"""The grid formulas of the paper's contact-region model (paper Section 3.3, ph
 Section 2): stretches, tensions and forces from a shape $\theta(\bar r_i)$ on the grid.
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
-densities by $G h_0/R$, forces by $G h_0 R$ (the paper's contact-region model, Section 3;
-the package docstring of :mod:`dynslip.physics.sphere` states the whole model).
+densities by $G h_0/R$, forces by $G h_0 R$ (the package docstring of
+:mod:`dynslip.physics.sphere` states the whole model).
 
 On ``N`` equally spaced nodes $\bar r_i = i h$, $h = \bar r_{max}/(N-1)$:
 
+- $\lambda_\theta = d\theta/d\bar r$ (paper eq. (eq_lambda_th)): centred differences, an
   odd ghost node at the pole ($\theta_{-1} = -\theta_1$) and the second-order one-sided
   difference $(3\theta_{N-1} - 4\theta_{N-2} + \theta_{N-3})/2h$ at the outer end;
-- $\lambda_\phi = \sin\theta/\bar r$ (eq. (eq_lambda_phi)), $\lambda_\phi = \lambda_\theta$ at the
-pole;
-- $T_\theta, T_\phi$ from :func:`dynslip.physics.materials.tensions` (eqs. (1)-(2), typo fixed);
+- $\lambda_\phi = \sin\theta/\bar r$ (eq. (eq_lambda_phi)), $\lambda_\phi = \lambda_\theta$
+  at the pole;
+- $T_\theta, T_\phi$ from :func:`dynslip.physics.materials.tensions` (eqs. (1)-(2), typo
+  fixed);
 - $F_m = dT_\theta/d\theta + (T_\theta - T_\phi)\cot\theta$ with
   $dT_\theta/d\theta = (dT_\theta/d\bar r)/\lambda_\theta$ (same differences; $T_\theta$ even at
   the pole, so $F_m = 0$ there);
 - $F_N = T_\theta + T_\phi$; Coulomb $|F_f| \le \mu F_N$ (eq. (FOB)), at rest $F_f = -F_m$;
-- $F_v = 2\pi\int_0^{\theta_{max}} (F_N\cos\theta - F_f\sin\theta)\sin\theta\,d\theta$ (eq.
-(eq_Fz)),
-  trapezoidal in $\bar r$ with $d\theta = \lambda_\theta d\bar r$. At any equilibrium
-  $F_v = 2\pi T_\theta(\theta_{max})\sin^2\theta_{max}$ (physics.md Section 2).
-
-Solvers:
+- $F_v = 2\pi\int_0^{\theta_{max}} (F_N\cos\theta - F_f\sin\theta)\sin\theta\,d\theta$
+  (eq. (eq_Fz)), trapezoidal in $\bar r$ with $d\theta = \lambda_\theta d\bar r$. At any
+  equilibrium $F_v = 2\pi T_\theta(\theta_{max})\sin^2\theta_{max}$ (physics.md Section 2).
 """
 
 from __future__ import annotations

@@ -1,0 +1,47 @@
+r"""How close the sheet comes to bodies the run did not model: its clearance on a saved path.
+
+For a held body $B$ (lab frame) and a body that moves with the clamp (the tube's wall, placed
+at the clamp's height $z_c(t)$), the clearance of frame $t$ is
+$c(t) = \min_i d_B(\rho_i(t), z_i(t))$ over the sheet's nodes, with $d_B$ the body's signed
+distance (:mod:`dynslip.physics.bodies`). Where $c(t) > 0$ on the whole path, the body is never
+touched and cannot have changed the run: adding it (with any friction) gives the same
+trajectory, up to the penalty's reach (its width, ``physics.sheet``). Where $c < 0$ the real
+sheet would have met the body and the run is not the experiment from that frame on.
+Nodes are points: a chord between two nodes may come closer than its ends (the mesh check of
+:mod:`dynslip.analysis.resolution` does this for the ball).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+
+__all__ = ["clearance"]
+
+
+def _distance_fn(bodies):
+    def d(x, z):
+        return jnp.min(jnp.stack([b.distance(x, z) for b in bodies]))
+
+    return jax.jit(jax.vmap(jax.vmap(d, in_axes=(0, None)), in_axes=(0, 0)))
+
+
+def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
+    """The sheet's clearance from ``bodies`` (a tuple, units of R) over the saved frames of a
+    forming trajectory: ``{"per_frame": (time,) array, "min": value, "time": t, "rbar": node,
+    "point": (rho, z), "touched": bool}``. ``moves_with_clamp``: the bodies are displaced by
+    the clamp's height (``clamp_z``) at each frame."""
+    x = np.stack([ds["rho"].values, ds["z"].values], axis=-1)  # (time, node, 2)
+    shift = ds["clamp_z"].values if moves_with_clamp else np.zeros(ds.sizes["time"])
+    d = np.asarray(_distance_fn(tuple(bodies))(jnp.asarray(x), jnp.asarray(shift)))
+    k = np.unravel_index(int(np.argmin(d)), d.shape)
+    return {
+        "per_frame": d.min(axis=1),
+        "min": float(d[k]),
+        "time": float(ds["time"].values[k[0]]),
+        "rbar": float(ds["rbar"].values[k[1]]),
+        "point": (float(x[k][0]), float(x[k][1])),
+        "touched": bool(d[k] <= 0.0),
+    }

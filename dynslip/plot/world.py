@@ -1,0 +1,51 @@
+"""The meridian with every body drawn: the sheet at chosen frames, the ball, and bodies of the
+apparatus (held, or moving with the clamp), from a saved trajectory."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from matplotlib.figure import Figure
+
+__all__ = ["plot_world"]
+
+
+def plot_world(
+    ds: xr.Dataset, frames: dict, held=(), with_clamp=(), out: Path | None = None, title: str = ""
+) -> Figure:
+    """``frames``: label -> time index. ``held``: bodies in the lab frame; ``with_clamp``:
+    bodies displaced by the clamp's height of each frame. Units of R on both axes."""
+    fig = Figure(figsize=(6.0, 8.0), constrained_layout=True)
+    ax = fig.add_subplot()
+    colours = ["tab:blue", "tab:red", "tab:green", "tab:purple"]
+    for body in held:
+        o = body.outline()
+        ax.fill(o[:, 0], o[:, 1], color="0.8", ec="0.4", lw=0.8, zorder=1)
+    for (label, i), col in zip(frames.items(), colours, strict=False):
+        zb = float(ds["ball_z"].values[i])
+        th = np.linspace(0, np.pi, 200)
+        ax.plot(np.sin(th), zb + np.cos(th), color=col, lw=0.8, ls=":", zorder=2)
+        for body in with_clamp:
+            o = body.outline(float(ds["clamp_z"].values[i]))
+            ax.fill(o[:, 0], o[:, 1], color=col, alpha=0.15, ec=col, lw=0.8, zorder=1)
+        t = float(ds["time"].values[i])
+        ax.plot(
+            ds["rho"].values[i],
+            ds["z"].values[i],
+            color=col,
+            lw=1.6,
+            zorder=3,
+            label=f"{label} (t = {t:.0f} s)",
+        )
+    ax.set_aspect("equal")
+    ax.set_xlabel("rho / R")
+    ax.set_ylabel("z / R")
+    ax.set_xlim(0, 3.2)
+    ax.set_ylim(-6.5, 2.0)
+    ax.set_title(title + "\nball dotted, tube wall shaded, bottle grey", fontsize=9)
+    ax.legend(loc="upper right", fontsize=7)
+    if out is not None:
+        fig.savefig(out, dpi=120)
+    return fig

@@ -1,0 +1,64 @@
+"""The apparatus as bodies (bottle, tube wall) and the sheet's clearance from them."""
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import xarray as xr
+
+from dynslip.analysis.clearance import clearance
+from dynslip.physics.bodies import Cylinder
+from dynslip.physics.bodies.apparatus import bottle, deepest_rim, tube_wall
+from dynslip.physics.bodies.base import BodyGeometryError
+
+
+def test_the_neck_lip_touches_the_resting_ball():
+    neck = bottle(20.0)[0]
+    # the lip's torus centre is 1 + w/2 from the ball's centre: the ball's surface point on
+    # that line is at distance 0 from the neck (closed form), and every other is outside it
+    w = 2.0 / 20.0
+    rc, zc = 12.7 / 20.0 - w / 2, -math.sqrt((1 + w / 2) ** 2 - (12.7 / 20.0 - w / 2) ** 2)
+    u = np.array([rc, zc]) / math.hypot(rc, zc)
+    assert abs(float(neck.distance(jnp.asarray(u)))) < 1e-12
+    th = np.linspace(0.0, np.pi, 721)
+    pts = jnp.asarray(np.stack([np.sin(th), np.cos(th)], -1))
+    d = np.array([float(neck.distance(p)) for p in pts])
+    assert d.min() > -1e-12
+
+
+def test_deepest_rim_is_the_tube_height_less_the_ball():
+    assert deepest_rim(20.0) == pytest.approx(1.0 - 101.6 / 20.0, abs=1e-15)
+    assert tube_wall(20.0).z_top == pytest.approx(101.6 / 20.0)
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"neck_wall_mm": 20.0}, {"neck_od_mm": 50.0}, {"body_od_mm": 20.0}]
+)
+def test_impossible_bottles_are_refused(kwargs):
+    with pytest.raises(BodyGeometryError):
+        bottle(20.0, **kwargs)
+
+
+def _flat_sheet(z, clamp):
+    rbar = np.linspace(0.0, 2.0, 21)
+    rho = np.tile(rbar, (len(clamp), 1))
+    return xr.Dataset(
+        {
+            "rho": (("time", "rbar"), rho),
+            "z": (("time", "rbar"), np.full_like(rho, z)),
+            "clamp_z": (("time",), np.asarray(clamp, float)),
+        },
+        coords={"time": np.arange(len(clamp), dtype=float), "rbar": rbar},
+    )
+
+
+def test_clearance_of_a_flat_sheet_above_a_cylinder_is_the_height_gap():
+    cyl = Cylinder(1.0, -3.0, -2.0)
+    c = clearance(_flat_sheet(-1.0, [0.0, 0.0]), (cyl,))
+    np.testing.assert_allclose(c["per_frame"], 1.0, atol=1e-12)
+    assert not c["touched"]
+    # moving with the clamp: displaced up by 0.5 and by 1.5 (the second frame cuts the sheet)
+    c = clearance(_flat_sheet(-1.0, [0.5, 1.5]), (cyl,), moves_with_clamp=True)
+    np.testing.assert_allclose(c["per_frame"][0], 0.5, atol=1e-12)
+    assert c["per_frame"][1] < 0 and c["touched"] and c["time"] == 1.0
