@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import shutil
 import tempfile
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,6 +57,9 @@ RUNS = {
     "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
     "method2_rim_feed": Run("scenarios/method2_rim_feed.yaml", fast=False),
     "release_pull_tube": Run("scenarios/release_pull_tube.yaml", fast=False),
+    "method2_rim80": Run(
+        "scenarios/method2.yaml", {"numerics.nodes": 100, "physics.stages.0.clamp_to_z_mm": -80.0}
+    ),
 }
 
 
@@ -100,6 +104,13 @@ FIGURES = {
         "release_pull_tube",
         "dynslip run scenarios/release_pull_tube.yaml (DIR/release_force.png)",
         "copy_release_force",
+    ),
+    "world_method2_rim80.png": Figure(
+        "method2_rim80",
+        "dynslip run scenarios/method2.yaml --set numerics.nodes=100 "
+        "--set physics.stages.0.clamp_to_z_mm=-80; dynslip.plot.world.plot_world(ds, frames, "
+        "held=bottle(20.0), with_clamp=(tube_wall(20.0),))",
+        "world",
     ),
 }
 
@@ -146,6 +157,34 @@ def animation_frame(run_dir: Path, out: Path) -> None:
         t = ds["time"].values[np.flatnonzero(ds["stage"].values == names.index("let_go"))[0]] + 4.0
     outcome = json.loads((run_dir / "summary.json").read_text()).get("outcome")
     save_frame_png(run_dir / "trajectory.nc", out, time=float(t), rest_speed=1e-4, outcome=outcome)
+
+
+def world(run_dir: Path, out: Path) -> None:
+    """The meridian with the apparatus: the sheet at the bottom of the push-down and at the
+    end, the ball, the tube's wall (moving with the clamp) and the assumed bottle."""
+    import json
+
+    import numpy as np
+    import xarray as xr
+
+    from dynslip.data.files import save_figure
+    from dynslip.physics.bodies.apparatus import bottle, tube_wall
+    from dynslip.plot.world import plot_world
+
+    outcome = json.loads((run_dir / "summary.json").read_text()).get("outcome", "")
+    with xr.open_dataset(run_dir / "trajectory.nc", engine="netcdf4") as ds:
+        ds = ds.load()
+    bottom = int(np.flatnonzero(ds["stage"].values == 0)[-1])
+    frames = {"bottom of the push-down": bottom, "end": ds.sizes["time"] - 1}
+    end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
+    fig = plot_world(
+        ds,
+        frames,
+        held=bottle(20.0),
+        with_clamp=(tube_wall(20.0),),
+        title=f"the tube path, rim to -80 mm (N = 100)\n{end}",
+    )
+    save_figure(fig, out, dpi=120)
 
 
 def make_run(name: str, runs_dir: Path, fast: bool, reuse: bool) -> Path:
