@@ -22,15 +22,30 @@ pytestmark = pytest.mark.slow
 
 
 def dynslip(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "dynslip.cli", *map(str, args)], check=False, cwd=cwd,
-                          capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "dynslip.cli", *map(str, args)],
+        check=False,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     d = tmp_path_factory.mktemp("export")
-    p = dynslip("run", SCENARIO, "--set", "numerics.nodes=12", "--set", "numerics.max_chord_depth=0.3",
-                "--out", d / "r", cwd=d)
+    p = dynslip(
+        "run",
+        SCENARIO,
+        "--set",
+        "numerics.nodes=12",
+        "--set",
+        "numerics.max_chord_depth=0.3",
+        "--out",
+        d / "r",
+        cwd=d,
+    )
     assert p.returncode == 0, p.stderr
     with xr.open_dataset(d / "r" / "trajectory.nc") as ds:
         return d, ds.load()
@@ -43,15 +58,21 @@ def _check_sheet(mesh, ds, k, points=None):
     rho = ds["rho"].values[k] * sc["R"]
     z = ds["z"].values[k] * sc["R"]
     # every point on the meridian of its node, whatever its angle
-    np.testing.assert_allclose(np.hypot(pts[:, 0], pts[:, 1]), np.tile(rho, pts.shape[0] // n), atol=1e-9)
+    np.testing.assert_allclose(
+        np.hypot(pts[:, 0], pts[:, 1]), np.tile(rho, pts.shape[0] // n), atol=1e-9
+    )
     np.testing.assert_allclose(pts[:, 2], np.tile(z, pts.shape[0] // n), atol=1e-12)
     assert set(POINT_FIELDS) <= set(mesh.point_data)
     p = mesh.point_data["pressure [MPa]"][:n]
     np.testing.assert_allclose(p, ds["pressure"].values[k] * sc["G*h0/R"], rtol=1e-12)
-    np.testing.assert_array_equal(mesh.point_data["state [0 free, 1 stuck, 2 slip to pole, 3 slip to equator]"][:n],
-                                  ds["state"].values[k])
+    np.testing.assert_array_equal(
+        mesh.point_data["state [0 free, 1 stuck, 2 slip to pole, 3 slip to equator]"][:n],
+        ds["state"].values[k],
+    )
     v = ds["slip_velocity"].values[k] * sc["R"]
-    np.testing.assert_allclose(mesh.point_data["slip_velocity [mm/s]"][:n], v, rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(
+        mesh.point_data["slip_velocity [mm/s]"][:n], v, rtol=1e-12, atol=1e-300
+    )
     cell = mesh.cell_data["T_theta [N/mm]"][0][: n - 1]
     t = ds["T_theta"].values[k] * sc["G*h0"]
     np.testing.assert_allclose(cell, 0.5 * (t[:-1] + t[1:]), rtol=1e-12)
@@ -65,7 +86,9 @@ def test_vtu_series_reads_back(run):
     entries = ET.parse(d / "vtu" / "trajectory.pvd").getroot().find("Collection").findall("DataSet")
     nt = ds.sizes["time"]
     assert len(entries) == 2 * nt
-    np.testing.assert_allclose(sorted({float(e.get("timestep")) for e in entries}), ds["time"].values)
+    np.testing.assert_allclose(
+        sorted({float(e.get("timestep")) for e in entries}), ds["time"].values
+    )
     r_mm = scales(ds)["R"]
     for k in (0, nt // 2, nt - 1):
         sheet = meshio.read(d / "vtu" / f"sheet_{k:04d}.vtu")
@@ -87,7 +110,9 @@ def test_xdmf_series_reads_back(run):
             t, pd, cd = reader.read_data(k)
             assert t == pytest.approx(float(ds["time"].values[k]))
             moved = points + pd["displacement [mm]"]
-            _check_sheet(meshio.Mesh(points, cells, point_data=pd, cell_data=cd), ds, k, points=moved)
+            _check_sheet(
+                meshio.Mesh(points, cells, point_data=pd, cell_data=cd), ds, k, points=moved
+            )
 
 
 def test_export_of_a_file_that_is_not_a_trajectory_is_bad_input(tmp_path):

@@ -27,13 +27,27 @@ pytestmark = pytest.mark.slow
 
 
 def dynslip(*args, cwd, env=None, preexec_fn=None, timeout=600):
-    return subprocess.run([sys.executable, "-m", "dynslip.cli", *map(str, args)], check=False, cwd=cwd, env=env,
-                          preexec_fn=preexec_fn, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "dynslip.cli", *map(str, args)],
+        check=False,
+        cwd=cwd,
+        env=env,
+        preexec_fn=preexec_fn,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def start(*args, cwd, env=None):
-    return subprocess.Popen([sys.executable, "-m", "dynslip.cli", *map(str, args)], cwd=cwd, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "dynslip.cli", *map(str, args)],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def md5(path: Path) -> str:
@@ -67,7 +81,12 @@ def test_second_run_on_one_out_refused_and_killed_holder_does_not_block(tmp_path
     assert a.poll() is None, "the holder finished before the second run was refused"
     assert b.returncode == 2
     lines = b.stderr.strip().splitlines()
-    assert len(lines) == 1 and f"pid {a.pid}" in lines[0] and "host" in lines[0] and "started" in lines[0]
+    assert (
+        len(lines) == 1
+        and f"pid {a.pid}" in lines[0]
+        and "host" in lines[0]
+        and "started" in lines[0]
+    )
     assert "Traceback" not in b.stderr and waited < 60
     a.send_signal(signal.SIGKILL)
     a.communicate()
@@ -80,6 +99,7 @@ def test_second_run_on_one_out_refused_and_killed_holder_does_not_block(tmp_path
 def _fsize(limit):
     def set_limit():
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
     return set_limit
 
 
@@ -139,7 +159,10 @@ def test_compilation_cache_faults(earlier, tmp_path, how):
             (cache / f"garbage{i}").write_text("not a cache entry")
     try:
         if how == "shared":
-            ps = [start("run", SCENARIO, *TINY, "--out", tmp_path / f"s{i}", cwd=tmp_path, env=env) for i in (0, 1)]
+            ps = [
+                start("run", SCENARIO, *TINY, "--out", tmp_path / f"s{i}", cwd=tmp_path, env=env)
+                for i in (0, 1)
+            ]
             results = [(p.wait(600), p.stderr.read()) for p in ps]
             outs = [tmp_path / "s0", tmp_path / "s1"]
         else:
@@ -149,7 +172,7 @@ def test_compilation_cache_faults(earlier, tmp_path, how):
     finally:
         cache.chmod(0o700)
     ref = _traj_values(earlier / "r" / "trajectory.nc")
-    for (rc, err), out in zip(results, outs):
+    for (rc, err), out in zip(results, outs, strict=True):
         assert rc == 0, err
         assert len([ln for ln in err.splitlines() if ln.strip()]) <= 1, err
         got = _traj_values(out / "trajectory.nc")
@@ -186,8 +209,13 @@ def test_window_search_killed_resumes_to_the_same_window_json(tmp_path, sig):
     assert r.returncode == 0, r.stderr
     assert f"resuming: {kept} evaluations" in r.stdout
     # only the missing members ran: one progress line per new evaluation
-    assert sum(": trapped" in ln or ": not trapped" in ln or "FAILED" in ln
-               for ln in r.stdout.splitlines()) == n_total - kept
+    assert (
+        sum(
+            ": trapped" in ln or ": not trapped" in ln or "FAILED" in ln
+            for ln in r.stdout.splitlines()
+        )
+        == n_total - kept
+    )
     assert json.loads((tmp_path / "w" / "window.json").read_text()) == ref_json
 
 
@@ -198,8 +226,17 @@ def test_run_over_the_machine_memory_refused_before_it_starts(tmp_path):
     frames = 320.0 / save  # the let-go path lasts > 320 s at its longest
     if estimate(nodes, frames) <= machine_memory():
         pytest.skip("this machine holds even this run")
-    p = dynslip("run", SCENARIO, "--set", f"numerics.nodes={nodes}", "--set", f"numerics.save_interval_s={save}",
-                "--out", tmp_path / "big", cwd=tmp_path)
+    p = dynslip(
+        "run",
+        SCENARIO,
+        "--set",
+        f"numerics.nodes={nodes}",
+        "--set",
+        f"numerics.save_interval_s={save}",
+        "--out",
+        tmp_path / "big",
+        cwd=tmp_path,
+    )
     assert p.returncode == 2
     (line,) = p.stderr.strip().splitlines()
     assert "numerics.nodes = 4000" in line and "GiB" in line and "this machine has" in line
@@ -215,8 +252,19 @@ def test_non_finite_state_mid_run_keeps_the_finite_frames(tmp_path):
     import numpy as np
     import xarray as xr
 
-    p = dynslip("run", SCENARIO, "--set", "numerics.nodes=12", "--set", "numerics.max_chord_depth=1.0",
-                "--set", "physics.material.model=hookean", "--out", tmp_path / "nf", cwd=tmp_path)
+    p = dynslip(
+        "run",
+        SCENARIO,
+        "--set",
+        "numerics.nodes=12",
+        "--set",
+        "numerics.max_chord_depth=1.0",
+        "--set",
+        "physics.material.model=hookean",
+        "--out",
+        tmp_path / "nf",
+        cwd=tmp_path,
+    )
     assert p.returncode == 3 and "Traceback" not in p.stderr
     first = p.stderr.strip().splitlines()[0]
     assert "non-finite state" in first and "stage 'push_down'" in first and "t = " in first
@@ -258,13 +306,38 @@ def test_dask_worker_killed_mid_sweep_every_member_once(tmp_path):
     from distributed import Client, LocalCluster
 
     (tmp_path / "s.yaml").write_text(SWEEP.format(base=SCENARIO))
-    ref = dynslip("sweep", tmp_path / "s.yaml", "--mode", "sequential", "--out", tmp_path / "ref", cwd=tmp_path)
+    ref = dynslip(
+        "sweep",
+        tmp_path / "s.yaml",
+        "--mode",
+        "sequential",
+        "--out",
+        tmp_path / "ref",
+        cwd=tmp_path,
+    )
     assert ref.returncode == 0, ref.stderr
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         pids = list(client.run(os.getpid).values())
-        p = start("sweep", tmp_path / "s.yaml", "--mode", "dask", "--scheduler", cluster.scheduler_address,
-                  "--out", tmp_path / "d", cwd=tmp_path)
+        p = start(
+            "sweep",
+            tmp_path / "s.yaml",
+            "--mode",
+            "dask",
+            "--scheduler",
+            cluster.scheduler_address,
+            "--out",
+            tmp_path / "d",
+            cwd=tmp_path,
+        )
         mdir = tmp_path / "d" / "members"
         wait_for(lambda: (mdir.is_dir() and any(mdir.glob("*.json"))) or p.poll() is not None)
         assert p.poll() is None, "the sweep ended before a worker could be killed"
@@ -272,15 +345,29 @@ def test_dask_worker_killed_mid_sweep_every_member_once(tmp_path):
         _, err = p.communicate(timeout=600)
         if p.returncode == 3:  # stopped: the rerun runs the missing members only
             n_done = len(list(mdir.glob("*.json")))
-            r = dynslip("sweep", tmp_path / "s.yaml", "--mode", "dask", "--scheduler", cluster.scheduler_address,
-                        "--out", tmp_path / "d", cwd=tmp_path)
+            r = dynslip(
+                "sweep",
+                tmp_path / "s.yaml",
+                "--mode",
+                "dask",
+                "--scheduler",
+                cluster.scheduler_address,
+                "--out",
+                tmp_path / "d",
+                cwd=tmp_path,
+            )
             assert r.returncode == 0, r.stderr
             assert f"{n_done} already done, {4 - n_done} to run" in r.stdout
         else:
             assert p.returncode == 0, err
     recs = [json.loads(f.read_text()) for f in mdir.glob("*.json")]
-    assert len(recs) == 4 and len({r["fingerprint"] for r in recs}) == 4  # every member exactly once
-    got, want = _sweep_values(tmp_path / "d" / "sweep.nc"), _sweep_values(tmp_path / "ref" / "sweep.nc")
+    assert (
+        len(recs) == 4 and len({r["fingerprint"] for r in recs}) == 4
+    )  # every member exactly once
+    got, want = (
+        _sweep_values(tmp_path / "d" / "sweep.nc"),
+        _sweep_values(tmp_path / "ref" / "sweep.nc"),
+    )
     assert got.keys() == want.keys()
     for k in want:
         np.testing.assert_array_equal(got[k], want[k], err_msg=k)

@@ -37,7 +37,9 @@ def _write_vtu(ds, folder: Path) -> list[Path]:
 
     entries = []
     for k, t in enumerate(ds["time"].values):
-        for part, (stem, mesh) in enumerate((("sheet", sheet_mesh(ds, k)), ("ball", ball_mesh(ds, k)))):
+        for part, (stem, mesh) in enumerate(
+            (("sheet", sheet_mesh(ds, k)), ("ball", ball_mesh(ds, k)))
+        ):
             name = f"{stem}_{k:04d}.vtu"
             meshio.write(folder / name, mesh, file_format="vtu")
             entries.append((float(t), part, name))
@@ -64,7 +66,9 @@ def _write_xdmf(ds, folder: Path) -> list[Path]:
     return paths
 
 
-def run_export(trajectory, out: Path | None = None, fmt: str = "vtu", console=None, force: bool = False) -> Path:
+def run_export(
+    trajectory, out: Path | None = None, fmt: str = "vtu", console=None, force: bool = False
+) -> Path:
     """Export ``trajectory`` into the folder ``out`` (default ``<trajectory folder>/paraview``);
     return the file to open (``trajectory.pvd`` or ``sheet.xdmf``)."""
     from dynslip.data.files import StagedRun

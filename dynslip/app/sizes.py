@@ -41,21 +41,27 @@ def estimate(nodes: int, frames: float) -> float:
 
 def describe() -> str:
     """The bound in words, for ``dynslip schema``."""
-    return (f"memory of a forming run: ~ 2 x nodes x frames x {n_fields()} fields x 8 bytes + "
-            f"{SOLVER_BYTES} x (3 nodes)^2 bytes (frames: the loading path at its longest / "
-            f"numerics.save_interval_s); refused (exit 2) above this machine's {machine_memory() / 2**30:.1f} GiB")
+    return (
+        f"memory of a forming run: ~ 2 x nodes x frames x {n_fields()} fields x 8 bytes + "
+        f"{SOLVER_BYTES} x (3 nodes)^2 bytes (frames: the loading path at its longest / "
+        f"numerics.save_interval_s); refused (exit 2) above this machine's {machine_memory() / 2**30:.1f} GiB"  # noqa: E501
+    )
 
 
 def check_forming(sc) -> None:
-    """Raise :class:`InputError` when the forming scenario ``sc`` would hold more than the machine."""
+    """Raise :class:`InputError` when the forming scenario ``sc`` would hold more than the
+    machine."""
     from dynslip.schema.forming import build_protocol
 
     nodes = int(sc.numerics.nodes)
-    frames = sum(s.max_duration for s in build_protocol(sc).stages) / sc.numerics.save_interval_s + 1
+    frames = (
+        sum(s.max_duration for s in build_protocol(sc).stages) / sc.numerics.save_interval_s + 1
+    )
     need = estimate(nodes, frames)
     have = machine_memory()
     if need > have:
         raise InputError(
-            f"numerics.nodes = {nodes}, numerics.save_interval_s = {sc.numerics.save_interval_s:g}: the run would "
-            f"hold ~{need / 2**30:.3g} GiB ({nodes} nodes x {frames:.3g} frames x {n_fields()} fields x 16 bytes "
-            f"+ solver), this machine has {have / 2**30:.3g} GiB; allowed: fewer nodes or a larger save_interval_s")
+            f"numerics.nodes = {nodes}, numerics.save_interval_s = {sc.numerics.save_interval_s:g}: the run would "  # noqa: E501
+            f"hold ~{need / 2**30:.3g} GiB ({nodes} nodes x {frames:.3g} frames x {n_fields()} fields x 16 bytes "  # noqa: E501
+            f"+ solver), this machine has {have / 2**30:.3g} GiB; allowed: fewer nodes or a larger save_interval_s"  # noqa: E501
+        )

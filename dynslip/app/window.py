@@ -142,11 +142,11 @@ def run_window(
     from dynslip.data.lock import out_lock
 
     with out_lock(out):  # one search per folder at a time
-        return _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse,
+        return _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse,  # noqa: E501
                        tol, console, EvaluationLog(out, search_key(resolved, field_name, tied)))
 
 
-def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse, tol, console,
+def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse, tol, console,  # noqa: E501
             log) -> dict:
     """The window search of :func:`run_window` in ``out``, resuming from the evaluations ``log``
     kept by an earlier, stopped attempt of the same search (each evaluation is kept as it ends)."""

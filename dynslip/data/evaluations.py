@@ -41,8 +41,12 @@ class EvaluationLog:
             return {}, {}
         known, errors = {}, {}
         for row in data.get("evaluations", []):
-            if not (isinstance(row, list) and len(row) == 3 and isinstance(row[0], (int, float))
-                    and row[1] in (True, False, None)):
+            if not (
+                isinstance(row, list)
+                and len(row) == 3
+                and isinstance(row[0], (int, float))
+                and row[1] in (True, False, None)
+            ):
                 continue
             mu = float(row[0])
             known[mu] = row[1]

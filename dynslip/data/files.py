@@ -74,7 +74,8 @@ class WriteFailed(ComputationError):
 
 @contextlib.contextmanager
 def _writing(path: Path, tmp: Path):
-    """Write ``tmp`` then rename it ``path``; on an OS error remove ``tmp``, raise :class:`WriteFailed`."""
+    """Write ``tmp`` then rename it ``path``; on an OS error remove ``tmp``, raise
+    :class:`WriteFailed`."""
     try:
         yield
         os.replace(tmp, path)
@@ -447,7 +448,7 @@ class StagedRun:
         if issubclass(exc_type, KeyboardInterrupt):
             why = f"interrupted by {signal_name(exc)}"
         else:
-            why = f"run did not complete: {exc_type.__name__}: {exc}".replace(str(self.staging), "this folder")
+            why = f"run did not complete: {exc_type.__name__}: {exc}".replace(str(self.staging), "this folder")  # noqa: E501
         with _signals_held():
             with contextlib.suppress(OSError):
                 if set(os.listdir(self.staging)) <= {INCOMPLETE, RESULT_MARKER}:

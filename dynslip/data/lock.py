@@ -38,8 +38,10 @@ def out_lock(out, what: str = "--out"):
         except BlockingIOError:
             holder = os.pread(fd, 512, 0).decode("utf-8", "replace").strip() or "unknown process"
             os.close(fd)
-            raise InputError(f"{what} {str(out)!r}: in use by another dynslip run ({holder}); "
-                             "allowed: one run per output folder at a time") from None
+            raise InputError(
+                f"{what} {str(out)!r}: in use by another dynslip run ({holder}); "
+                "allowed: one run per output folder at a time"
+            ) from None
         try:  # the file may have been removed by a holder releasing it: lock the one at the path
             same = os.stat(path).st_ino == os.fstat(fd).st_ino
         except FileNotFoundError:

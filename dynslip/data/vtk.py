@@ -71,8 +71,10 @@ def sheet_mesh(ds: xr.Dataset, k: int, n_phi: int = 48):
     z = np.asarray(ds["z"].transpose("time", "rbar").values[k], float) * sc["R"]
     n = rho.size
     phi = 2.0 * np.pi * np.arange(n_phi) / n_phi
-    pts = np.stack([np.outer(np.cos(phi), rho).ravel(), np.outer(np.sin(phi), rho).ravel(),
-                    np.tile(z, n_phi)], axis=1)
+    pts = np.stack(
+        [np.outer(np.cos(phi), rho).ravel(), np.outer(np.sin(phi), rho).ravel(), np.tile(z, n_phi)],
+        axis=1,
+    )
     point_data = {}
     for label, (var, scale) in POINT_FIELDS.items():
         v = _values(ds, var, k)
@@ -83,7 +85,9 @@ def sheet_mesh(ds: xr.Dataset, k: int, n_phi: int = 48):
         v = _values(ds, var, k)
         v = 0.5 * (v[:-1] + v[1:]) * (sc[scale] if scale else 1.0)
         cell_data[label] = [np.tile(v, n_phi)]
-    return meshio.Mesh(pts, [("quad", _quads(n, n_phi))], point_data=point_data, cell_data=cell_data)
+    return meshio.Mesh(
+        pts, [("quad", _quads(n, n_phi))], point_data=point_data, cell_data=cell_data
+    )
 
 
 def ball_mesh(ds: xr.Dataset, k: int, n_theta: int = 24, n_phi: int = 48):
@@ -94,6 +98,12 @@ def ball_mesh(ds: xr.Dataset, k: int, n_theta: int = 24, n_phi: int = 48):
     zc = float(ds["ball_z"].values[k]) * r
     th = np.linspace(0.0, np.pi, n_theta + 1)
     phi = 2.0 * np.pi * np.arange(n_phi) / n_phi
-    pts = np.stack([np.outer(np.cos(phi), r * np.sin(th)).ravel(), np.outer(np.sin(phi), r * np.sin(th)).ravel(),
-                    np.tile(zc + r * np.cos(th), n_phi)], axis=1)
+    pts = np.stack(
+        [
+            np.outer(np.cos(phi), r * np.sin(th)).ravel(),
+            np.outer(np.sin(phi), r * np.sin(th)).ravel(),
+            np.tile(zc + r * np.cos(th), n_phi),
+        ],
+        axis=1,
+    )
     return meshio.Mesh(pts, [("quad", _quads(n_theta + 1, n_phi))])
