@@ -137,8 +137,9 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     cz = jnp.where(pinned, g_z[-1], f_app[1])
     held = args.ball_mode == BALL_HOLD
     fb = args.ball_force(t) + args.support_force(zb)
-    vb = jnp.where(held, args.vzb, (fb + cz + args.weight) / args.ball_drag)
-    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, fb)
+    c_ball = cz - model.held_load(rho, z)  # the sheet's pull on the ball: the held bodies carry the rest
+    vb = jnp.where(held, args.vzb, (fb + c_ball + args.weight) / args.ball_drag)
+    f_hold = jnp.where(held, args.ball_drag * vb - c_ball - args.weight, fb)
     u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
     u = u.at[:, -1].set(u_c)
     v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])

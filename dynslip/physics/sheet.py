@@ -45,8 +45,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
+
+if TYPE_CHECKING:
+    from dynslip.physics.bodies.base import AbstractBody
 
 __all__ = ["Mesh", "Penalty", "SheetModel", "chord_depths", "deepest_chord", "make_mesh", "mesh_from_radii",
            "penalty_energy", "penalty_pressure"]
@@ -173,16 +178,32 @@ def node_stretches(mesh: Mesh, rho, z):
     return lt, lp
 
 
+def _unit_sphere() -> AbstractBody:
+    # imported here: physics.bodies.contact imports this module's penalty
+    from dynslip.physics.bodies.sphere import Sphere
+
+    return Sphere()
+
+
 class SheetModel(eqx.Module):
     """Material, mesh and contact penalty of the whole sheet: energies and forces.
 
     Arrays are full node arrays ``rho``, ``z`` of shape (N,), with ``rho[0] = 0`` and the
     last node at the clamp. ``zb`` is the ball centre height.
+
+    ``ball`` is the moving body (an :class:`~dynslip.physics.bodies.base.AbstractBody` in its
+    reference placement, displaced by ``zb``; the unit sphere by default: today's results);
+    ``bodies`` the held obstacles (a tuple, at their reference placements). A node feels every
+    body it penetrates with the same penalty; the held bodies are frictionless (their force
+    enters through the energy only) and the friction law acts on the ball's tangent
+    (docs/bodies.md).
     """
 
     mesh: Mesh
     material: AbstractMaterial
     penalty: Penalty
+    ball: AbstractBody = eqx.field(default_factory=_unit_sphere)
+    bodies: tuple = ()
 
     def elastic_energy(self, rho, z):
         """Relaxed elastic energy (G h0 R^2); NaN/inf outside the material's range."""
@@ -190,12 +211,25 @@ class SheetModel(eqx.Module):
         return jnp.sum(self.mesh.area_el * relaxed_energy(self.material, lt, lp))
 
     def penetration(self, rho, z, zb):
-        r = jnp.sqrt(rho**2 + (z - zb) ** 2)
-        return 1.0 - r
+        """Penetration of each node into the ball, minus its signed distance (R)."""
+        return -self.ball.distance(jnp.stack([rho, z], axis=-1), zb)
+
+    def held_penalty_energy(self, rho, z):
+        """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any)."""
+        x = jnp.stack([rho, z], axis=-1)
+        return sum((jnp.sum(self.mesh.area * penalty_energy(self.penalty, -b.distance(x))) for b in self.bodies),
+                   jnp.zeros(()))
+
+    def held_load(self, rho, z):
+        """Axial force of the sheet on the held bodies, $\\sum_i \\partial E_h/\\partial z_i$
+        (G h0 R, + upward): the part of the clamp's pull they carry instead of the ball."""
+        if not self.bodies:
+            return jnp.zeros(())
+        return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z))
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)
-        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d))
+        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + self.held_penalty_energy(rho, z)
 
     def energy(self, rho, z, zb):
         return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)
@@ -213,15 +247,12 @@ class SheetModel(eqx.Module):
     def frame(self, rho, z, zb):
         """Outward unit normal n and tangent t (toward the equator) of the ball at each node.
 
-        n = (sin theta, cos theta) in (rho, z); t = (cos theta, -sin theta). At the pole
-        node (rho = 0) the tangent is radial and carries no motion.
+        From the ball's projection: for the sphere n = (sin theta, cos theta) in (rho, z),
+        t = (cos theta, -sin theta). At the pole node (rho = 0) the tangent is radial and
+        carries no motion.
         """
-        dx, dzz = rho, z - zb
-        r = jnp.sqrt(dx**2 + dzz**2)
-        r = jnp.where(r > 0, r, 1.0)
-        n = jnp.stack([dx / r, dzz / r])
-        t = jnp.stack([dzz / r, -dx / r])
-        return n, t
+        p = self.ball.project(jnp.stack([rho, z], axis=-1), zb)
+        return p.normal.T, p.tangent.T
 
     def normal_force(self, rho, z, zb):
         """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
