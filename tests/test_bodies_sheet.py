@@ -18,13 +18,18 @@ import pytest
 
 from dynslip.physics import newton as nw
 from dynslip.physics.bodies import Cylinder, Sphere, Torus
-from dynslip.physics.field import Layout
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Protocol, Stage, StopRule
+from dynslip.physics.protocols import (
+    BALL_FORCE,
+    BALL_HOLD,
+    CLAMP_POSITION,
+    Protocol,
+    Stage,
+    StopRule,
+)
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.simulate import Settings, _stage_args, simulate
-
 from test_forming import residual
 
 N = 24
@@ -34,19 +39,31 @@ PEN = Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
 # a post under the sheet (the ball held far above, out of reach): flat top at z = 0, rounded edge
 POST = Cylinder(radius=1.0, z_bottom=-3.0, z_top=0.0, edge_radius=0.25)
 # the tube's rounded rim and a ring (a bottle's shoulder) below the ball
-WORLD = (Torus(ring_radius=2.0, minor_radius=0.15, centre_z=-1.3),
-         Cylinder(radius=1.35, inner_radius=1.05, z_bottom=-3.0, z_top=-0.25, edge_radius=0.1))
+WORLD = (
+    Torus(ring_radius=2.0, minor_radius=0.15, centre_z=-1.3),
+    Cylinder(radius=1.35, inner_radius=1.05, z_bottom=-3.0, z_top=-0.25, edge_radius=0.1),
+)
 POST_MODEL = SheetModel(make_mesh(N, RIM / PRE), MAT, PEN, ball=Sphere(), bodies=(POST,))
 WORLD_MODEL = SheetModel(make_mesh(N, RIM / PRE), MAT, PEN, bodies=WORLD)
 
 
 def _run(model, z_sheet, ball_z0, depth, solver="load_step", speed=0.2, hold=4.0, mu=0.5):
-    stages = (Stage("push", StopRule("duration", duration=(z_sheet - depth) / speed), clamp_vz=-speed),
-              Stage("hold", StopRule("duration", duration=hold)))
+    stages = (
+        Stage("push", StopRule("duration", duration=(z_sheet - depth) / speed), clamp_vz=-speed),
+        Stage("hold", StopRule("duration", duration=hold)),
+    )
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
-    res = simulate(model, protocol, friction=Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(1e-3)), eps=1e-3,
-                   drag=TAU, ball_drag=TAU * 4 * math.pi, pre_stretch=PRE, z_sheet=z_sheet,
-                   settings=Settings(solver=solver, save_interval=1.0))
+    res = simulate(
+        model,
+        protocol,
+        friction=Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(1e-3)),
+        eps=1e-3,
+        drag=TAU,
+        ball_drag=TAU * 4 * math.pi,
+        pre_stretch=PRE,
+        z_sheet=z_sheet,
+        settings=Settings(solver=solver, save_interval=1.0),
+    )
     assert res.failed is None, res.failed
     return res
 
@@ -70,8 +87,9 @@ def world_run():
 
 def _pressures(bodies, rho, z):
     x = jnp.stack([rho, z], axis=-1)
-    return [np.asarray(penalty_pressure(PEN, -b.distance(x))) for b in bodies], \
-        [np.asarray(b.distance(x)) for b in bodies]
+    return [np.asarray(penalty_pressure(PEN, -b.distance(x))) for b in bodies], [
+        np.asarray(b.distance(x)) for b in bodies
+    ]
 
 
 def test_frictionless_face_stretches_the_sheet_uniformly(post_run):
@@ -80,7 +98,9 @@ def test_frictionless_face_stretches_the_sheet_uniformly(post_run):
     pull over the edge sets (here from 1.05 to about 1.39), and lies flat on the face."""
     f, rho, z = _end(post_run)
     lt, lp = np.asarray(f["lambda_theta"]), np.asarray(f["lambda_phi"])
-    face = np.asarray(rho) < 0.5  # nodes on the flat top whose elements are clear of the edge (at 0.75)
+    face = (
+        np.asarray(rho) < 0.5
+    )  # nodes on the flat top whose elements are clear of the edge (at 0.75)
     assert face.sum() >= 4
     assert lp[face].min() > 1.3  # stretched well past the pre-stretch by the pull over the edge
     np.testing.assert_allclose(lt[face], lp[face], rtol=1e-6)
@@ -104,8 +124,11 @@ def test_clamp_force_is_the_post_load_at_rest(post_run):
     assert share < 1e-3, share  # the flat face: no curvature, (nearly) no load
     edge = (np.asarray(rho) > 0.75) & (p > 0)
     assert edge.sum() >= 2
-    np.testing.assert_allclose(np.sum(POST_MODEL.mesh.area * p * -np.asarray(POST.normal(
-        jnp.stack([rho, z], -1)))[:, 1]), load, rtol=1e-6)  # L = sum_i A_i p_i (-n_z)
+    np.testing.assert_allclose(
+        np.sum(POST_MODEL.mesh.area * p * -np.asarray(POST.normal(jnp.stack([rho, z], -1)))[:, 1]),
+        load,
+        rtol=1e-6,
+    )  # L = sum_i A_i p_i (-n_z)
 
 
 def test_ball_and_held_bodies_share_the_clamp_force(world_run):
@@ -146,8 +169,9 @@ def test_energy_balance_with_several_bodies(world_run):
 # ----------------------------------------------------------------------------- Newton's matrix
 
 NS = 9
-SMALL = SheetModel(make_mesh(NS, 2.4), MAT, PEN,
-                   bodies=(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),))
+SMALL = SheetModel(
+    make_mesh(NS, 2.4), MAT, PEN, bodies=(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),)
+)
 
 
 @pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE])
@@ -156,7 +180,6 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
     enters the ball's rate) is the derivative of the residual: exactly with the ball held;
     with the ball under force, all but the pinned edge's coupling to nodes other than its
     neighbour (left out, docs/bodies.md)."""
-    layout = Layout(NS, 0)
     rng = np.random.default_rng(1)
     rbar = np.asarray(SMALL.mesh.rbar)
     th = np.minimum(1.05 * rbar, 1.5)
@@ -165,12 +188,32 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
     rho[0] = 0.0
     x = jnp.stack([jnp.asarray(rho), jnp.asarray(z)], -1)
     assert np.any(np.asarray(SMALL.bodies[0].distance(x)) < 0)  # some nodes press on the torus
-    stage = Stage("s", StopRule("duration", duration=5.0), clamp_vz=-0.2, ball_mode=ball_mode,
-                  clamp_mode=CLAMP_POSITION, ball_force_end=0.0)
-    args = _stage_args(stage, 0.0, 0.0, 0.3, (0.1, -0.2), Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3)),
-                       1e-3, 0.1, 0.4, 0.05, support_z=-0.01, support_k=1e3)
+    stage = Stage(
+        "s",
+        StopRule("duration", duration=5.0),
+        clamp_vz=-0.2,
+        ball_mode=ball_mode,
+        clamp_mode=CLAMP_POSITION,
+        ball_force_end=0.0,
+    )
+    args = _stage_args(
+        stage,
+        0.0,
+        0.0,
+        0.3,
+        (0.1, -0.2),
+        Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3)),
+        1e-3,
+        0.1,
+        0.4,
+        0.05,
+        support_z=-0.01,
+        support_k=1e3,
+    )
     q = jnp.stack([jnp.asarray(rho), jnp.asarray(z) - 0.02], axis=1)
-    inc = nw.Increment(q0=q, zb0=jnp.asarray(0.02), delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3), args=args)
+    inc = nw.Increment(
+        q0=q, zb0=jnp.asarray(0.02), delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3), args=args
+    )
     zb = jnp.asarray(0.02)
 
     def flat(v):

@@ -37,6 +37,15 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
 
 The linear solve is :func:`dynslip.physics.linalg.block_solve` (block cyclic reduction or
 block Thomas, with the one-unknown border by a Schur complement).
+
+**Bodies.** The contact geometry is asked of the model's bodies through :func:`contact_gap`
+(the ball, :attr:`SheetModel.ball`, at the relative position $q$; the held bodies,
+:attr:`SheetModel.bodies`, at $q + z_b e_z$, frictionless, docs/bodies.md).
+
+Longer than 400 lines: the increment's residual, its Newton matrix and the solver object
+share the node and element terms at the top, and the matrix is checked block by block
+against the residual (tests/test_newton.py, tests/test_bodies_sheet.py); split, the three
+would import each other's private terms.
 """
 
 from __future__ import annotations
@@ -52,7 +61,15 @@ from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["MotionNewton", "SegmentOutput", "increment_rates", "newton_blocks", "residual", "slip_update", "zero_rate"]
+__all__ = [
+    "MotionNewton",
+    "SegmentOutput",
+    "increment_rates",
+    "newton_blocks",
+    "residual",
+    "slip_update",
+    "zero_rate",
+]
 
 GROW = 1.5
 CUT = 0.5
@@ -71,15 +88,13 @@ class SegmentOutput(eqx.Module):
     accepted: jax.Array
     rejected: jax.Array
     newton_iterations: jax.Array
-    rate: tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
-
-    def __iter__(self):
-        """The five values the time-stepped segment solve used to return as a tuple
-        (``tests/test_structured.py`` still unpacks them; read the fields instead)."""
-        return iter((self.y, self.ok, self.steps, self.accepted, self.rejected))
+    rate: (
+        tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
+    )
 
 
 # --------------------------------------------------------------------------- element / node terms
+
 
 def element_energy(material, dr, rsum, area_el, xa, xb):
     """Elastic energy of one element from its two nodes (rho, z) (G h0 R^2), as
@@ -107,7 +122,10 @@ def _node_penalty(pen, ball, area, q):
 
 def _held_penalty(model: SheetModel, area, x):
     """Penalty energy of one node at absolute position ``x`` against every held body."""
-    return sum((area * penalty_energy(model.penalty, contact_gap(b, x)[0]) for b in model.bodies), jnp.zeros(()))
+    return sum(
+        (area * penalty_energy(model.penalty, contact_gap(b, x)[0]) for b in model.bodies),
+        jnp.zeros(()),
+    )
 
 
 def forces(model: SheetModel, q, zb):
@@ -123,11 +141,14 @@ def forces(model: SheetModel, q, zb):
 
     e, (ga, gb) = jax.vmap(el)(m.dr, rsum, m.area_el, q[:-1], q[1:])
     ep, gp = jax.vmap(jax.value_and_grad(_node_penalty, argnums=3), in_axes=(None, None, 0, 0))(
-        model.penalty, model.ball, m.area, q)
+        model.penalty, model.ball, m.area, q
+    )
     load = jnp.zeros(())
     if model.bodies:
         x = q + jnp.stack([jnp.zeros(()), zb])
-        eh, gh = jax.vmap(jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi), argnums=1))(m.area, x)
+        eh, gh = jax.vmap(jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi), argnums=1))(
+            m.area, x
+        )
         ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ga).at[1:].add(gb)
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
@@ -142,7 +163,9 @@ def forces_and_hessians(model: SheetModel, q, zb):
     rsum = m.rbar[1:] + m.rbar[:-1]
 
     def el(dr, rs, a, x):
-        f = lambda x: element_energy(model.material, dr, rs, a, x[:2], x[2:])
+        def f(x):
+            return element_energy(model.material, dr, rs, a, x[:2], x[2:])
+
         gfun = jax.grad(f)
         h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
         return f(x), g, h
@@ -154,11 +177,15 @@ def forces_and_hessians(model: SheetModel, q, zb):
         h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
         return f(x), g, h
 
-    ep, gp, hp = jax.vmap(lambda a, x: second(lambda x: _node_penalty(model.penalty, model.ball, a, x), x))(m.area, q)
+    ep, gp, hp = jax.vmap(
+        lambda a, x: second(lambda x: _node_penalty(model.penalty, model.ball, a, x), x)
+    )(m.area, q)
     load, hh = jnp.zeros(()), None
     if model.bodies:
         x = q + jnp.stack([jnp.zeros(()), zb])
-        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x), x))(m.area, x)
+        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x), x))(
+            m.area, x
+        )
         ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
     h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
@@ -168,6 +195,7 @@ def forces_and_hessians(model: SheetModel, q, zb):
 
 
 # --------------------------------------------------------------------------- friction return map
+
 
 def _slip(friction: AbstractFriction, ft, normal, delta, eps):
     """$|S|$ of one node with slip distance ``delta`` (None for a memoryless law)."""
@@ -195,7 +223,9 @@ def slip_update(friction, ft, normal, eps, delta0, c):
     return delta0, jnp.where(live, d1, delta0)
 
 
-# --------------------------------------------------------------------------- the increment's residual
+# --------------------------------------------------------------------------- the increment's
+# residual
+
 
 class Increment(eqx.Module):
     """The data of one increment: start state (relative positions, ball height, slip
@@ -238,7 +268,9 @@ def ball_rate(inc: Increment, g_edge, zb, load):
     pinned = args.clamp_mode == CLAMP_POSITION
     cz = jnp.where(pinned, g_edge[1], args.clamp_force(inc.t1)[1])
     fb = args.ball_force(inc.t1) + args.support_force(zb)
-    return jnp.where(args.ball_mode == BALL_HOLD, args.vzb, (fb + (cz - load) + args.weight) / args.ball_drag)
+    return jnp.where(
+        args.ball_mode == BALL_HOLD, args.vzb, (fb + (cz - load) + args.weight) / args.ball_drag
+    )
 
 
 def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load):
@@ -258,17 +290,22 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load):
     idx = jnp.arange(q.shape[0])
     d0 = inc.delta0
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None))(idx, q, g)
+        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None))(
+            idx, q, g
+        )
         delta1 = None
     else:
-        u, delta1 = jax.vmap(lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di))(idx, q, g, d0)
+        u, delta1 = jax.vmap(lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di))(
+            idx, q, g, d0
+        )
         delta1 = delta1.at[-1].set(d0[-1])
     u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load))
     return u, ball_rate(inc, g[-1], zb, load), delta1
 
 
 def residual(model, friction, inc: Increment, q, zb):
-    """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} - \\Delta t\\,v_b$."""
+    """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} -
+    \\Delta t\\,v_b$."""
     g, load = forces(model, q, zb)
     u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
     return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb
@@ -288,8 +325,12 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
 
     lq, lg = jax.vmap(jax.jacfwd(local, argnums=(1, 2)))(idx, q, g, d0)  # (n, 2, 2) each
     # the clamped edge: rate from its force and the ball height only
-    eg, ez, el = jax.jacfwd(lambda ge, z, ld: edge_rate(model, inc, ge, z, ld), argnums=(0, 1, 2))(g[-1], zb, load)
-    bg, bz, bl = jax.jacfwd(lambda ge, z, ld: ball_rate(inc, ge, z, ld), argnums=(0, 1, 2))(g[-1], zb, load)
+    eg, ez, el = jax.jacfwd(lambda ge, z, ld: edge_rate(model, inc, ge, z, ld), argnums=(0, 1, 2))(
+        g[-1], zb, load
+    )
+    bg, bz, bl = jax.jacfwd(lambda ge, z, ld: ball_rate(inc, ge, z, ld), argnums=(0, 1, 2))(
+        g[-1], zb, load
+    )
     lq = lq.at[-1].set(0.0)
     lg = lg.at[-1].set(eg)
     h_low = jnp.swapaxes(h_up, 1, 2)  # d2E/dx_{i+1} dx_i
@@ -322,6 +363,7 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
 
 # --------------------------------------------------------------------------- the solver object
 
+
 class MotionNewton(eqx.Module):
     """Implicit Euler load increments, Newton on the motion alone (module docstring).
 
@@ -343,7 +385,8 @@ class MotionNewton(eqx.Module):
     max_steps: int = eqx.field(static=True, default=20000)
 
     def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
-        """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0) rate``
+        """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
+        rate``
         (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0))``."""
         friction = args.friction
         h = t1 - t0
@@ -385,10 +428,14 @@ class MotionNewton(eqx.Module):
                 return alpha, tq, tz, k + 1
 
             tq, tz = res(q - dq, zb - dz)
-            alpha, tq, tz, _ = jax.lax.while_loop(bt_cond, bt_body, (jnp.array(1.0), tq, tz, jnp.array(0)))
+            alpha, tq, tz, _ = jax.lax.while_loop(
+                bt_cond, bt_body, (jnp.array(1.0), tq, tz, jnp.array(0))
+            )
             qn, zbn = q - alpha * dq, zb - alpha * dz
-            step = jnp.maximum(jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
-                               jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn)))
+            step = jnp.maximum(
+                jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
+                jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn)),
+            )
             done = (step < 1.0) & (size(tq, tz) <= atol)
             bad = ~(jnp.all(jnp.isfinite(qn)) & jnp.isfinite(zbn) & jnp.isfinite(size(tq, tz)))
             return qn, zbn, tq, tz, it + 1, done, bad
@@ -398,13 +445,17 @@ class MotionNewton(eqx.Module):
         g, load = forces(model, q, zb)
         _, _, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
         y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1)
-        dy, _ = evaluate(model, layout, t1, y1, args)  # the accumulators by the rectangle rule at x1
+        dy, _ = evaluate(
+            model, layout, t1, y1, args
+        )  # the accumulators by the rectangle rule at x1
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate)
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
         return y1, ok, it, (q - q0, zb - zb0)
 
-    def segment(self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+    def segment(
+        self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None
+    ) -> SegmentOutput:
         """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
         ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment."""
         from dynslip.physics.loadstep import increment_cap
@@ -425,21 +476,40 @@ class MotionNewton(eqx.Module):
             last = left <= 1.25 * dt
             h = jnp.where(last, left, dt)
             t_next = jnp.where(last, t1, t + h)
-            y1, ok, iters, (dq, dz) = self.increment(model, layout, t, t_next, y, args, rate, rtol, atol)
-            factor = jnp.where(iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0))
+            y1, ok, iters, (dq, dz) = self.increment(
+                model, layout, t, t_next, y, args, rate, rtol, atol
+            )
+            factor = jnp.where(
+                iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0)
+            )
             factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)
             dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
             dt_new = jnp.where(ok, dt_ok, CUT * h)
             new_rate = (dq / h, dz / h)
             rate = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_rate, rate)
-            return (jnp.where(ok, t_next, t), jnp.where(ok, y1, y), rate, dt_new, ~ok, nacc + ok, nrej + (~ok),
-                    nit + iters)
+            return (
+                jnp.where(ok, t_next, t),
+                jnp.where(ok, y1, y),
+                rate,
+                dt_new,
+                ~ok,
+                nacc + ok,
+                nrej + (~ok),
+                nit + iters,
+            )
 
         init = (t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
         t, y, rate, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
         ok = (t >= t1) & jnp.all(jnp.isfinite(y))
-        return SegmentOutput(y=y, ok=ok, steps=nacc + nrej, accepted=nacc, rejected=nrej, newton_iterations=nit,
-                             rate=rate)
+        return SegmentOutput(
+            y=y,
+            ok=ok,
+            steps=nacc + nrej,
+            accepted=nacc,
+            rejected=nrej,
+            newton_iterations=nit,
+            rate=rate,
+        )
 
 
 def zero_rate(n: int):

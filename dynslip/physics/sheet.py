@@ -40,12 +40,12 @@ moving ball behave as on a held one and keeps the energy balance exact.)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-from typing import TYPE_CHECKING
 
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
@@ -53,8 +53,17 @@ from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_
 if TYPE_CHECKING:
     from dynslip.physics.bodies.base import AbstractBody
 
-__all__ = ["Mesh", "Penalty", "SheetModel", "chord_depths", "deepest_chord", "make_mesh", "mesh_from_radii",
-           "penalty_energy", "penalty_pressure"]
+__all__ = [
+    "Mesh",
+    "Penalty",
+    "SheetModel",
+    "chord_depths",
+    "deepest_chord",
+    "make_mesh",
+    "mesh_from_radii",
+    "penalty_energy",
+    "penalty_pressure",
+]
 
 
 class Mesh(eqx.Module):
@@ -112,7 +121,9 @@ def chord_depths(rho, z, zb) -> np.ndarray:
     """
     rho, z = np.asarray(rho, float), np.asarray(z, float)
     zb = np.asarray(zb, float)[..., None]
-    p = np.stack([rho[..., :-1], z[..., :-1] - zb], axis=-1)  # element start, relative to the centre
+    p = np.stack(
+        [rho[..., :-1], z[..., :-1] - zb], axis=-1
+    )  # element start, relative to the centre
     d = np.stack([np.diff(rho, axis=-1), np.diff(z, axis=-1)], axis=-1)
     dd = np.sum(d * d, axis=-1)
     t = np.clip(-np.sum(p * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
@@ -130,7 +141,9 @@ def deepest_chord(rho, z, zb, pole_side: float) -> tuple[np.ndarray, np.ndarray,
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]
-    crossed = (pole_side != 0) & (np.sign(np.asarray(z, float)[..., 0] - np.asarray(zb, float)) == -pole_side)
+    crossed = (pole_side != 0) & (
+        np.sign(np.asarray(z, float)[..., 0] - np.asarray(zb, float)) == -pole_side
+    )
     through = crossed & (worst < 1.0)
     return np.where(through, 1.0, worst), np.where(through, 0, k), crossed
 
@@ -217,8 +230,13 @@ class SheetModel(eqx.Module):
     def held_penalty_energy(self, rho, z):
         """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any)."""
         x = jnp.stack([rho, z], axis=-1)
-        return sum((jnp.sum(self.mesh.area * penalty_energy(self.penalty, -b.distance(x))) for b in self.bodies),
-                   jnp.zeros(()))
+        return sum(
+            (
+                jnp.sum(self.mesh.area * penalty_energy(self.penalty, -b.distance(x)))
+                for b in self.bodies
+            ),
+            jnp.zeros(()),
+        )
 
     def held_load(self, rho, z):
         """Axial force of the sheet on the held bodies, $\\sum_i \\partial E_h/\\partial z_i$
@@ -229,7 +247,9 @@ class SheetModel(eqx.Module):
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)
-        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + self.held_penalty_energy(rho, z)
+        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + self.held_penalty_energy(
+            rho, z
+        )
 
     def energy(self, rho, z, zb):
         return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)
@@ -258,7 +278,9 @@ class SheetModel(eqx.Module):
         """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
         return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
 
-    def kinematics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None):
+    def kinematics(
+        self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None
+    ):
         """Node velocities relative to the ball and the force split, for the driver.
 
         Returns a dict with ``u`` (2, N) velocity relative to the ball (node N-1, the
@@ -281,11 +303,28 @@ class SheetModel(eqx.Module):
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)
-        return {"u": u, "ft": ft, "fn_total": fn, "N": normal, "S": s, "grads": (g_rho, g_z, g_zb),
-                "eta_a": eta_a, "theta_dir": t}
+        return {
+            "u": u,
+            "ft": ft,
+            "fn_total": fn,
+            "N": normal,
+            "S": s,
+            "grads": (g_rho, g_z, g_zb),
+            "eta_a": eta_a,
+            "theta_dir": t,
+        }
 
-    def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
-                    contact_threshold=1e-2, internal=None):
+    def diagnostics(
+        self,
+        rho,
+        z,
+        zb,
+        friction: AbstractFriction,
+        eps_density=0.0,
+        drag=1.0,
+        contact_threshold=1e-2,
+        internal=None,
+    ):
         """Per-node fields of the trajectory contract (see docs/trajectory-contract.md)."""
         k = self.kinematics(rho, z, zb, friction, eps_density, drag, internal)
         delta = jnp.zeros_like(rho) if internal is None else internal
@@ -297,15 +336,26 @@ class SheetModel(eqx.Module):
         contact = contact.at[-1].set(False)
         friction_force = (k["S"] - k["ft"]) / def_area  # density, + toward the equator
         slip = k["S"] / k["eta_a"]
-        mu_mob = jnp.where(contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan)
+        mu_mob = jnp.where(
+            contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan
+        )
         theta = jnp.where(contact, jnp.arctan2(rho, z - zb), jnp.nan)
         slipping = k["S"] != 0.0
-        state = jnp.where(~contact, 0, jnp.where(~slipping, 1, jnp.where(slip < 0, 2, 3))).astype(jnp.int8)
+        state = jnp.where(~contact, 0, jnp.where(~slipping, 1, jnp.where(slip < 0, 2, 3))).astype(
+            jnp.int8
+        )
         return {
-            "lambda_theta": lt, "lambda_phi": lp, "T_theta": tt, "T_phi": tp,
-            "pressure": jnp.where(contact, pressure, 0.0), "friction": jnp.where(contact, friction_force, 0.0),
-            "slip_velocity": jnp.where(contact, slip, 0.0), "mu_mobilised": mu_mob, "theta": theta,
-            "state": state, "contact": contact,
+            "lambda_theta": lt,
+            "lambda_phi": lp,
+            "T_theta": tt,
+            "T_phi": tp,
+            "pressure": jnp.where(contact, pressure, 0.0),
+            "friction": jnp.where(contact, friction_force, 0.0),
+            "slip_velocity": jnp.where(contact, slip, 0.0),
+            "mu_mobilised": mu_mob,
+            "theta": theta,
+            "state": state,
+            "contact": contact,
             "mu_current": jnp.where(contact, friction.coefficient(delta, rho.shape[0]), jnp.nan),
             "slip_distance": delta,
         }
