@@ -3,7 +3,8 @@ compile time at N = 50, 100, 200, with the scenario's solver (load stepping by d
 structured linear solver; the prototype's Kvaerno5 took 26 ms per step at N = 200 and
 10k-19k steps per path). ``benchmarks/speed.py`` compares the solvers on one path.
 
-``run()`` times the let-go method 2 scenario (``scenarios/method2_let_go.yaml``) on a shortened path (the push-down to
+``run()`` times the let-go method 2 scenario (``scenarios/method2_let_go.yaml``) on a shortened
+path (the push-down to
 -80 mm and a 10 s hold: the part of the path where the sheet stretches and slips) at each
 N; ``DYNSLIP_BENCH_FORMING_NODES=50,100`` picks the sizes and
 ``DYNSLIP_BENCH_FORMING_FULL=1`` runs the whole default path instead.
@@ -18,8 +19,9 @@ import time
 
 
 def _scenario(nodes: int, full: bool):
-    from dynslip.schema.base import load_data, validate_data
     from pathlib import Path
+
+    from dynslip.schema.base import load_data, validate_data
 
     path = Path(__file__).resolve().parents[1] / "scenarios" / "method2_let_go.yaml"
     data = load_data(path, [f"numerics.nodes={nodes}"])
@@ -58,10 +60,15 @@ def run_one(nodes: int, full: bool = False) -> dict:
 def run() -> dict:
     import dynslip  # noqa: F401  (x64, compilation cache)
 
-    sizes = [int(s) for s in os.environ.get("DYNSLIP_BENCH_FORMING_NODES", "50,100,200").split(",") if s]
+    sizes = [
+        int(s) for s in os.environ.get("DYNSLIP_BENCH_FORMING_NODES", "50,100,200").split(",") if s
+    ]
     full = os.environ.get("DYNSLIP_BENCH_FORMING_FULL", "0") == "1"
-    out = {"path": "method2 (full)" if full else "method2 push-down to -80 mm + 10 s hold",
-           "solver": "kvaerno5, dense LU", "prototype_ms_per_step_N200": 26.0}
+    out = {
+        "path": "method2 (full)" if full else "method2 push-down to -80 mm + 10 s hold",
+        "solver": "kvaerno5, dense LU",
+        "prototype_ms_per_step_N200": 26.0,
+    }
     for n in sizes:
         out[f"N{n}"] = run_one(n, full)
     return out

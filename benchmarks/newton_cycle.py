@@ -9,7 +9,8 @@ Two measurements on the frozen let-go path (``benchmarks/method2_let_go.yaml``):
 ``python benchmarks/newton_cycle.py increment N T DT [LIMIT]``
     one load increment of DT seconds from the push-down's state at time T (a save time),
     solved by dense Newton from k = 0 (diffrax's implicit relation
-    ``k - DT f(t + DT, y + k)``, the Jacobian by ``jax.jacfwd``): per iteration the max residual, the
+    ``k - DT f(t + DT, y + k)``, the Jacobian by ``jax.jacfwd``): per iteration the max
+    residual, the
     largest nodal update and where it is, and which nodes changed contact or stick/slip.
     ``LIMIT`` (R) scales each update so that no nodal coordinate moves by more than
     ``max(LIMIT, max |k|)`` (the trust bound tried in docs/speed.md); none by default.
@@ -54,7 +55,9 @@ def _value(v: str):
 
 
 def stages(n: int, sets: list[str]) -> None:
-    per = defaultdict(lambda: np.zeros(4, int))  # stage -> steps, rejected, Newton iterations, segments
+    per = defaultdict(
+        lambda: np.zeros(4, int)
+    )  # stage -> steps, rejected, Newton iterations, segments
 
     def count(run, seg, out):
         per[run.stage.name] += [int(out[2]), int(out[4]), int(out[5]) if len(out) > 5 else 0, 1]
@@ -63,8 +66,14 @@ def stages(n: int, sets: list[str]) -> None:
     values = {"numerics.nodes": n} | {k: _value(v) for k, v in (a.split("=", 1) for a in sets)}
     res = dynslip.run(dynslip.load(PATH, set=values))
     for name, (steps, rej, newton, segs) in per.items():
-        print(f"N={n} {name:10s} steps {steps:6d} rejected {rej:5d} newton {newton:6d} segments {segs}")
-    print(f"N={n} total steps {sum(int(v[0]) for v in per.values())}, trapped {res.summary['trapped']}")
+        print(
+            f"N={n} {name:10s} steps {steps:6d} rejected {rej:5d} newton {newton:6d} segments "
+            f"{segs}"
+        )
+    print(
+        f"N={n} total steps {sum(int(v[0]) for v in per.values())}, trapped "
+        f"{res.summary['trapped']}"
+    )
 
 
 def _component(i: int, n: int) -> str:
@@ -84,8 +93,15 @@ def increment(n: int, t: float, dt: float, limit: float | None) -> None:
     box = {}
     _capture(lambda run, seg, out: box.update(run=run, seg=seg) if abs(seg.t0 - t) < 1e-6 else None)
     # the push-down ends 4 s after t: the run stops soon after the captured state
-    dynslip.run(dynslip.load(PATH, set={"numerics.nodes": n,
-                                        "physics.stages.0.clamp_to_z_mm": TOP_MM - SPEED_MM_S * (t + 4)}))
+    dynslip.run(
+        dynslip.load(
+            PATH,
+            set={
+                "numerics.nodes": n,
+                "physics.stages.0.clamp_to_z_mm": TOP_MM - SPEED_MM_S * (t + 4),
+            },
+        )
+    )
     run, seg = box["run"], box["seg"]
     model, lay, y0, args = run.model, run.layout, seg.y, seg.args
     vf = vector_field(model, lay)
@@ -109,12 +125,18 @@ def increment(n: int, t: float, dt: float, limit: float | None) -> None:
         contact, slip = status(y0 + k)
         i = int(jnp.argmax(jnp.abs(dk[:mech])))
         where = _component(i, n)
-        line = (f"{it:2d} max|r| {float(jnp.max(jnp.abs(r))):.2e} at {_component(int(jnp.argmax(jnp.abs(r))), n)};"
-                f" nodal max|r| {float(jnp.max(jnp.abs(r[:mech]))):.2e}; max nodal |dk| {float(jnp.max(jnp.abs(dk[:mech]))):.2e}"
-                f" at {where}; {int(contact.sum())} in contact, {int(slip.sum())} slipping")
+        line = (
+            f"{it:2d} max|r| {float(jnp.max(jnp.abs(r))):.2e} at "
+            f"{_component(int(jnp.argmax(jnp.abs(r))), n)};"
+            f" nodal max|r| {float(jnp.max(jnp.abs(r[:mech]))):.2e}; max nodal |dk| "
+            f"{float(jnp.max(jnp.abs(dk[:mech]))):.2e}"
+            f" at {where}; {int(contact.sum())} in contact, {int(slip.sum())} slipping"
+        )
         if prev is not None:
-            line += (f"; contact changed {np.nonzero(contact != prev[0])[0].tolist()},"
-                     f" stick/slip changed {np.nonzero(slip != prev[1])[0].tolist()}")
+            line += (
+                f"; contact changed {np.nonzero(contact != prev[0])[0].tolist()},"
+                f" stick/slip changed {np.nonzero(slip != prev[1])[0].tolist()}"
+            )
         print(line)
         if float(jnp.max(jnp.abs(r))) < 1e-9:
             print(f"converged in {it} iterations")
@@ -133,6 +155,10 @@ if __name__ == "__main__":
     if what == "stages":
         stages(int(rest[0]), rest[1:])
     elif what == "increment":
-        increment(int(rest[0]), float(rest[1]), float(rest[2]), float(rest[3]) if len(rest) > 3 else None)
+        increment(
+            int(rest[0]), float(rest[1]), float(rest[2]), float(rest[3]) if len(rest) > 3 else None
+        )
     else:
-        raise SystemExit("usage: newton_cycle.py stages N [dotted=value ...] | increment N T DT [LIMIT]")
+        raise SystemExit(
+            "usage: newton_cycle.py stages N [dotted=value ...] | increment N T DT [LIMIT]"
+        )

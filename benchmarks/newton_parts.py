@@ -39,27 +39,48 @@ def _one(nodes: int) -> dict:
 
     model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))
     res = simulate(model, protocol, **kw)
-    run = MemberRun(model, protocol, **kw, start={"rho": res.frames[-1]["rho"], "z": res.frames[-1]["z"],
-                                                  "zb": res.frames[-1]["ball_z"],
-                                                  "slip_distance": res.frames[-1]["slip_distance"]})
+    run = MemberRun(
+        model,
+        protocol,
+        **kw,
+        start={
+            "rho": res.frames[-1]["rho"],
+            "z": res.frames[-1]["z"],
+            "zb": res.frames[-1]["ball_z"],
+            "slip_distance": res.frames[-1]["slip_distance"],
+        },
+    )
     layout, args = run.layout, run.args
     rho, z, zb, _ = layout.unpack(run.y)
     q = jnp.stack([rho, z - zb], 1)
-    inc = nw.Increment(q0=q, zb0=zb, delta0=layout.internal(run.y), t1=jnp.asarray(1.0), h=jnp.asarray(1.0),
-                       args=args)
+    inc = nw.Increment(
+        q0=q,
+        zb0=zb,
+        delta0=layout.internal(run.y),
+        t1=jnp.asarray(1.0),
+        h=jnp.asarray(1.0),
+        args=args,
+    )
     fr = args.friction
     residual = jax.jit(lambda inc, q, zb: nw.residual(model, fr, inc, q, zb))
     blocks = jax.jit(lambda inc, q, zb: nw.newton_blocks(model, fr, inc, q, zb))
     cyclic = jax.jit(lambda b, r1, r2: bordered_solve(*b, r1, r2, "cyclic"))
     thomas = jax.jit(lambda b, r1, r2: bordered_solve(*b, r1, r2, "thomas"))
     b, r = blocks(inc, q, zb), residual(inc, q, zb)
-    return {"residual_ms": _ms(residual, inc, q, zb), "newton_matrix_ms": _ms(blocks, inc, q, zb),
-            "solve_cyclic_ms": _ms(cyclic, b, *r), "solve_thomas_ms": _ms(thomas, b, *r),
-            "path_run_s": res.stats["run_s"], "path_newton_iterations": res.stats["newton_iterations"]}
+    return {
+        "residual_ms": _ms(residual, inc, q, zb),
+        "newton_matrix_ms": _ms(blocks, inc, q, zb),
+        "solve_cyclic_ms": _ms(cyclic, b, *r),
+        "solve_thomas_ms": _ms(thomas, b, *r),
+        "path_run_s": res.stats["run_s"],
+        "path_newton_iterations": res.stats["newton_iterations"],
+    }
 
 
 def run() -> dict:
     import dynslip  # noqa: F401  (x64, compilation cache)
 
-    sizes = [int(v) for v in os.environ.get("DYNSLIP_BENCH_PARTS_NODES", "50,200,800").split(",") if v]
+    sizes = [
+        int(v) for v in os.environ.get("DYNSLIP_BENCH_PARTS_NODES", "50,200,800").split(",") if v
+    ]
     return {f"N{n}": _one(n) for n in sizes}

@@ -36,8 +36,11 @@ from pathlib import Path
 
 SCENARIO = Path(__file__).resolve().parent / "method2_let_go.yaml"
 SCIPY_CAP_S = float(os.environ.get("DYNSLIP_BENCH_SPEED_SCIPY_CAP", "300"))
-# the solvers run at every N (load_step always): DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5,scipy_bdf by default
-SOLVERS = [v for v in os.environ.get("DYNSLIP_BENCH_SPEED_SOLVERS", "kvaerno5,scipy_bdf").split(",") if v]
+# the solvers run at every N (load_step always): DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5,scipy_bdf
+# by default
+SOLVERS = [
+    v for v in os.environ.get("DYNSLIP_BENCH_SPEED_SOLVERS", "kvaerno5,scipy_bdf").split(",") if v
+]
 
 # the friction law: the frozen file's slip weakening, or DYNSLIP_BENCH_SPEED_LAW=coulomb (its mu, no
 # healing restarts for kvaerno5: issue 23's like-for-like comparison)
@@ -68,8 +71,14 @@ def _end(sc, model, protocol, result):
 
     from dynslip.app.forming import summarize, to_dataset
 
-    ds = to_dataset(sc, result.frames, np.asarray(model.mesh.rbar), result.e0, result.failed is None,
-                    protocol.names)
+    ds = to_dataset(
+        sc,
+        result.frames,
+        np.asarray(model.mesh.rbar),
+        result.e0,
+        result.failed is None,
+        protocol.names,
+    )
     return ds, summarize(sc, ds, result)
 
 
@@ -93,15 +102,22 @@ def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
     ds, summ = _end(sc, model, protocol, res)
     st = res.stats
     row = {
-        "ok": res.failed is None, "failed": res.failed or "",
-        "steps": st["steps"], "accepted": st["accepted"], "rejected": st["rejected"],
+        "ok": res.failed is None,
+        "failed": res.failed or "",
+        "steps": st["steps"],
+        "accepted": st["accepted"],
+        "rejected": st["rejected"],
         "newton_iterations": st["newton_iterations"],
-        "newton_per_step": (st["newton_iterations"] / max(st["steps"], 1)) if st["newton_iterations"] is not None
+        "newton_per_step": (st["newton_iterations"] / max(st["steps"], 1))
+        if st["newton_iterations"] is not None
         else None,
-        "run_s": st["run_s"], "compile_s": st["compile_s"], "wall_s": wall,
+        "run_s": st["run_s"],
+        "compile_s": st["compile_s"],
+        "wall_s": wall,
         "ms_per_step": st["time_per_step_ms"],
         "simulated_s": float(res.frames[-1]["time"]),
-        "trapped": summ["trapped"], "theta_max": summ["theta_max"],
+        "trapped": summ["trapped"],
+        "theta_max": summ["theta_max"],
     }
     return row, res, ds, (sc, model, protocol, kw)
 
@@ -138,20 +154,36 @@ def _scipy(ref, core) -> tuple[dict, object]:
     s = sheet_structure(layout)
     n, b, m = s.n, s.b, s.m
     ones = np.ones((n, b, b))
-    pattern = np.asarray(to_dense(ones, ones, ones, np.ones((n * b, m)), np.ones((m, n * b)), np.ones((m, m)), s))
+    pattern = np.asarray(
+        to_dense(ones, ones, ones, np.ones((n * b, m)), np.ones((m, n * b)), np.ones((m, m)), s)
+    )
     sparsity = sp.csr_matrix(pattern != 0)
 
     def args_of(stage, t0, y, reaction, clamp_reaction):
-        return _stage_args(stage, t0, float(y[2 * layout.n - 1]), reaction, clamp_reaction, kw["friction"],
-                           kw["eps"], kw["drag"], kw["ball_drag"], kw["weight"], support_z=protocol.ball_z0,
-                           support_k=kw["support_stiffness"])
+        return _stage_args(
+            stage,
+            t0,
+            float(y[2 * layout.n - 1]),
+            reaction,
+            clamp_reaction,
+            kw["friction"],
+            kw["eps"],
+            kw["drag"],
+            kw["ball_drag"],
+            kw["weight"],
+            support_z=protocol.ball_z0,
+            support_k=kw["support_stiffness"],
+        )
 
     y = initial_state(model, layout, kw["pre_stretch"], kw["z_sheet"], protocol.ball_z0)
     args0 = args_of(protocol.stages[0], 0.0, y, 0.0, (0.0, 0.0))
     c0 = time.perf_counter()
     vf(_f(0.0), y, args0).block_until_ready()
-    rec_fn = lambda t, yy, a: {k: np.asarray(v) for k, v in
-                               frame_record(model, layout, _f(t), yy, a, settings.contact_threshold).items()}
+
+    def rec_fn(t, yy, a):
+        rec = frame_record(model, layout, _f(t), yy, a, settings.contact_threshold)
+        return {k: np.asarray(v) for k, v in rec.items()}
+
     rec_fn(0.0, y, args0)
     reset_internal(model, layout, y, args0, _f(settings.heal_rate)).block_until_ready()
     compile_s = time.perf_counter() - c0
@@ -175,12 +207,15 @@ def _scipy(ref, core) -> tuple[dict, object]:
     caught = warnings.catch_warnings(record=True)
     seen = caught.__enter__()
     try:
-        for si, (stage, end) in enumerate(zip(protocol.stages, ref.stage_end)):
+        for si, (stage, end) in enumerate(zip(protocol.stages, ref.stage_end, strict=False)):
             t = end["t_start"]
             args = args_of(stage, t, y, reaction, clamp_reaction)
             n_seg = max(1, math.ceil(stage.max_duration / settings.save_interval - 1e-9))
-            seg_ts = [float(v) for v in np.linspace(t, t + stage.max_duration, n_seg + 1)[1:]
-                      if v <= end["t_end"] + 1e-9]
+            seg_ts = [
+                float(v)
+                for v in np.linspace(t, t + stage.max_duration, n_seg + 1)[1:]
+                if v <= end["t_end"] + 1e-9
+            ]
 
             def fun(tt, yy, args=args):
                 if time.perf_counter() > deadline:
@@ -189,8 +224,15 @@ def _scipy(ref, core) -> tuple[dict, object]:
                 return np.asarray(vf(tt, yy, args))
 
             for t1 in seg_ts:
-                sol = solve_ivp(fun, (t, t1), np.asarray(y), method="BDF", rtol=settings.rtol, atol=settings.atol,
-                                jac_sparsity=sparsity)
+                sol = solve_ivp(
+                    fun,
+                    (t, t1),
+                    np.asarray(y),
+                    method="BDF",
+                    rtol=settings.rtol,
+                    atol=settings.atol,
+                    jac_sparsity=sparsity,
+                )
                 counts["steps"] += int(sol.t.size - 1)
                 counts["nfev"] += int(sol.nfev)
                 counts["njev"] += int(sol.njev)
@@ -204,28 +246,50 @@ def _scipy(ref, core) -> tuple[dict, object]:
                 t = t1
                 record(t, y, args, si)
             reaction = float(frames[-1]["ball_reaction"])
-            clamp_reaction = (float(frames[-1]["clamp_force_rho"]), float(frames[-1]["clamp_force"]))
+            clamp_reaction = (
+                float(frames[-1]["clamp_force_rho"]),
+                float(frames[-1]["clamp_force"]),
+            )
             stage_end.append(dict(end, t_end=t))
             if failed:
                 break
     except _Cap:
         failed = f"not finished, reached t = {t_now[0]:.4g} s of {ref.stage_end[-1]['t_end']:.4g} s"
     except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
-        failed = (f"{type(err).__name__}: {err}, at t = {t_now[0]:.4g} s of {ref.stage_end[-1]['t_end']:.4g} s "
-                  f"({time.perf_counter() - w0:.3g} s wall)")
+        failed = (
+            f"{type(err).__name__}: {err}, at t = {t_now[0]:.4g} s of "
+            f"{ref.stage_end[-1]['t_end']:.4g} s "
+            f"({time.perf_counter() - w0:.3g} s wall)"
+        )
     finally:
         caught.__exit__(None, None, None)
     run_s = time.perf_counter() - w0
-    row = {"ok": failed is None, "failed": failed or "", **counts, "rejected": None,
-           "run_s": run_s, "compile_s": compile_s,
-           "ms_per_step": 1e3 * run_s / max(counts["steps"], 1), "simulated_s": float(frames[-1]["time"]),
-           "cap_s": SCIPY_CAP_S, "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in seen})}
+    row = {
+        "ok": failed is None,
+        "failed": failed or "",
+        **counts,
+        "rejected": None,
+        "run_s": run_s,
+        "compile_s": compile_s,
+        "ms_per_step": 1e3 * run_s / max(counts["steps"], 1),
+        "simulated_s": float(frames[-1]["time"]),
+        "cap_s": SCIPY_CAP_S,
+        "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in seen}),
+    }
     ds = None
     if failed is None:
         # the rest stop rule is not evaluated: the run follows load_step's intervals, whose last
         # stage met it (stage_end copies its condition_met)
-        stats = {"accepted": counts["steps"], "rejected": 0, "segments": len(frames) - 1, "compile_s": compile_s,
-                 "run_s": run_s, "time_per_step_ms": row["ms_per_step"], "method": "scipy_bdf", **counts}
+        stats = {
+            "accepted": counts["steps"],
+            "rejected": 0,
+            "segments": len(frames) - 1,
+            "compile_s": compile_s,
+            "run_s": run_s,
+            "time_per_step_ms": row["ms_per_step"],
+            "method": "scipy_bdf",
+            **counts,
+        }
         res = Result(frames=frames, stage_end=stage_end, stats=stats, e0=e0)
         ds, summ = _end(sc, model, protocol, res)
         row.update(trapped=summ["trapped"], theta_max=summ["theta_max"])
@@ -240,15 +304,24 @@ def _agreement(ds, ref_ds, row, ref_row) -> dict:
     from dynslip.analysis.compare import difference, end_state
 
     if not (row["ok"] and ref_row["ok"]):
-        return {"same_trapped": None, "abs_dtheta_max": None, "max_abs_dtheta_contact": None,
-                "common_rbar_max": None, "not_compared": ("reference " + (ref_row.get("failed") or "failed")) if not ref_row["ok"]
-                else "run failed"}
+        return {
+            "same_trapped": None,
+            "abs_dtheta_max": None,
+            "max_abs_dtheta_contact": None,
+            "common_rbar_max": None,
+            "not_compared": ("reference " + (ref_row.get("failed") or "failed"))
+            if not ref_row["ok"]
+            else "run failed",
+        }
 
     a, b = end_state(ref_ds), end_state(ds)
     d = difference(a, b)
-    return {"same_trapped": row["trapped"] == ref_row["trapped"],
-            "abs_dtheta_max": abs(row["theta_max"] - ref_row["theta_max"]),
-            "max_abs_dtheta_contact": d["max_abs_dtheta"], "common_rbar_max": d["common_rbar_max"]}
+    return {
+        "same_trapped": row["trapped"] == ref_row["trapped"],
+        "abs_dtheta_max": abs(row["theta_max"] - ref_row["theta_max"]),
+        "max_abs_dtheta_contact": d["max_abs_dtheta"],
+        "common_rbar_max": d["common_rbar_max"],
+    }
 
 
 def _one(nodes: int) -> dict:
@@ -256,8 +329,12 @@ def _one(nodes: int) -> dict:
 
     ls, ls_res, ls_ds, core = _simulate(nodes, "load_step")
     print(f"speed N={nodes} load_step: {ls}", flush=True)
-    not_run = {"ok": False, "failed": "not run (DYNSLIP_BENCH_SPEED_SOLVERS)", "run_s": float("nan"),
-               "simulated_s": float("nan")}
+    not_run = {
+        "ok": False,
+        "failed": "not run (DYNSLIP_BENCH_SPEED_SOLVERS)",
+        "run_s": float("nan"),
+        "simulated_s": float("nan"),
+    }
     kv, kv_ds = not_run, None
     if "kvaerno5" in SOLVERS:
         kv, _, kv_ds, _ = _simulate(nodes, "kvaerno5")
@@ -271,28 +348,54 @@ def _one(nodes: int) -> dict:
     if "scipy_bdf" in SOLVERS:
         try:
             sc_row, sc_ds = _scipy(ls_res, core)
-        except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as err:  # a failed baseline is reported
-            sc_row, sc_ds = {"ok": False, "failed": f"{type(err).__name__}: {err}", "run_s": float("nan")}, None
+        except (
+            RuntimeError,
+            ValueError,
+            FloatingPointError,
+            np.linalg.LinAlgError,
+        ) as err:  # a failed baseline is reported
+            sc_row, sc_ds = (
+                {"ok": False, "failed": f"{type(err).__name__}: {err}", "run_s": float("nan")},
+                None,
+            )
         print(f"speed N={nodes} scipy_bdf: {sc_row}", flush=True)
-    row = {"load_step": ls, "kvaerno5": kv, "scipy_bdf": sc_row, "load_step_full": full,
-           "speedup_vs_load_step_full": full["run_s"] / ls["run_s"],
-           "load_step_vs_kvaerno5": _agreement(ls_ds, kv_ds, ls, kv)}
+    row = {
+        "load_step": ls,
+        "kvaerno5": kv,
+        "scipy_bdf": sc_row,
+        "load_step_full": full,
+        "speedup_vs_load_step_full": full["run_s"] / ls["run_s"],
+        "load_step_vs_kvaerno5": _agreement(ls_ds, kv_ds, ls, kv),
+    }
     if sc_ds is not None:
         row["scipy_bdf_vs_kvaerno5"] = _agreement(sc_ds, kv_ds, sc_row, kv)
     row["speedup_vs_kvaerno5"] = kv["run_s"] / ls["run_s"]
-    row["speedup_vs_kvaerno5_means"] = ("not run" if kv is not_run else "lower bound (kvaerno5 failed at t = "
-                                        f"{kv['simulated_s']:.4g} s)" if not kv["ok"] else "whole path")
+    row["speedup_vs_kvaerno5_means"] = (
+        "not run"
+        if kv is not_run
+        else f"lower bound (kvaerno5 failed at t = {kv['simulated_s']:.4g} s)"
+        if not kv["ok"]
+        else "whole path"
+    )
     row["speedup_vs_scipy"] = sc_row["run_s"] / ls["run_s"]
-    row["speedup_vs_scipy_means"] = ("not run" if sc_row is not_run else "lower bound (scipy not finished)"
-                                     if not sc_row["ok"] else "whole path")
+    row["speedup_vs_scipy_means"] = (
+        "not run"
+        if sc_row is not_run
+        else "lower bound (scipy not finished)"
+        if not sc_row["ok"]
+        else "whole path"
+    )
     return row
 
 
 def _targets(out: dict, sizes: list[int]) -> dict:
     t: dict = {}
     worst = max(out[f"N{n}"]["load_step"]["steps"] for n in sizes)
-    t["steps_at_most_1000"] = {"met": worst <= MAX_STEPS, "worst": worst,
-                               "per_N": {f"N{n}": out[f"N{n}"]["load_step"]["steps"] for n in sizes}}
+    t["steps_at_most_1000"] = {
+        "met": worst <= MAX_STEPS,
+        "worst": worst,
+        "per_N": {f"N{n}": out[f"N{n}"]["load_step"]["steps"] for n in sizes},
+    }
     if 200 in sizes and "kvaerno5" in SOLVERS:
         s = out["N200"]["speedup_vs_kvaerno5"]
         t["speedup_vs_kvaerno5_N200_at_least_15x"] = {"met": s >= SPEEDUP_200, "value": s}
@@ -301,7 +404,11 @@ def _targets(out: dict, sizes: list[int]) -> dict:
         t["growth_100_400_at_most_4x"] = {"met": g <= GROWTH_100_400, "value": g}
     if 200 in sizes:
         r = out["N200"]["load_step"]["run_s"]
-        t["run_s_N200_at_most_1.5"] = {"met": r <= RUN_S_200, "value": r, "law": LAW or "slip_weakening"}
+        t["run_s_N200_at_most_1.5"] = {
+            "met": r <= RUN_S_200,
+            "value": r,
+            "law": LAW or "slip_weakening",
+        }
     if 800 in sizes:
         r = out["N800"]["load_step"]["run_s"]
         t["run_s_N800_at_most_8"] = {"met": r <= RUN_S_800, "value": r}
@@ -314,22 +421,40 @@ def _targets(out: dict, sizes: list[int]) -> dict:
         wt = max(a["abs_dtheta_max"] for a in done.values())
         wd = max(a["max_abs_dtheta_contact"] for a in done.values())
         t["theta_max_within_0.01"] = {"met": wt <= THETA_TOL, "worst": wt, "not_compared": skipped}
-        t["max_dtheta_at_most_0.01"] = {"met": wd <= THETA_TOL, "worst": wd, "not_compared": skipped}
-        t["same_trapped"] = {"met": all(a["same_trapped"] for a in done.values()), "not_compared": skipped}
+        t["max_dtheta_at_most_0.01"] = {
+            "met": wd <= THETA_TOL,
+            "worst": wd,
+            "not_compared": skipped,
+        }
+        t["same_trapped"] = {
+            "met": all(a["same_trapped"] for a in done.values()),
+            "not_compared": skipped,
+        }
     return t
 
 
 def run() -> dict:
     import dynslip  # noqa: F401  (x64, compilation cache)
 
-    sizes = [int(v) for v in os.environ.get("DYNSLIP_BENCH_SPEED_NODES", "50,100,200,400").split(",") if v]
-    out: dict = {"path": "benchmarks/method2_let_go.yaml, whole (frozen copy of scenarios/method2_let_go.yaml)",
-                 "law": LAW or "slip_weakening (the file's)", "kvaerno5_max_steps": KV_MAX_STEPS,
-                 "tolerances": "the scenario's (rtol 1e-5, atol 1e-7)", "scipy_cap_s": SCIPY_CAP_S}
+    sizes = [
+        int(v)
+        for v in os.environ.get("DYNSLIP_BENCH_SPEED_NODES", "50,100,200,400").split(",")
+        if v
+    ]
+    out: dict = {
+        "path": "benchmarks/method2_let_go.yaml, whole (frozen copy of "
+        "scenarios/method2_let_go.yaml)",
+        "law": LAW or "slip_weakening (the file's)",
+        "kvaerno5_max_steps": KV_MAX_STEPS,
+        "tolerances": "the scenario's (rtol 1e-5, atol 1e-7)",
+        "scipy_cap_s": SCIPY_CAP_S,
+    }
     for n in sizes:
         out[f"N{n}"] = _one(n)
     if 100 in sizes and 400 in sizes:
-        out["load_step_run_s_growth_100_400"] = out["N400"]["load_step"]["run_s"] / out["N100"]["load_step"]["run_s"]
+        out["load_step_run_s_growth_100_400"] = (
+            out["N400"]["load_step"]["run_s"] / out["N100"]["load_step"]["run_s"]
+        )
     out["targets"] = _targets(out, sizes)
     return out
 

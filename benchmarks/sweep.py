@@ -82,7 +82,9 @@ def run() -> dict:
     with tempfile.TemporaryDirectory(prefix="dynslip-bench-sweep-") as tmp:
         tmp = Path(tmp)
         base = _base(tmp)
-        mus = [round(1.3 + 0.9 * i / max(n - 1, 1), 6) for i in range(n)]  # mu_s >= mu_k = 1.25 (method2_let_go.yaml)
+        mus = [
+            round(1.3 + 0.9 * i / max(n - 1, 1), 6) for i in range(n)
+        ]  # mu_s >= mu_k = 1.25 (method2_let_go.yaml)
         spec = {
             "base": base.name,
             "overrides": {"numerics.nodes": nodes, "physics.friction.law": "slip_weakening"},

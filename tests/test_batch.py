@@ -37,34 +37,57 @@ NODES = 20
 RIM = 2.54
 PRE = 1.05
 Z0 = 1.02
-MODEL = SheetModel(make_mesh(NODES, RIM / PRE), make_material("gent", jm=50.0),
-                   Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
+MODEL = SheetModel(
+    make_mesh(NODES, RIM / PRE),
+    make_material("gent", jm=50.0),
+    Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)),
+)
 SETTINGS = Settings(solver="load_step", save_interval=1.0)
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def kwargs(mu_s, mu_k, settings=SETTINGS):
-    return dict(friction=make_friction("slip_weakening", mu_s=mu_s, mu_k=mu_k, d_c=0.02, eps=1e-3), eps=1e-3,
-                drag=0.1, ball_drag=0.1 * 4 * math.pi, pre_stretch=PRE, z_sheet=Z0, settings=settings)
+    return dict(
+        friction=make_friction("slip_weakening", mu_s=mu_s, mu_k=mu_k, d_c=0.02, eps=1e-3),
+        eps=1e-3,
+        drag=0.1,
+        ball_drag=0.1 * 4 * math.pi,
+        pre_stretch=PRE,
+        z_sheet=Z0,
+        settings=settings,
+    )
 
 
 def protocol(first_stop, push=4.0):
-    """Push down at 0.5 R/s for ``push`` s, a stage ended by ``first_stop``, a let-go and a release."""
-    return Protocol((
-        Stage("push_down", Duration(duration=push), clamp_vz=-0.5),
-        Stage("check", first_stop),
-        Stage("let_go", StopRule("duration", duration=2.0), clamp_mode=CLAMP_FORCE),
-        Stage("release", Duration(duration=2.0), clamp_mode=CLAMP_FORCE, clamp_force_start=(0.0, 0.0),
-              ball_mode=BALL_FORCE, ball_force_end=0.0),
-    ), clamp_rho0=RIM, clamp_z0=Z0)
+    """Push down at 0.5 R/s for ``push`` s, a stage ended by ``first_stop``, a let-go and a
+    release."""
+    return Protocol(
+        (
+            Stage("push_down", Duration(duration=push), clamp_vz=-0.5),
+            Stage("check", first_stop),
+            Stage("let_go", StopRule("duration", duration=2.0), clamp_mode=CLAMP_FORCE),
+            Stage(
+                "release",
+                Duration(duration=2.0),
+                clamp_mode=CLAMP_FORCE,
+                clamp_force_start=(0.0, 0.0),
+                ball_mode=BALL_FORCE,
+                ball_force_end=0.0,
+            ),
+        ),
+        clamp_rho0=RIM,
+        clamp_z0=Z0,
+    )
 
 
 def assert_same(alone, batched, tol=1e-8):
     assert batched.failed == alone.failed
-    assert [(s["name"], s["condition_met"]) for s in batched.stage_end] == \
-        [(s["name"], s["condition_met"]) for s in alone.stage_end]
-    np.testing.assert_allclose([s["t_end"] for s in batched.stage_end], [s["t_end"] for s in alone.stage_end],
-                               atol=1e-12)
+    assert [(s["name"], s["condition_met"]) for s in batched.stage_end] == [
+        (s["name"], s["condition_met"]) for s in alone.stage_end
+    ]
+    np.testing.assert_allclose(
+        [s["t_end"] for s in batched.stage_end], [s["t_end"] for s in alone.stage_end], atol=1e-12
+    )
     assert len(batched.frames) == len(alone.frames)
     for fa, fb in zip(alone.frames, batched.frames, strict=True):
         assert fa["stage"] == fb["stage"] and fa["time"] == fb["time"]
@@ -81,9 +104,11 @@ def test_members_in_different_stages_at_the_same_tick():
     member 1's runs its whole duration (a rest rule that does not hold), and member 2 pushes
     longer: in the same ticks the members are in different stages, each with its own loads,
     stop rule and time; each result is what it is alone."""
-    prots = [protocol(ClampForceBelow(force=1e6, duration=3.0)),
-             protocol(Rest(rate=1e-12, hold=1.0, duration=3.0)),
-             protocol(ThetaMaxBelow(angle=1e-3, duration=2.0), push=6.0)]
+    prots = [
+        protocol(ClampForceBelow(force=1e6, duration=3.0)),
+        protocol(Rest(rate=1e-12, hold=1.0, duration=3.0)),
+        protocol(ThetaMaxBelow(angle=1e-3, duration=2.0), push=6.0),
+    ]
     kws = [kwargs(1.5, 1.25), kwargs(1.8, 1.5), kwargs(1.6, 1.3)]
     batched = simulate_batch([MODEL] * 3, prots, kws)
     alone = [simulate(MODEL, p, **kw) for p, kw in zip(prots, kws, strict=True)]
@@ -116,14 +141,23 @@ SHORT = {  # the let-go path of scenarios/method2_let_go.yaml, shortened (20 nod
     "physics.stages.rest.rest_hold_s": 4.0,
     "physics.stages.rest.duration_s": 40.0,
 }
-MEMBERS = [{"physics.friction.mu_s": 1.5, "physics.friction.mu_k": 1.25},
-           {"physics.friction.mu_s": 0.8, "physics.friction.mu_k": 0.66}]
+MEMBERS = [
+    {"physics.friction.mu_s": 1.5, "physics.friction.mu_k": 1.25},
+    {"physics.friction.mu_s": 0.8, "physics.friction.mu_k": 0.66},
+]
 
 
 def _sweep_file(tmp: Path, members: list[dict]) -> Path:
     sweep = tmp / "study.yaml"
-    sweep.write_text(yaml.safe_dump({"base": str(ROOT / "scenarios" / "method2_let_go.yaml"),
-                                     "overrides": SHORT, "list": members}))
+    sweep.write_text(
+        yaml.safe_dump(
+            {
+                "base": str(ROOT / "scenarios" / "method2_let_go.yaml"),
+                "overrides": SHORT,
+                "list": members,
+            }
+        )
+    )
     return sweep
 
 
@@ -142,8 +176,14 @@ def _assert_same_records(rs: dict, rb: dict) -> list:
         sa, sb = a["summary"], b["summary"]
         assert sa["trapped"] == sb["trapped"]
         outcomes.append(sa["trapped"])
-        for name in ("theta_max", "rbar_max", "ball_z_end", "ball_reaction_end", "clamp_force_end",
-                     "mu_mobilised_max"):
+        for name in (
+            "theta_max",
+            "rbar_max",
+            "ball_z_end",
+            "ball_reaction_end",
+            "clamp_force_end",
+            "mu_mobilised_max",
+        ):
             assert sb[name] == pytest.approx(sa[name], abs=1e-8, nan_ok=True), name
         for name in ("steps", "accepted", "rejected", "segments", "newton_iterations"):
             assert sb["solver"][name] == sa["solver"][name], name
@@ -170,7 +210,9 @@ def test_batched_sweep_equals_sequential(tmp_path, sequential, monkeypatch):
     monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 1)
     monkeypatch.setattr(sweep_app, "BATCH_SIZE", None)  # both members in one lockstep batch
     seq, rs = sequential
-    bat = sweep_app.run_sweep(_sweep_file(tmp_path, MEMBERS), out=tmp_path / "bat", mode="batched", plot=False)
+    bat = sweep_app.run_sweep(
+        _sweep_file(tmp_path, MEMBERS), out=tmp_path / "bat", mode="batched", plot=False
+    )
     assert bat["batched"].startswith("batched: lockstep batches"), bat["batched"]
     assert "worker processes" not in bat["batched"] and "per batch" not in bat["batched"]
     assert seq["n_ok"] == bat["n_ok"] == 2
@@ -189,11 +231,16 @@ def test_batched_sweep_in_two_worker_processes(tmp_path, sequential, monkeypatch
 
     monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 2)
     _, rs = sequential
-    more = MEMBERS + [{"physics.friction.mu_s": 1.2, "physics.friction.mu_k": 1.0},
-                      {"physics.friction.mu_s": 1.0, "physics.friction.mu_k": 0.83}]
-    bat = sweep_app.run_sweep(_sweep_file(tmp_path, more), out=tmp_path / "bat", mode="batched", plot=False)
-    assert "2+2 forming members" in bat["batched"] and "on up to 2 worker processes" in bat["batched"], \
-        bat["batched"]
+    more = MEMBERS + [
+        {"physics.friction.mu_s": 1.2, "physics.friction.mu_k": 1.0},
+        {"physics.friction.mu_s": 1.0, "physics.friction.mu_k": 0.83},
+    ]
+    bat = sweep_app.run_sweep(
+        _sweep_file(tmp_path, more), out=tmp_path / "bat", mode="batched", plot=False
+    )
+    assert (
+        "2+2 forming members" in bat["batched"] and "on up to 2 worker processes" in bat["batched"]
+    ), bat["batched"]
     assert "at most 1 per batch" in bat["batched"], bat["batched"]
     assert bat["n_ok"] == 4
     rb = _records(tmp_path / "bat")

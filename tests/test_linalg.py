@@ -14,13 +14,15 @@ S = Structure(n=13, b=2, m=3)
 
 def field(y):
     """A stiff nonlinear chain (nodes of 2 values, neighbour coupling) with a 3-value border."""
-    n, b, m = S.n, S.b, S.m
+    n, b = S.n, S.b
     u = y[: n * b].reshape(n, b)
     w = y[n * b :]
     pad = jnp.pad(u, ((1, 1), (0, 0)))
     lap = pad[:-2] - 2 * u + pad[2:]
     core = 50.0 * lap - jnp.sin(u[:, ::-1]) * u - w[0] * u**2 + w[1]
-    border = jnp.stack([jnp.sum(u**2) - w[0], jnp.mean(jnp.cos(u)) * w[1] - w[2], w[0] * w[2] - jnp.sum(u[:, 0])])
+    border = jnp.stack(
+        [jnp.sum(u**2) - w[0], jnp.mean(jnp.cos(u)) * w[1] - w[2], w[0] * w[2] - jnp.sum(u[:, 0])]
+    )
     return jnp.concatenate([core.reshape(-1), border])
 
 
@@ -55,9 +57,16 @@ def test_diffrax_with_structured_solver_matches_dense():
     y0 = 0.1 * Y0
 
     def solve(linear_solver):
-        solver = diffrax.Kvaerno5(root_finder=diffrax.VeryChord(rtol=1e-8, atol=1e-8, linear_solver=linear_solver))
+        solver = diffrax.Kvaerno5(
+            root_finder=diffrax.VeryChord(rtol=1e-8, atol=1e-8, linear_solver=linear_solver)
+        )
         sol = diffrax.diffeqsolve(
-            term, solver, 0.0, 0.5, 0.01, y0,
+            term,
+            solver,
+            0.0,
+            0.5,
+            0.01,
+            y0,
             stepsize_controller=diffrax.PIDController(rtol=1e-7, atol=1e-9),
         )
         return sol.ys[-1], sol.stats["num_steps"]
@@ -73,7 +82,9 @@ SHEET = Structure(
     n=K,
     b=2,
     m=2,
-    core_index=tuple(int(i) for pair in [(-1, K - 1)] + [(j - 1, K - 1 + j) for j in range(1, K)] for i in pair),
+    core_index=tuple(
+        int(i) for pair in [(-1, K - 1)] + [(j - 1, K - 1 + j) for j in range(1, K)] for i in pair
+    ),
     border_index=(2 * K - 1, 2 * K),
 )
 
@@ -85,8 +96,15 @@ def sheet_field(y):
     x = jnp.stack([rho, z], 1)
     seg = jnp.linalg.norm(jnp.diff(x, axis=0), axis=1)
     energy = jnp.sum((seg - 0.3) ** 2 * (1 + rho[1:] + rho[:-1])) + jnp.sum((z - zb) ** 4) + zb**2
-    g = jax.grad(lambda rz: jnp.sum((jnp.linalg.norm(jnp.diff(rz, axis=0), axis=1) - 0.3) ** 2
-                                    * (1 + rz[1:, 0] + rz[:-1, 0])) + jnp.sum((rz[:, 1] - zb) ** 4))(x)
+    g = jax.grad(
+        lambda rz: (
+            jnp.sum(
+                (jnp.linalg.norm(jnp.diff(rz, axis=0), axis=1) - 0.3) ** 2
+                * (1 + rz[1:, 0] + rz[:-1, 0])
+            )
+            + jnp.sum((rz[:, 1] - zb) ** 4)
+        )
+    )(x)
     return jnp.concatenate([-g[1:, 0], -g[:, 1], jnp.stack([jnp.sum(z) - zb, energy - e])])
 
 

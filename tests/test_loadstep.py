@@ -22,8 +22,7 @@ from dynslip.physics.loadstep import DampedNewton, LoadStepEuler, increments, ru
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Layout, Settings, _stage_args, initial_state, simulate
 from dynslip.physics.upstream import ImplicitEuler
-
-from test_forming import MAT, PRE, RIM, Z0, push_protocol, residual
+from test_forming import MAT, PRE, RIM, Z0, push_protocol
 
 N = 24
 MODEL = SheetModel(make_mesh(N, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
@@ -36,8 +35,17 @@ def _friction():
 
 
 def _run(solver, **kw):
-    return simulate(MODEL, push_protocol(), friction=_friction(), eps=1e-3, drag=TAU, ball_drag=TAU * 4 * math.pi,
-                    pre_stretch=PRE, z_sheet=Z0, settings=Settings(solver=solver, save_interval=1.0, **kw))
+    return simulate(
+        MODEL,
+        push_protocol(),
+        friction=_friction(),
+        eps=1e-3,
+        drag=TAU,
+        ball_drag=TAU * 4 * math.pi,
+        pre_stretch=PRE,
+        z_sheet=Z0,
+        settings=Settings(solver=solver, save_interval=1.0, **kw),
+    )
 
 
 # ----------------------------------------------------------------------------- diffrax PR #753
@@ -90,7 +98,10 @@ def test_damped_newton_is_newton_where_the_residual_falls():
     iterates, their count and the root equal plain Newton's."""
     kw = dict(rtol=1e-12, atol=1e-12, norm=optx.max_norm)
     fn = lambda x: x**2 - 2.0  # noqa: E731
-    plain, damped = _root(optx.Newton(**kw), fn, 1.0), _root(DampedNewton(**kw, max_backtrack=4), fn, 1.0)
+    plain, damped = (
+        _root(optx.Newton(**kw), fn, 1.0),
+        _root(DampedNewton(**kw, max_backtrack=4), fn, 1.0),
+    )
     assert plain[1] and damped[1]
     assert damped == plain
     assert abs(damped[0] - math.sqrt(2.0)) < 1e-12
@@ -116,8 +127,11 @@ def test_load_step_matches_kvaerno5_on_a_short_push_down(reference, backtrack):
     fa, fb = reference.frames[-1], res.frames[-1]
     d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))
     st = res.stats
-    print(f"load_step vs kvaerno5 (N = {N}): max |dx| = {d:.2e} R; steps {st['steps']} ({st['rejected']} rejected, "
-          f"{st['newton_iterations']} Newton iterations) vs {reference.stats['steps']}")
+    print(
+        f"load_step vs kvaerno5 (N = {N}): max |dx| = {d:.2e} R; steps {st['steps']} "
+        f"({st['rejected']} rejected, "
+        f"{st['newton_iterations']} Newton iterations) vs {reference.stats['steps']}"
+    )
     assert d < 1e-5
     assert abs(float(fa["theta_max"]) - float(fb["theta_max"])) < 1e-4
     assert st["method"] == "load_step" and st["newton_iterations"] >= st["accepted"] > 0
@@ -132,8 +146,21 @@ def test_load_step_matches_kvaerno5_on_a_short_push_down(reference, backtrack):
 def _fixed_increments(model, layout, y0, t1, h, args):
     """The push-down stage in increments of h (the cap; with h <= tau Newton converges fast, so
     every increment but the first few and a cut-back or two is h)."""
-    return run_segment(model, layout, y0, jnp.asarray(0.0), t1, h, args, jnp.asarray(1e-8), jnp.asarray(1e-10),
-                       max_steps=100000, max_iter=16, max_increment=h / TAU, max_increment_free=h / TAU)
+    return run_segment(
+        model,
+        layout,
+        y0,
+        jnp.asarray(0.0),
+        t1,
+        h,
+        args,
+        jnp.asarray(1e-8),
+        jnp.asarray(1e-10),
+        max_steps=100000,
+        max_iter=16,
+        max_increment=h / TAU,
+        max_increment_free=h / TAU,
+    )
 
 
 def test_energy_residual_and_end_state_are_first_order_in_the_increment(reference):
@@ -143,7 +170,18 @@ def test_energy_residual_and_end_state_are_first_order_in_the_increment(referenc
     protocol = push_protocol()
     stage = protocol.stages[0]
     layout = Layout(N, 0)
-    args = _stage_args(stage, 0.0, protocol.ball_z0, 0.0, (0.0, 0.0), _friction(), 1e-3, TAU, TAU * 4 * math.pi, 0.0)
+    args = _stage_args(
+        stage,
+        0.0,
+        protocol.ball_z0,
+        0.0,
+        (0.0, 0.0),
+        _friction(),
+        1e-3,
+        TAU,
+        TAU * 4 * math.pi,
+        0.0,
+    )
     y0 = initial_state(MODEL, layout, PRE, Z0, protocol.ball_z0)
     t1 = jnp.asarray(stage.max_duration)
     # Kvaerno5's state at the end of push-down (the frame at the stage boundary)
@@ -158,18 +196,28 @@ def test_energy_residual_and_end_state_are_first_order_in_the_increment(referenc
     hs = np.array([0.1, 0.05, 0.025, 0.0125])
     resid, err, steps = [], [], []
     for h in hs:
-        y1, ok, nst, nacc, nrej, nit = _fixed_increments(MODEL, layout, y0, t1, jnp.asarray(h), args)
+        y1, ok, nst, nacc, nrej, nit = _fixed_increments(
+            MODEL, layout, y0, t1, jnp.asarray(h), args
+        )
         assert bool(ok)
         w, e, d = energy(y1)
         resid.append(abs(w - (e - e0) - d) / abs(w))
         rho, z, _, _ = layout.unpack(y1)
-        err.append(max(np.max(np.abs(np.asarray(rho) - ref["rho"])), np.max(np.abs(np.asarray(z) - ref["z"]))))
+        err.append(
+            max(
+                np.max(np.abs(np.asarray(rho) - ref["rho"])),
+                np.max(np.abs(np.asarray(z) - ref["z"])),
+            )
+        )
         steps.append((int(nacc), int(nrej), int(nit)))
 
     p_res = np.polyfit(np.log(hs), np.log(resid), 1)[0]
     p_err = np.polyfit(np.log(hs), np.log(err), 1)[0]
-    print(f"increments {hs} s: energy residual / work {np.array(resid)} (order {p_res:.2f}); "
-          f"|x - x_kvaerno5| {np.array(err)} R (order {p_err:.2f}); (accepted, rejected, Newton) {steps}")
+    print(
+        f"increments {hs} s: energy residual / work {np.array(resid)} (order {p_res:.2f}); "
+        f"|x - x_kvaerno5| {np.array(err)} R (order {p_err:.2f}); (accepted, rejected, Newton) "
+        f"{steps}"
+    )
     assert resid[-1] < 1e-2
     assert 0.85 < p_res < 1.15  # measured 0.99
     assert 0.7 < p_err < 1.3  # measured 0.98
@@ -183,7 +231,8 @@ MU_S, MU_K, D_C = 0.99, 0.82, 0.02
 
 @eqx.filter_jit
 def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta, heal_rate=None):
-    """The one-node ramp of test_weakening under load stepping: eta x' = S(K (X(t) - x), mu(delta) N),
+    """The one-node ramp of test_weakening under load stepping: eta x' = S(K (X(t) - x),
+    mu(delta) N),
     delta' = |x'|, in increments of at most 0.01 s (the node's drag time eta / K)."""
 
     def vf(t, y, args):
@@ -192,14 +241,27 @@ def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta, heal_ra
         s = fr.slip_force(f, normal, delta)
         return jnp.stack([s / eta, fr.internal_rate(s / eta, normal, delta)])
 
-    newton = optx.Newton(rtol=1e-10, atol=1e-12, norm=optx.max_norm, linear_solver=lx.LU(), cauchy_termination=True)
+    newton = optx.Newton(
+        rtol=1e-10, atol=1e-12, norm=optx.max_norm, linear_solver=lx.LU(), cauchy_termination=True
+    )
     solver = LoadStepEuler(root_finder=newton, root_find_max_steps=16)
+
     # heal_rate: the friction law's reset inside the increment loop (after every accepted increment)
     def after(t, y):  # the slip rate x' at the increment's end
         return y.at[1].set(fr.reset(y[1], vf(t, y, None)[0], normal, heal_rate))
 
-    y1, ok, *_ = increments(diffrax.ODETerm(vf), solver, y0, t0, t1, jnp.asarray(1e-3), None, jnp.asarray(0.01), 10000,
-                            after=None if heal_rate is None else after)
+    y1, ok, *_ = increments(
+        diffrax.ODETerm(vf),
+        solver,
+        y0,
+        t0,
+        t1,
+        jnp.asarray(1e-3),
+        None,
+        jnp.asarray(0.01),
+        10000,
+        after=None if heal_rate is None else after,
+    )
     f1 = stiff * (x_drive0 + v_drive * (t1 - t0) - y1[0])
     return y1, ok, f1, fr.slip_force(f1, normal, y1[1])
 
@@ -215,8 +277,17 @@ def test_one_node_ramp_under_load_stepping():
     rows = [(0.0, 0.0, 0.0, 0.0, 0.0)]
     for dur, vel in [(20.0, v), (2.0, -v), (18.0, v)]:
         for _ in range(int(round(dur / seg))):
-            y, ok, f, s = _node_segment(fr, y, jnp.asarray(t), jnp.asarray(t + seg), jnp.asarray(xd),
-                                        jnp.asarray(vel), stiff, normal, eta)
+            y, ok, f, s = _node_segment(
+                fr,
+                y,
+                jnp.asarray(t),
+                jnp.asarray(t + seg),
+                jnp.asarray(xd),
+                jnp.asarray(vel),
+                stiff,
+                normal,
+                eta,
+            )
             assert bool(ok)
             y = y.at[1].set(fr.reset(y[1], s / eta, normal))  # the driver's reset at a segment end
             t, xd = t + seg, xd + vel * seg
@@ -236,8 +307,11 @@ def test_one_node_ramp_under_load_stepping():
     assert np.ptp(x[back]) == 0.0
     peak2 = force[t > 22.0].max()
     assert abs(peak2 - MU_S) / MU_S < 1e-2, peak2
-    print(f"one-node ramp, load stepping: peaks {peak1:.5f}, {peak2:.5f} (mu_s N = {MU_S}); sliding force "
-          f"{force[late].mean():.5f} (mu_k N + eta V = {MU_K + eta * v:.5f})")
+    print(
+        f"one-node ramp, load stepping: peaks {peak1:.5f}, {peak2:.5f} (mu_s N = {MU_S}); "
+        f"sliding force "
+        f"{force[late].mean():.5f} (mu_k N + eta V = {MU_K + eta * v:.5f})"
+    )
 
 
 def test_settling_node_heals_inside_the_increments():
@@ -253,8 +327,18 @@ def test_settling_node_heals_inside_the_increments():
         rows = []
         for dur, vel in [(20.0, v), (1.0, 0.0), (4.0, v)]:
             for _ in range(int(round(dur / seg))):
-                y, ok, f, s = _node_segment(fr, y, jnp.asarray(t), jnp.asarray(t + seg), jnp.asarray(xd),
-                                            jnp.asarray(vel), stiff, normal, eta, heal_rate)
+                y, ok, f, s = _node_segment(
+                    fr,
+                    y,
+                    jnp.asarray(t),
+                    jnp.asarray(t + seg),
+                    jnp.asarray(xd),
+                    jnp.asarray(vel),
+                    stiff,
+                    normal,
+                    eta,
+                    heal_rate,
+                )
                 assert bool(ok)
                 t, xd = t + seg, xd + vel * seg
                 rows.append((t, float(y[1]), float(f)))
@@ -264,5 +348,8 @@ def test_settling_node_heals_inside_the_increments():
     (d_bare, peak_bare), (d_heal, peak_heal) = out[None], out[1e-3]
     assert d_bare > D_C and abs(peak_bare - (MU_K + eta * v)) / MU_K < 2e-2, (d_bare, peak_bare)
     assert d_heal == 0.0 and abs(peak_heal - MU_S) / MU_S < 1e-2, (d_heal, peak_heal)
-    print(f"load stepping, heal in the increment: delta after settling {d_heal:g} (bare {d_bare:.4g}); "
-          f"reload peak {peak_heal:.4f} (bare {peak_bare:.4f}; mu_s N = {MU_S})")
+    print(
+        f"load stepping, heal in the increment: delta after settling {d_heal:g} (bare "
+        f"{d_bare:.4g}); "
+        f"reload peak {peak_heal:.4f} (bare {peak_bare:.4f}; mu_s N = {MU_S})"
+    )

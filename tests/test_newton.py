@@ -27,7 +27,9 @@ from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import _stage_args
 
 N = 9
-MODEL = SheetModel(make_mesh(N, 2.4), make_material("gent", jm=50.0), Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)))
+MODEL = SheetModel(
+    make_mesh(N, 2.4), make_material("gent", jm=50.0), Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
+)
 WEAK = make_friction("slip_weakening", mu_s=1.5, mu_k=1.2, d_c=0.02, eps=1e-3)
 MODES = [(BALL_HOLD, CLAMP_POSITION), (BALL_FORCE, CLAMP_POSITION), (BALL_FORCE, CLAMP_FORCE)]
 
@@ -45,16 +47,36 @@ def _state(layout, seed=0):
 
 
 def _args(friction, ball_mode, clamp_mode):
-    stage = Stage("s", StopRule("duration", duration=5.0), clamp_vz=-0.2, ball_mode=ball_mode, clamp_mode=clamp_mode,
-                  ball_force_end=0.0)
-    return _stage_args(stage, 0.0, 0.0, 0.3, (0.1, -0.2), friction, 1e-3, 0.1, 0.4, 0.05, support_z=-0.01,
-                       support_k=1e3)
+    stage = Stage(
+        "s",
+        StopRule("duration", duration=5.0),
+        clamp_vz=-0.2,
+        ball_mode=ball_mode,
+        clamp_mode=clamp_mode,
+        ball_force_end=0.0,
+    )
+    return _stage_args(
+        stage,
+        0.0,
+        0.0,
+        0.3,
+        (0.1, -0.2),
+        friction,
+        1e-3,
+        0.1,
+        0.4,
+        0.05,
+        support_z=-0.01,
+        support_k=1e3,
+    )
 
 
 def _increment(layout, y0, args, h):
     rho, z, zb0, _ = layout.unpack(y0)
     q0 = jnp.stack([rho, z - zb0], axis=1)
-    return nw.Increment(q0=q0, zb0=zb0, delta0=layout.internal(y0), t1=jnp.asarray(h), h=jnp.asarray(h), args=args)
+    return nw.Increment(
+        q0=q0, zb0=zb0, delta0=layout.internal(y0), t1=jnp.asarray(h), h=jnp.asarray(h), args=args
+    )
 
 
 def _dense(lower, diag, upper, B, C, D):
@@ -95,9 +117,15 @@ def test_blocks_from_element_derivatives_equal_jacfwd(modes):
     # and the bordered solve of those blocks is the dense solve, by either elimination
     r = np.asarray(flat(x))
     for method in ("cyclic", "thomas"):
-        dq, dz = bordered_solve(*blocks, jnp.asarray(r[:-1]).reshape(N, 2), jnp.asarray(r[-1]), method)
-        np.testing.assert_allclose(np.concatenate([np.asarray(dq).reshape(-1), [float(dz)]]),
-                                   np.linalg.solve(jac, r), rtol=1e-9, atol=1e-12)
+        dq, dz = bordered_solve(
+            *blocks, jnp.asarray(r[:-1]).reshape(N, 2), jnp.asarray(r[-1]), method
+        )
+        np.testing.assert_allclose(
+            np.concatenate([np.asarray(dq).reshape(-1), [float(dz)]]),
+            np.linalg.solve(jac, r),
+            rtol=1e-9,
+            atol=1e-12,
+        )
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 8, 13, 64])
@@ -114,8 +142,12 @@ def test_cyclic_reduction_equals_dense_solve(n):
         if i < n - 1:
             a[3 * i : 3 * i + 3, 3 * i + 3 : 3 * i + 6] = up[i]
     x = cyclic_reduction(low, dia, up, f)
-    np.testing.assert_allclose(np.asarray(x).reshape(-1, 2), np.linalg.solve(a, np.asarray(f).reshape(-1, 2)),
-                               rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(
+        np.asarray(x).reshape(-1, 2),
+        np.linalg.solve(a, np.asarray(f).reshape(-1, 2)),
+        rtol=1e-10,
+        atol=1e-13,
+    )
 
 
 @pytest.mark.parametrize("modes", MODES)
@@ -130,11 +162,15 @@ def test_motion_newton_increment_is_the_full_state_increment(modes):
     h = jnp.asarray(0.05)
     full = load_step_solver(layout, 1e-12, 1e-12, max_iter=40)
     term = diffrax.ODETerm(vector_field(MODEL, layout))
-    y_full, _, _, _, res = full.step(term, jnp.asarray(0.0), h, y0, args, full.init(term, 0.0, h, y0, args), False)
+    y_full, _, _, _, res = full.step(
+        term, jnp.asarray(0.0), h, y0, args, full.init(term, 0.0, h, y0, args), False
+    )
     assert diffrax.is_okay(res)
     solver = nw.MotionNewton(max_iter=40)
     zero = (jnp.zeros((N, 2)), jnp.zeros(()))
-    y_mot, ok, _it, _ = solver.increment(MODEL, layout, jnp.asarray(0.0), h, y0, args, zero, 1e-12, 1e-12)
+    y_mot, ok, _it, _ = solver.increment(
+        MODEL, layout, jnp.asarray(0.0), h, y0, args, zero, 1e-12, 1e-12
+    )
     assert bool(ok)
     np.testing.assert_allclose(np.asarray(y_mot), np.asarray(y_full), rtol=0, atol=1e-9)
 
@@ -160,15 +196,23 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
     Newton's, whose slip distance is implicit, and the slip distances agree where they are large."""
     import math
 
+    from dynslip.physics.simulate import Settings, simulate
     from test_forming import MODEL as SHEET
     from test_forming import PRE, Z0, push_protocol
 
-    from dynslip.physics.simulate import Settings, simulate
-
     def run(solver):
         fr = make_friction("slip_weakening", mu_s=1.0, mu_k=0.8, d_c=0.02, eps=1e-3)
-        return simulate(SHEET, push_protocol(), friction=fr, eps=1e-3, drag=0.1, ball_drag=0.4 * math.pi,
-                        pre_stretch=PRE, z_sheet=Z0, settings=Settings(solver=solver, save_interval=1.0))
+        return simulate(
+            SHEET,
+            push_protocol(),
+            friction=fr,
+            eps=1e-3,
+            drag=0.1,
+            ball_drag=0.4 * math.pi,
+            pre_stretch=PRE,
+            z_sheet=Z0,
+            settings=Settings(solver=solver, save_interval=1.0),
+        )
 
     a, b = run("load_step"), run("load_step_full")
     assert a.failed is None and b.failed is None

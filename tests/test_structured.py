@@ -56,9 +56,9 @@ def _solve(linear_solver, y, t1):
     settings = dataclasses.replace(SETTINGS, solver="kvaerno5", linear_solver=linear_solver)
     solve = segment_solver(settings)
     f = jnp.asarray
-    y1, ok, steps, _, _ = solve(MODEL, LAYOUT, y, f(0.0), f(t1), f(1e-3), ARGS, f(1e-7), f(1e-9))
-    assert bool(ok)
-    return y1, int(steps)
+    out = solve(MODEL, LAYOUT, y, f(0.0), f(t1), f(1e-3), ARGS, f(1e-7), f(1e-9))
+    assert bool(out.ok)
+    return out.y, int(out.steps)
 
 
 @pytest.mark.parametrize("stage", ["held", "force_controlled"])

@@ -60,7 +60,9 @@ def _batched_solver(settings):
     if key not in _VMAPPED:
         solve = segment_solver(settings)
         a = eqx.if_array(0)  # array leaves mapped; a model's float constants (Gent's J_m) broadcast
-        _VMAPPED[key] = eqx.filter_jit(eqx.filter_vmap(solve, in_axes=(a, None, a, a, a, a, a, a, a, a)))
+        _VMAPPED[key] = eqx.filter_jit(
+            eqx.filter_vmap(solve, in_axes=(a, None, a, a, a, a, a, a, a, a))
+        )
     return _VMAPPED[key]
 
 
@@ -69,8 +71,10 @@ def stack(trees):
     non-array parts must be equal (they are the compiled function's constants)."""
     dyn, static = zip(*(eqx.partition(t, eqx.is_array) for t in trees), strict=True)
     if any(repr(s) != repr(static[0]) for s in static[1:]):
-        raise ValueError("simulate_batch: members differ in a non-array part (an int, a string, a class): "
-                         f"{static[0]!r} vs {next(s for s in static[1:] if repr(s) != repr(static[0]))!r}")
+        raise ValueError(
+            "simulate_batch: members differ in a non-array part (an int, a string, a class): "
+            f"{static[0]!r} vs {next(s for s in static[1:] if repr(s) != repr(static[0]))!r}"
+        )
     stacked = jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *dyn)
     return eqx.combine(stacked, static[0])
 
@@ -82,7 +86,9 @@ def batch_key(model: SheetModel, protocol: Protocol, kwargs: dict) -> str:
     return repr(static_key(run.settings, run.layout, model, run.args))
 
 
-def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], kwargs: Sequence[dict]) -> list[Result]:
+def simulate_batch(
+    models: Sequence[SheetModel], protocols: Sequence[Protocol], kwargs: Sequence[dict]
+) -> list[Result]:
     """Run B members in lockstep; ``kwargs[b]`` are member b's keyword arguments of
     :func:`dynslip.physics.simulate.simulate` (``friction``, ``eps``, ``drag``, ``settings``,
     ``start``, ``on_frame``, ...). Returns one :class:`Result` per member, the same content as
@@ -91,15 +97,19 @@ def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], 
     solve (see :func:`batch_key`); B = 1 is :func:`simulate` itself.
     """
     if not (len(models) == len(protocols) == len(kwargs)) or not models:
-        raise ValueError("simulate_batch: give as many models, protocols and keyword sets, at least one")
+        raise ValueError(
+            "simulate_batch: give as many models, protocols and keyword sets, at least one"
+        )
     if len(models) == 1:
         return [simulate(models[0], protocols[0], **kwargs[0])]
     runs = [MemberRun(m, p, **kw) for m, p, kw in zip(models, protocols, kwargs, strict=True)]
     layout = runs[0].layout
     keys = [static_key(r.settings, r.layout, r.model, r.args) for r in runs]
     if any(k != keys[0] for k in keys[1:]):
-        raise ValueError("simulate_batch: the members need different compiled solves (solver settings, mesh "
-                         "size or a non-array part of the model); run them in separate batches")
+        raise ValueError(
+            "simulate_batch: the members need different compiled solves (solver settings, mesh "
+            "size or a non-array part of the model); run them in separate batches"
+        )
     settings = runs[0].settings
     vsolve = _batched_solver(settings)
     models_b = stack(models)
@@ -110,17 +120,34 @@ def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], 
     n_b = len(runs)
     while not all(r.done for r in runs):
         segs = [r.segment() for r in runs]
-        inputs = (models_b, layout, np.stack([np.asarray(s.y) for s in segs]),
-                  np.asarray([s.t0 for s in segs]), np.asarray([s.t1 for s in segs]),
-                  np.asarray([s.dt0 for s in segs]), stack([s.args for s in segs]), rtol, atol,
-                  jax.tree_util.tree_map(lambda *r: np.stack([np.asarray(x) for x in r]), *[s.rate for s in segs]))
+        inputs = (
+            models_b,
+            layout,
+            np.stack([np.asarray(s.y) for s in segs]),
+            np.asarray([s.t0 for s in segs]),
+            np.asarray([s.t1 for s in segs]),
+            np.asarray([s.dt0 for s in segs]),
+            stack([s.args for s in segs]),
+            rtol,
+            atol,
+            jax.tree_util.tree_map(
+                lambda *r: np.stack([np.asarray(x) for x in r]), *[s.rate for s in segs]
+            ),
+        )
         active = [b for b, r in enumerate(runs) if not r.done]
-        compiled = _compiled(("batch", n_b, *keys[0]), lambda inputs=inputs: vsolve.lower(*inputs).compile(),
-                             [runs[b].stats for b in active])
+        compiled = _compiled(
+            ("batch", n_b, *keys[0]),
+            lambda inputs=inputs: vsolve.lower(*inputs).compile(),
+            [runs[b].stats for b in active],
+        )
         r0 = _time.perf_counter()
         out = jax.device_get(compiled(*inputs))
-        run_s = (_time.perf_counter() - r0) / len(active)  # the tick's time, shared by its active members
-        lockstep = int(np.max(out.steps))  # the tick's cost: the largest increment count of the batch
+        run_s = (_time.perf_counter() - r0) / len(
+            active
+        )  # the tick's time, shared by its active members
+        lockstep = int(
+            np.max(out.steps)
+        )  # the tick's cost: the largest increment count of the batch
         for b in active:
             r, seg = runs[b], segs[b]
             r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + lockstep
@@ -129,5 +156,7 @@ def simulate_batch(models: Sequence[SheetModel], protocols: Sequence[Protocol], 
             r.y = jnp.asarray(r.y)
             if r.heals_between_segments:
                 r.y = reset_internal(r.model, layout, r.y, seg.args, _f(r.settings.heal_rate))
-            r.record(frame_record(r.model, layout, _f(r.t), r.y, seg.args, r.settings.contact_threshold))
+            r.record(
+                frame_record(r.model, layout, _f(r.t), r.y, seg.args, r.settings.contact_threshold)
+            )
     return [r.result() for r in runs]

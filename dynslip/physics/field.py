@@ -21,7 +21,16 @@ from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 
 EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see sheet_structure)
 
-__all__ = ["N_ACC", "EDGE_NODES", "Layout", "StageArgs", "evaluate", "vector_field", "sheet_structure", "heal"]
+__all__ = [
+    "N_ACC",
+    "EDGE_NODES",
+    "Layout",
+    "StageArgs",
+    "evaluate",
+    "vector_field",
+    "sheet_structure",
+    "heal",
+]
 
 N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
 
@@ -98,7 +107,9 @@ class StageArgs(eqx.Module):
     weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
     support: jnp.ndarray = 0.0  # 1 where the ball rests on the rigid support (bottle neck), else 0
     support_z: jnp.ndarray = 0.0  # ball-centre height at which the support's contact begins (R)
-    support_k: jnp.ndarray = 1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
+    support_k: jnp.ndarray = (
+        1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
+    )
 
     def frac(self, t):
         return jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
@@ -137,13 +148,18 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     cz = jnp.where(pinned, g_z[-1], f_app[1])
     held = args.ball_mode == BALL_HOLD
     fb = args.ball_force(t) + args.support_force(zb)
-    vb = jnp.where(held, args.vzb, (fb + cz + args.weight) / args.ball_drag)
-    f_hold = jnp.where(held, args.ball_drag * vb - cz - args.weight, fb)
+    c_ball = cz - model.held_load(
+        rho, z
+    )  # the sheet's pull on the ball: the held bodies carry the rest
+    vb = jnp.where(held, args.vzb, (fb + c_ball + args.weight) / args.ball_drag)
+    f_hold = jnp.where(held, args.ball_drag * vb - c_ball - args.weight, fb)
     u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
     u = u.at[:, -1].set(u_c)
     v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
     moving = (jnp.arange(layout.n) < layout.n - 1) | ~pinned  # nodes with constitutive drag
-    d_drag = jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
+    d_drag = (
+        jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
+    )
     last = jnp.arange(layout.n) == layout.n - 1
     d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
     w_clamp = cz * v[1, -1] + crho * v[0, -1]
@@ -153,8 +169,18 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     if internal is not None:
         dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
     dy = layout.pack(v[0], v[1], vb, dacc, dint)
-    return dy, {"clamp_force": cz, "clamp_force_rho": crho, "ball_reaction": f_hold, "ball_v": vb,
-                "zc": z[-1], "rhoc": rho[-1], "rho": rho, "z": z, "zb": zb, "kin": k}
+    return dy, {
+        "clamp_force": cz,
+        "clamp_force_rho": crho,
+        "ball_reaction": f_hold,
+        "ball_v": vb,
+        "zc": z[-1],
+        "rhoc": rho[-1],
+        "rho": rho,
+        "z": z,
+        "zb": zb,
+        "kin": k,
+    }
 
 
 def vector_field(model: SheetModel, layout: Layout):
@@ -162,7 +188,6 @@ def vector_field(model: SheetModel, layout: Layout):
         return evaluate(model, layout, t, y, args)[0]
 
     return vf
-
 
 
 def sheet_structure(layout: Layout) -> Structure:
@@ -177,7 +202,8 @@ def sheet_structure(layout: Layout) -> Structure:
     The dense border holds the ball height, the accumulators, and the last
     :data:`EDGE_NODES` nodes (the clamped edge and its neighbour). Every node moves with the
     ball (``v = u + v_b e_z``), and a force-controlled ball's velocity
-    $v_b = (F_b + C_z + F_g)/\eta_b$ depends on the clamp's force $C_z = \partial E/\partial z_{n-1}$,
+    $v_b = (F_b + C_z + F_g)/\eta_b$ depends on the clamp's force $C_z = \partial E/\partial
+    z_{n-1}$,
     i.e. on the last element's two nodes: every row depends on them, so they belong in the
     border (with a held ball the coupling vanishes and the border simply holds a few zeros).
     ``tests/test_structured.py`` checks the pattern against ``jax.jacfwd`` with the ball
@@ -187,12 +213,16 @@ def sheet_structure(layout: Layout) -> Structure:
     n_core = n - EDGE_NODES
 
     def node(i):
-        return [-1 if i == 0 else i - 1, n - 1 + i] + ([layout.internal_start + i] if layout.n_int else [])
+        return [-1 if i == 0 else i - 1, n - 1 + i] + (
+            [layout.internal_start + i] if layout.n_int else []
+        )
 
     core = [j for i in range(n_core) for j in node(i)]
     edge = [j for i in range(n_core, n) for j in node(i)]
     border = tuple(edge + list(range(2 * n - 1, 2 * n + N_ACC)))
-    return Structure(n=n_core, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border)
+    return Structure(
+        n=n_core, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border
+    )
 
 
 def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate):
@@ -205,4 +235,6 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate):
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
-    return layout.with_internal(y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate))
+    return layout.with_internal(
+        y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate)
+    )

@@ -7,7 +7,8 @@ A one-dimensional sheet couples each node only to its neighbours; a few global s
 out as ``y = [node 0 (b values), node 1, ..., node n-1, border (m values)]`` the
 Jacobian is
 
-$$ J = \begin{pmatrix} A & B \\ C & D \end{pmatrix},\qquad A \text{ block tridiagonal } (n\times n \text{ blocks of } b\times b). $$
+$$ J = \begin{pmatrix} A & B \\ C & D \end{pmatrix},\qquad A \text{ block tridiagonal }
+(n\times n \text{ blocks of } b\times b). $$
 
 :class:`BorderedBlockTridiagonal` is a :class:`lineax.AbstractLinearSolver`: given any
 linear operator with that sparsity (in diffrax, the Newton matrix $I - h\gamma J$
@@ -61,7 +62,11 @@ class Structure(eqx.Module):
     def _indices(self):
         nb = self.n * self.b
         core = np.arange(nb) if self.core_index is None else np.asarray(self.core_index)
-        border = np.arange(nb, nb + self.m) if self.border_index is None else np.asarray(self.border_index)
+        border = (
+            np.arange(nb, nb + self.m)
+            if self.border_index is None
+            else np.asarray(self.border_index)
+        )
         return core, border
 
     def to_blocked(self, v):
@@ -87,7 +92,9 @@ class Structure(eqx.Module):
 
 def _matvec(operator: lx.AbstractLinearOperator):
     """Flat matrix-vector product of an operator whose input/output are any pytrees."""
-    zeros = jax.tree_util.tree_map(lambda sd: jnp.zeros(sd.shape, sd.dtype), operator.in_structure())
+    zeros = jax.tree_util.tree_map(
+        lambda sd: jnp.zeros(sd.shape, sd.dtype), operator.in_structure()
+    )
     _, unravel = ravel_pytree(zeros)
 
     def mv(v):
@@ -256,7 +263,11 @@ class BorderedBlockTridiagonal(lx.AbstractLinearSolver):
         lower_t = jnp.concatenate([jnp.zeros_like(upper[:1]), sw(upper[:-1])])
         upper_t = jnp.concatenate([sw(lower[1:]), jnp.zeros_like(lower[:1])])
         blocks_t = (lower_t, sw(diag), upper_t, C.T, B.T, D.T)
-        return (factorise(*blocks_t, self.structure), blocks_t, transpose_packed_structures(packed)), {}
+        return (
+            factorise(*blocks_t, self.structure),
+            blocks_t,
+            transpose_packed_structures(packed),
+        ), {}
 
     def conj(self, state, options):
         return state, {}
@@ -291,8 +302,11 @@ def cyclic_reduction(lower, diag, upper, f):
     # D_odd^{-1} applied to [L_odd, U_odd, f_odd] in one batched solve
     sol = jnp.linalg.solve(do, jnp.concatenate([lo, uo, fo], axis=-1))
     il, iu, if_ = sol[..., :b], sol[..., b : 2 * b], sol[..., 2 * b :]
+
     # even row i couples to odd rows i-1 (index i//2 - 1) and i+1 (index i//2)
-    prev = lambda a: jnp.concatenate([jnp.zeros_like(a[:1]), a[:-1]])
+    def prev(a):
+        return jnp.concatenate([jnp.zeros_like(a[:1]), a[:-1]])
+
     il_p, iu_p, if_p = prev(il), prev(iu), prev(if_)
     d2 = de - le @ iu_p - ue @ il
     l2 = -le @ il_p
@@ -324,7 +338,9 @@ def bordered_solve(lower, diag, upper, B, C, D, f, g, method: str = "cyclic"):
     $S = D - C A^{-1} B$. Returns ``(x, y)`` shaped as ``(f, g)``."""
     n, b = f.shape
     m = D.shape[0]
-    sol = block_tridiagonal_solve(lower, diag, upper, jnp.concatenate([f[:, :, None], B], axis=-1), method)
+    sol = block_tridiagonal_solve(
+        lower, diag, upper, jnp.concatenate([f[:, :, None], B], axis=-1), method
+    )
     ainv_f, ainv_b = sol[:, :, 0], sol[:, :, 1:]
     cflat = C.reshape(m, n * b)
     schur = D - cflat @ ainv_b.reshape(n * b, m)

@@ -86,8 +86,17 @@ from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
 
-__all__ = ["LoadStepEuler", "IncrementState", "load_step_solver", "increments", "run_segment", "GROW", "CUT", "GROW_BELOW",
-           "SHRINK_ABOVE"]
+__all__ = [
+    "LoadStepEuler",
+    "IncrementState",
+    "load_step_solver",
+    "increments",
+    "run_segment",
+    "GROW",
+    "CUT",
+    "GROW_BELOW",
+    "SHRINK_ABOVE",
+]
 
 GROW = 1.5  # increment growth after a fast Newton solve
 GROW_BELOW = 12  # ... of at most this many iterations
@@ -128,13 +137,21 @@ class LoadStepEuler(ImplicitEuler):
         del made_jump
         control = terms.contr(t0, t1)
         k0 = solver_state.rate * (t1 - t0)
-        sol = optx.root_find(_implicit_relation, self.root_finder, k0, (terms.vf_prod, t1, y0, args, control),
-                             throw=False, max_steps=self.root_find_max_steps)
+        sol = optx.root_find(
+            _implicit_relation,
+            self.root_finder,
+            k0,
+            (terms.vf_prod, t1, y0, args, control),
+            throw=False,
+            max_steps=self.root_find_max_steps,
+        )
         k1 = sol.value
         y1 = (y0**ω + k1**ω).ω
         result = diffrax.RESULTS.promote(sol.result)
         y_error = reject_failed((0.5 * (k1**ω - k0**ω)).ω, result)
-        state = IncrementState(rate=k1 / (t1 - t0), iterations=jnp.asarray(sol.stats["num_steps"], jnp.int32))
+        state = IncrementState(
+            rate=k1 / (t1 - t0), iterations=jnp.asarray(sol.stats["num_steps"], jnp.int32)
+        )
         return y1, y_error, dict(y0=y0, y1=y1), state, result
 
 
@@ -171,22 +188,40 @@ class DampedNewton(optx.Newton):
         diff = alpha * diff
         scale = self.atol + self.rtol * jnp.abs(y - diff)
         diffsize = self.norm(diff / scale)
-        new_state = eqx.tree_at(lambda s: (s.diff, s.diffsize), new_state, (diff, jnp.asarray(diffsize, new_state.diffsize.dtype)))
+        new_state = eqx.tree_at(
+            lambda s: (s.diff, s.diffsize),
+            new_state,
+            (diff, jnp.asarray(diffsize, new_state.diffsize.dtype)),
+        )
         return y - diff, new_state, aux
 
 
-def load_step_solver(layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 20, backtrack: int = 4):
+def load_step_solver(
+    layout, rtol, atol, linear_solver: str = "structured", max_iter: int = 20, backtrack: int = 4
+):
     """The implicit Euler solver of a load increment: Newton with explicit tolerances, and
     :class:`DampedNewton`'s backtracking (at most ``backtrack`` halvings; 0: plain Newton)."""
-    lin = (BorderedBlockTridiagonal(sheet_structure(layout)) if linear_solver == "structured"
-           else lx.AutoLinearSolver(well_posed=None))
+    lin = (
+        BorderedBlockTridiagonal(sheet_structure(layout))
+        if linear_solver == "structured"
+        else lx.AutoLinearSolver(well_posed=None)
+    )
     if backtrack:
         # the energy accumulators do not feed back into the motion: left out of the merit
         w = jnp.ones(layout.size).at[layout.accumulators].set(0.0)
-        newton = DampedNewton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True,
-                              weights=w, max_backtrack=backtrack)
+        newton = DampedNewton(
+            rtol=rtol,
+            atol=atol,
+            norm=optx.max_norm,
+            linear_solver=lin,
+            cauchy_termination=True,
+            weights=w,
+            max_backtrack=backtrack,
+        )
     else:
-        newton = optx.Newton(rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True)
+        newton = optx.Newton(
+            rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True
+        )
     return LoadStepEuler(root_finder=newton, root_find_max_steps=max_iter)
 
 
@@ -197,17 +232,44 @@ def increment_cap(args, max_increment, max_increment_free):
     return args.drag * jnp.where(free, max_increment_free, max_increment)
 
 
-def run_segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, *, max_steps: int, max_iter: int,
-                max_increment: float, max_increment_free: float, linear_solver: str = "structured",
-                heal_rate: float = 0.0, backtrack: int = 4):
+def run_segment(
+    model,
+    layout,
+    y0,
+    t0,
+    t1,
+    dt0,
+    args,
+    rtol,
+    atol,
+    *,
+    max_steps: int,
+    max_iter: int,
+    max_increment: float,
+    max_increment_free: float,
+    linear_solver: str = "structured",
+    heal_rate: float = 0.0,
+    backtrack: int = 4,
+):
     """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
-    newton_iterations)``. Not jitted (:class:`dynslip.physics.simulate.FullStateLoadStep` jits it). ``dt0`` is the first increment tried.
+    newton_iterations)``. Not jitted (:class:`dynslip.physics.simulate.FullStateLoadStep` jits
+    it). ``dt0`` is the first increment tried.
     """
     term = diffrax.ODETerm(vector_field(model, layout))
     solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter, backtrack)
     cap = increment_cap(args, max_increment, max_increment_free)
-    return increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps,
-                      after=lambda t, y: heal(model, layout, y, args, heal_rate))
+    return increments(
+        term,
+        solver,
+        y0,
+        t0,
+        t1,
+        dt0,
+        args,
+        cap,
+        max_steps,
+        after=lambda t, y: heal(model, layout, y, args, heal_rate),
+    )
 
 
 def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=None):
@@ -224,7 +286,9 @@ def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=N
     def body(c):
         t, y, state, dt, was_cut, nacc, nrej, nit = c
         left = t1 - t
-        last = left <= 1.25 * dt  # stretch the increment to the save time rather than leave a sliver
+        last = (
+            left <= 1.25 * dt
+        )  # stretch the increment to the save time rather than leave a sliver
         h = jnp.where(last, left, dt)
         t_next = jnp.where(last, t1, t + h)
         y1, y_err, _, new_state, result = solver.step(term, t, t_next, y, args, state, False)
@@ -233,15 +297,34 @@ def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=N
         iters = new_state.iterations
         ok = diffrax.is_okay(result) & jnp.all(jnp.isfinite(y_err)) & jnp.all(jnp.isfinite(y1))
         factor = jnp.where(iters <= GROW_BELOW, GROW, jnp.where(iters >= SHRINK_ABOVE, SHRINK, 1.0))
-        factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)  # no growth right after a cut-back
+        factor = jnp.where(
+            was_cut, jnp.minimum(factor, 1.0), factor
+        )  # no growth right after a cut-back
         # an increment clipped to the save time does not shrink the next one
         dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
         dt_new = jnp.where(ok, dt_ok, CUT * h)
         state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, state)
-        return (jnp.where(ok, t_next, t), jnp.where(ok, y1, y), state, dt_new, ~ok, nacc + ok, nrej + (~ok),
-                nit + iters)
+        return (
+            jnp.where(ok, t_next, t),
+            jnp.where(ok, y1, y),
+            state,
+            dt_new,
+            ~ok,
+            nacc + ok,
+            nrej + (~ok),
+            nit + iters,
+        )
 
-    init = (t0, y0, solver.init(term, t0, t1, y0, args), jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
+    init = (
+        t0,
+        y0,
+        solver.init(term, t0, t1, y0, args),
+        jnp.minimum(dt0, cap),
+        jnp.array(False),
+        zero,
+        zero,
+        zero,
+    )
     t, y, _, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
     ok = (t >= t1) & jnp.all(jnp.isfinite(y))
     return y, ok, nacc + nrej, nacc, nrej, nit

@@ -37,6 +37,15 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
 
 The linear solve is :func:`dynslip.physics.linalg.block_solve` (block cyclic reduction or
 block Thomas, with the one-unknown border by a Schur complement).
+
+**Bodies.** The contact geometry is asked of the model's bodies through :func:`contact_gap`
+(the ball, :attr:`SheetModel.ball`, at the relative position $q$; the held bodies,
+:attr:`SheetModel.bodies`, at $q + z_b e_z$, frictionless, docs/bodies.md).
+
+Longer than 400 lines: the increment's residual, its Newton matrix and the solver object
+share the node and element terms at the top, and the matrix is checked block by block
+against the residual (tests/test_newton.py, tests/test_bodies_sheet.py); split, the three
+would import each other's private terms.
 """
 
 from __future__ import annotations
@@ -52,7 +61,15 @@ from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["MotionNewton", "SegmentOutput", "increment_rates", "newton_blocks", "residual", "slip_update", "zero_rate"]
+__all__ = [
+    "MotionNewton",
+    "SegmentOutput",
+    "increment_rates",
+    "newton_blocks",
+    "residual",
+    "slip_update",
+    "zero_rate",
+]
 
 GROW = 1.5
 CUT = 0.5
@@ -71,15 +88,13 @@ class SegmentOutput(eqx.Module):
     accepted: jax.Array
     rejected: jax.Array
     newton_iterations: jax.Array
-    rate: tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
-
-    def __iter__(self):
-        """The five values the time-stepped segment solve used to return as a tuple
-        (``tests/test_structured.py`` still unpacks them; read the fields instead)."""
-        return iter((self.y, self.ok, self.steps, self.accepted, self.rejected))
+    rate: (
+        tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
+    )
 
 
 # --------------------------------------------------------------------------- element / node terms
+
 
 def element_energy(material, dr, rsum, area_el, xa, xb):
     """Elastic energy of one element from its two nodes (rho, z) (G h0 R^2), as
@@ -90,24 +105,34 @@ def element_energy(material, dr, rsum, area_el, xa, xb):
     return area_el * relaxed_energy(material, lt, lp)
 
 
-def contact_gap(q):
-    """Penetration $1 - |q|$ of a node at ``q`` = (rho, z - zb) relative to the ball's
-    centre, and the ball's outward normal and tangent (toward the equator) there. The one
-    place the contact geometry is computed (a rigid body other than the ball replaces this)."""
-    r = jnp.sqrt(q[0] ** 2 + q[1] ** 2)
-    rs = jnp.where(r > 0, r, 1.0)
-    n = q / rs
-    t = jnp.stack([n[1], -n[0]])
-    return 1.0 - r, n, t
+def contact_gap(body, q, z=0.0):
+    """Penetration $-d$ of a node at ``q`` = (rho, z) into ``body`` (an
+    :class:`~dynslip.physics.bodies.base.AbstractBody` displaced by ``z``), and the body's
+    outward normal and tangent (toward increasing arc length: for the unit sphere,
+    ``1 - |q|`` about its centre and the tangent toward the equator). The one place the
+    contact geometry is asked for: the ball at ``q`` relative to its reference placement,
+    the held bodies at the node's absolute position."""
+    p = body.project(q, z)
+    return -p.distance, p.normal, p.tangent
 
 
-def _node_penalty(pen, area, q):
-    return area * penalty_energy(pen, contact_gap(q)[0])
+def _node_penalty(pen, ball, area, q):
+    return area * penalty_energy(pen, contact_gap(ball, q)[0])
 
 
-def forces(model: SheetModel, q):
+def _held_penalty(model: SheetModel, area, x):
+    """Penalty energy of one node at absolute position ``x`` against every held body."""
+    return sum(
+        (area * penalty_energy(model.penalty, contact_gap(b, x)[0]) for b in model.bodies),
+        jnp.zeros(()),
+    )
+
+
+def forces(model: SheetModel, q, zb):
     """$\\partial E/\\partial x$ per node, (n, 2), NaN everywhere where the energy is not finite
-    (as :meth:`SheetModel.gradients`)."""
+    (as :meth:`SheetModel.gradients`), and the held bodies' load
+    (:meth:`SheetModel.held_load`; 0 without any). The held bodies see the node at
+    $q + z_b e_z$."""
     m = model.mesh
     rsum = m.rbar[1:] + m.rbar[:-1]
 
@@ -115,41 +140,62 @@ def forces(model: SheetModel, q):
         return jax.value_and_grad(element_energy, argnums=(4, 5))(model.material, dr, rs, a, xa, xb)
 
     e, (ga, gb) = jax.vmap(el)(m.dr, rsum, m.area_el, q[:-1], q[1:])
-    ep, gp = jax.vmap(jax.value_and_grad(_node_penalty, argnums=2), in_axes=(None, 0, 0))(model.penalty, m.area, q)
+    ep, gp = jax.vmap(jax.value_and_grad(_node_penalty, argnums=3), in_axes=(None, None, 0, 0))(
+        model.penalty, model.ball, m.area, q
+    )
+    load = jnp.zeros(())
+    if model.bodies:
+        x = q + jnp.stack([jnp.zeros(()), zb])
+        eh, gh = jax.vmap(jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi), argnums=1))(
+            m.area, x
+        )
+        ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ga).at[1:].add(gb)
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
-    return jnp.where(bad, jnp.nan, g)
+    return jnp.where(bad, jnp.nan, g), load
 
 
-def forces_and_hessians(model: SheetModel, q):
-    """:func:`forces` and the blocks of the energy's Hessian: ``(g, h_diag, h_up)``,
-    ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them)."""
+def forces_and_hessians(model: SheetModel, q, zb):
+    """:func:`forces` and the blocks of the energy's Hessian: ``(g, h_diag, h_up, load, h_held)``,
+    ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them), ``h_held[i]`` the
+    held bodies' part of ``h_diag[i]`` (None without held bodies)."""
     m = model.mesh
     rsum = m.rbar[1:] + m.rbar[:-1]
 
     def el(dr, rs, a, x):
-        f = lambda x: element_energy(model.material, dr, rs, a, x[:2], x[2:])
+        def f(x):
+            return element_energy(model.material, dr, rs, a, x[:2], x[2:])
+
         gfun = jax.grad(f)
         h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
         return f(x), g, h
 
     e, ge, he = jax.vmap(el)(m.dr, rsum, m.area_el, jnp.concatenate([q[:-1], q[1:]], axis=1))
 
-    def nd(a, x):
-        f = lambda x: _node_penalty(model.penalty, a, x)
+    def second(f, x):
         gfun = jax.grad(f)
         h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
         return f(x), g, h
 
-    ep, gp, hp = jax.vmap(nd)(m.area, q)
+    ep, gp, hp = jax.vmap(
+        lambda a, x: second(lambda x: _node_penalty(model.penalty, model.ball, a, x), x)
+    )(m.area, q)
+    load, hh = jnp.zeros(()), None
+    if model.bodies:
+        x = q + jnp.stack([jnp.zeros(()), zb])
+        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x), x))(
+            m.area, x
+        )
+        ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
     h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
     h_up = he[:, :2, 2:]
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
-    return jnp.where(bad, jnp.nan, g), h_diag, h_up
+    return jnp.where(bad, jnp.nan, g), h_diag, h_up, load, hh
 
 
 # --------------------------------------------------------------------------- friction return map
+
 
 def _slip(friction: AbstractFriction, ft, normal, delta, eps):
     """$|S|$ of one node with slip distance ``delta`` (None for a memoryless law)."""
@@ -177,7 +223,9 @@ def slip_update(friction, ft, normal, eps, delta0, c):
     return delta0, jnp.where(live, d1, delta0)
 
 
-# --------------------------------------------------------------------------- the increment's residual
+# --------------------------------------------------------------------------- the increment's
+# residual
+
 
 class Increment(eqx.Module):
     """The data of one increment: start state (relative positions, ball height, slip
@@ -196,12 +244,12 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law)."""
     args = inc.args
     f = -g
-    _, n, t = contact_gap(q)
+    d, n, t = contact_gap(model.ball, q)
     pole = i == 0
     fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
     ft = jnp.where(pole, 0.0, f @ t)
     area = model.mesh.area[i]
-    normal = area * penalty_pressure(model.penalty, contact_gap(q)[0])
+    normal = area * penalty_pressure(model.penalty, d)
     eta_a = args.drag * area
     eps = args.eps * area
     delta1, delta_mu = None, None
@@ -213,46 +261,53 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
     return u, delta1
 
 
-def ball_rate(inc: Increment, g_edge, zb):
-    """The ball's velocity and the clamp's force on the sheet $C_z$ (held: prescribed;
-    force-controlled: $(F_h + F_s(z_b) + C_z + F_g)/\\eta_b$)."""
+def ball_rate(inc: Increment, g_edge, zb, load):
+    """The ball's velocity from the clamp's force on the sheet $C_z$ less the held bodies'
+    ``load`` (held: prescribed; force-controlled: $(F_h + F_s(z_b) + C_z - L + F_g)/\\eta_b$)."""
     args = inc.args
     pinned = args.clamp_mode == CLAMP_POSITION
     cz = jnp.where(pinned, g_edge[1], args.clamp_force(inc.t1)[1])
     fb = args.ball_force(inc.t1) + args.support_force(zb)
-    return jnp.where(args.ball_mode == BALL_HOLD, args.vzb, (fb + cz + args.weight) / args.ball_drag)
+    return jnp.where(
+        args.ball_mode == BALL_HOLD, args.vzb, (fb + (cz - load) + args.weight) / args.ball_drag
+    )
 
 
-def edge_rate(model: SheetModel, inc: Increment, g_edge, zb):
+def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load):
     """Rate relative to the ball of the clamped edge: prescribed (pinned clamp) or drag under
     the ramped clamp force."""
     args = inc.args
     pinned = args.clamp_mode == CLAMP_POSITION
-    vb = ball_rate(inc, g_edge, zb)
+    vb = ball_rate(inc, g_edge, zb, load)
     eta_a = args.drag * model.mesh.area[-1]
     free = (args.clamp_force(inc.t1) - g_edge) / eta_a
     return jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), free)
 
 
-def increment_rates(model, friction, inc: Increment, q, zb, g):
+def increment_rates(model, friction, inc: Increment, q, zb, g, load):
     """Every node's rate relative to the ball (n, 2), the ball's velocity and the slip
     distances at the increment's end, from the relative positions and energy gradient."""
     idx = jnp.arange(q.shape[0])
     d0 = inc.delta0
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None))(idx, q, g)
+        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None))(
+            idx, q, g
+        )
         delta1 = None
     else:
-        u, delta1 = jax.vmap(lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di))(idx, q, g, d0)
+        u, delta1 = jax.vmap(lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di))(
+            idx, q, g, d0
+        )
         delta1 = delta1.at[-1].set(d0[-1])
-    u = u.at[-1].set(edge_rate(model, inc, g[-1], zb))
-    return u, ball_rate(inc, g[-1], zb), delta1
+    u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load))
+    return u, ball_rate(inc, g[-1], zb, load), delta1
 
 
 def residual(model, friction, inc: Increment, q, zb):
-    """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} - \\Delta t\\,v_b$."""
-    g = forces(model, q)
-    u, vb, _ = increment_rates(model, friction, inc, q, zb, g)
+    """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} -
+    \\Delta t\\,v_b$."""
+    g, load = forces(model, q, zb)
+    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
     return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb
 
 
@@ -260,7 +315,7 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
     """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
     (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives."""
     n = q.shape[0]
-    g, h_diag, h_up = forces_and_hessians(model, q)
+    g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
     idx = jnp.arange(n)
     d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(n)
     mem = inc.delta0 is not None
@@ -270,8 +325,12 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
 
     lq, lg = jax.vmap(jax.jacfwd(local, argnums=(1, 2)))(idx, q, g, d0)  # (n, 2, 2) each
     # the clamped edge: rate from its force and the ball height only
-    eg, ez = jax.jacfwd(lambda ge, z: edge_rate(model, inc, ge, z), argnums=(0, 1))(g[-1], zb)
-    bg, bz = jax.jacfwd(lambda ge, z: ball_rate(inc, ge, z), argnums=(0, 1))(g[-1], zb)
+    eg, ez, el = jax.jacfwd(lambda ge, z, ld: edge_rate(model, inc, ge, z, ld), argnums=(0, 1, 2))(
+        g[-1], zb, load
+    )
+    bg, bz, bl = jax.jacfwd(lambda ge, z, ld: ball_rate(inc, ge, z, ld), argnums=(0, 1, 2))(
+        g[-1], zb, load
+    )
     lq = lq.at[-1].set(0.0)
     lg = lg.at[-1].set(eg)
     h_low = jnp.swapaxes(h_up, 1, 2)  # d2E/dx_{i+1} dx_i
@@ -284,10 +343,26 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
     C = jnp.zeros((1, n, 2))
     C = C.at[0, -1].set(-h * bg @ h_diag[-1]).at[0, -2].set(-h * bg @ h_low[-1])
     D = jnp.reshape(1.0 - h * bz, (1, 1))
+    if hh is not None:
+        # the held bodies see q + zb: every node's force moves with zb (d g_i/d zb = hh_i e_z),
+        # and the load L = sum_i dE_h/dz_i enters the ball's and the edge's rates
+        dg_dz = hh[:, :, 1]  # (n, 2)
+        dl_dq = hh[:, 1, :]  # (n, 2)
+        dl_dz = jnp.sum(hh[:, 1, 1])
+        col = jnp.einsum("nij,nj->ni", lg, dg_dz).at[-1].set(eg @ dg_dz[-1] + el * dl_dz)
+        B = B - h * col[:, :, None]
+        C = C - h * bl * dl_dq[None]
+        D = D - h * (bg @ dg_dz[-1] + bl * dl_dz)
+        # a pinned edge on a free ball moves with the ball, whose rate reads every node's load:
+        # the edge's and its neighbour's part is kept (the rest is not block tridiagonal and
+        # is left out: an inexact Newton matrix, the residual exact; exact for a held ball)
+        diag = diag.at[-1].add(-h * jnp.outer(el, dl_dq[-1]))
+        lower = lower.at[-1].add(-h * jnp.outer(el, dl_dq[-2]))
     return lower, diag, upper, B, C, D
 
 
 # --------------------------------------------------------------------------- the solver object
+
 
 class MotionNewton(eqx.Module):
     """Implicit Euler load increments, Newton on the motion alone (module docstring).
@@ -310,7 +385,8 @@ class MotionNewton(eqx.Module):
     max_steps: int = eqx.field(static=True, default=20000)
 
     def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
-        """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0) rate``
+        """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
+        rate``
         (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0))``."""
         friction = args.friction
         h = t1 - t0
@@ -352,18 +428,22 @@ class MotionNewton(eqx.Module):
                 return alpha, tq, tz, k + 1
 
             tq, tz = res(q - dq, zb - dz)
-            alpha, tq, tz, _ = jax.lax.while_loop(bt_cond, bt_body, (jnp.array(1.0), tq, tz, jnp.array(0)))
+            alpha, tq, tz, _ = jax.lax.while_loop(
+                bt_cond, bt_body, (jnp.array(1.0), tq, tz, jnp.array(0))
+            )
             qn, zbn = q - alpha * dq, zb - alpha * dz
-            step = jnp.maximum(jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
-                               jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn)))
+            step = jnp.maximum(
+                jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
+                jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn)),
+            )
             done = (step < 1.0) & (size(tq, tz) <= atol)
             bad = ~(jnp.all(jnp.isfinite(qn)) & jnp.isfinite(zbn) & jnp.isfinite(size(tq, tz)))
             return qn, zbn, tq, tz, it + 1, done, bad
 
         init = (q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False))
         q, zb, _, _, it, done, bad = jax.lax.while_loop(cond, body, init)
-        g = forces(model, q)
-        _, _, delta1 = increment_rates(model, friction, inc, q, zb, g)
+        g, load = forces(model, q, zb)
+        _, _, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
         y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1)
         # the accumulators by the rectangle rule at x1, with the friction law the motion used: the
         # return map's coefficient at the increment's start, mu(delta0) (with mu(delta1) the
@@ -376,7 +456,9 @@ class MotionNewton(eqx.Module):
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
         return y1, ok, it, (q - q0, zb - zb0)
 
-    def segment(self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+    def segment(
+        self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None
+    ) -> SegmentOutput:
         """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
         ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment."""
         from dynslip.physics.loadstep import increment_cap
@@ -397,21 +479,40 @@ class MotionNewton(eqx.Module):
             last = left <= 1.25 * dt
             h = jnp.where(last, left, dt)
             t_next = jnp.where(last, t1, t + h)
-            y1, ok, iters, (dq, dz) = self.increment(model, layout, t, t_next, y, args, rate, rtol, atol)
-            factor = jnp.where(iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0))
+            y1, ok, iters, (dq, dz) = self.increment(
+                model, layout, t, t_next, y, args, rate, rtol, atol
+            )
+            factor = jnp.where(
+                iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0)
+            )
             factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)
             dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
             dt_new = jnp.where(ok, dt_ok, CUT * h)
             new_rate = (dq / h, dz / h)
             rate = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_rate, rate)
-            return (jnp.where(ok, t_next, t), jnp.where(ok, y1, y), rate, dt_new, ~ok, nacc + ok, nrej + (~ok),
-                    nit + iters)
+            return (
+                jnp.where(ok, t_next, t),
+                jnp.where(ok, y1, y),
+                rate,
+                dt_new,
+                ~ok,
+                nacc + ok,
+                nrej + (~ok),
+                nit + iters,
+            )
 
         init = (t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
         t, y, rate, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
         ok = (t >= t1) & jnp.all(jnp.isfinite(y))
-        return SegmentOutput(y=y, ok=ok, steps=nacc + nrej, accepted=nacc, rejected=nrej, newton_iterations=nit,
-                             rate=rate)
+        return SegmentOutput(
+            y=y,
+            ok=ok,
+            steps=nacc + nrej,
+            accepted=nacc,
+            rejected=nrej,
+            newton_iterations=nit,
+            rate=rate,
+        )
 
 
 def zero_rate(n: int):

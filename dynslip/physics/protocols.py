@@ -29,8 +29,22 @@ from typing import Any, ClassVar
 
 import equinox as eqx
 
-__all__ = ["Stage", "Protocol", "AbstractStop", "Duration", "ClampForceBelow", "ThetaMaxBelow", "BallSpeedAbove",
-           "Rest", "STOPS", "StopRule", "BALL_HOLD", "BALL_FORCE", "CLAMP_POSITION", "CLAMP_FORCE"]
+__all__ = [
+    "Stage",
+    "Protocol",
+    "AbstractStop",
+    "Duration",
+    "ClampForceBelow",
+    "ThetaMaxBelow",
+    "BallSpeedAbove",
+    "Rest",
+    "STOPS",
+    "StopRule",
+    "BALL_HOLD",
+    "BALL_FORCE",
+    "CLAMP_POSITION",
+    "CLAMP_FORCE",
+]
 
 BALL_HOLD = 0
 BALL_FORCE = 1
@@ -67,7 +81,8 @@ class AbstractStop(eqx.Module):
 
     @abc.abstractmethod
     def scaled(self, factor: float) -> AbstractStop:
-        """The rule of the same path run ``factor`` times slower (times x factor, rates / factor)."""
+        """The rule of the same path run ``factor`` times slower (times x factor, rates /
+        factor)."""
 
 
 def _positive_duration(duration):
@@ -107,7 +122,9 @@ class ClampForceBelow(AbstractStop):
     def __check_init__(self):
         _positive_duration(self.duration)
         if not self.force > 0:
-            raise ValueError("stop rule clamp_force_below: the threshold must be > 0 (|force| < 0 never holds)")
+            raise ValueError(
+                "stop rule clamp_force_below: the threshold must be > 0 (|force| < 0 never holds)"
+            )
 
     def init(self):
         return None
@@ -131,7 +148,9 @@ class ThetaMaxBelow(AbstractStop):
     def __check_init__(self):
         _positive_duration(self.duration)
         if not 0 < self.angle < 3.14159265:
-            raise ValueError(f"stop rule theta_max_below: the angle must be in (0, pi), got {self.angle}")
+            raise ValueError(
+                f"stop rule theta_max_below: the angle must be in (0, pi), got {self.angle}"
+            )
 
     def init(self):
         return None
@@ -194,15 +213,24 @@ class Rest(AbstractStop):
         return bool(t - since >= self.hold - 1e-9), since
 
     def scaled(self, factor):
-        return Rest(rate=self.rate / factor, hold=self.hold * factor, duration=self.duration * factor)
+        return Rest(
+            rate=self.rate / factor, hold=self.hold * factor, duration=self.duration * factor
+        )
 
 
-STOPS: dict[str, type[AbstractStop]] = {c.kind: c for c in (Duration, ClampForceBelow, ThetaMaxBelow,
-                                                              BallSpeedAbove, Rest)}
+STOPS: dict[str, type[AbstractStop]] = {
+    c.kind: c for c in (Duration, ClampForceBelow, ThetaMaxBelow, BallSpeedAbove, Rest)
+}
 
 
-def StopRule(kind: str = "duration", duration: float = 1.0, force: float = 0.0, rate: float = 0.0,
-             hold: float = 0.0, angle: float = 0.0) -> AbstractStop:  # noqa: N802 - the old class's name
+def StopRule(
+    kind: str = "duration",
+    duration: float = 1.0,
+    force: float = 0.0,
+    rate: float = 0.0,
+    hold: float = 0.0,
+    angle: float = 0.0,
+) -> AbstractStop:  # noqa: N802 - the old class's name
     """The stop rule of a ``kind`` (the schema's ``until``), from the old flat constructor:
     the fields the kind does not use are ignored. ``"duration"`` (after ``duration``),
     ``"clamp_force_below"`` (``force``, G h0 R), ``"theta_max_below"`` (``angle``, rad),
@@ -228,7 +256,8 @@ class Stage:
     ``clamp_mode``: ``CLAMP_POSITION`` (the clamp moves at ``clamp_vz``, ``clamp_vrho``,
     R/s) or ``CLAMP_FORCE`` (the clamp lets go gradually: its force on the sheet,
     (rho, z) components, ramps from its value at the stage start, or
-    ``clamp_force_start``, to ``clamp_force_end``; the edge then moves with drag). ``ball_mode``: ``BALL_HOLD``
+    ``clamp_force_start``, to ``clamp_force_end``; the edge then moves with drag).
+    ``ball_mode``: ``BALL_HOLD``
     (ball centre moves at ``ball_vz``) or ``BALL_FORCE`` (hold reaction ramps from the
     value at the stage start, or ``ball_force_start`` if given, to ``ball_force_end``
     over the stage's duration). ``support``: the ball also rests on a rigid support below it
@@ -278,8 +307,15 @@ class Protocol:
         """The same path run ``factor`` times slower (velocities / factor, times x factor)."""
         out = []
         for s in self.stages:
-            out.append(dataclasses.replace(s, stop=s.stop.scaled(factor), clamp_vz=s.clamp_vz / factor,
-                                           clamp_vrho=s.clamp_vrho / factor, ball_vz=s.ball_vz / factor))
+            out.append(
+                dataclasses.replace(
+                    s,
+                    stop=s.stop.scaled(factor),
+                    clamp_vz=s.clamp_vz / factor,
+                    clamp_vrho=s.clamp_vrho / factor,
+                    ball_vz=s.ball_vz / factor,
+                )
+            )
         return dataclasses.replace(self, stages=tuple(out))
 
     def keyframes(self) -> list[tuple[float, float, float]]:

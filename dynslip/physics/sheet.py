@@ -40,6 +40,8 @@ moving ball behave as on a held one and keeps the energy balance exact.)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -48,8 +50,20 @@ import numpy as np
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
-__all__ = ["Mesh", "Penalty", "SheetModel", "chord_depths", "deepest_chord", "make_mesh", "mesh_from_radii",
-           "penalty_energy", "penalty_pressure"]
+if TYPE_CHECKING:
+    from dynslip.physics.bodies.base import AbstractBody
+
+__all__ = [
+    "Mesh",
+    "Penalty",
+    "SheetModel",
+    "chord_depths",
+    "deepest_chord",
+    "make_mesh",
+    "mesh_from_radii",
+    "penalty_energy",
+    "penalty_pressure",
+]
 
 
 class Mesh(eqx.Module):
@@ -107,7 +121,9 @@ def chord_depths(rho, z, zb) -> np.ndarray:
     """
     rho, z = np.asarray(rho, float), np.asarray(z, float)
     zb = np.asarray(zb, float)[..., None]
-    p = np.stack([rho[..., :-1], z[..., :-1] - zb], axis=-1)  # element start, relative to the centre
+    p = np.stack(
+        [rho[..., :-1], z[..., :-1] - zb], axis=-1
+    )  # element start, relative to the centre
     d = np.stack([np.diff(rho, axis=-1), np.diff(z, axis=-1)], axis=-1)
     dd = np.sum(d * d, axis=-1)
     t = np.clip(-np.sum(p * d, axis=-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
@@ -125,7 +141,9 @@ def deepest_chord(rho, z, zb, pole_side: float) -> tuple[np.ndarray, np.ndarray,
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]
-    crossed = (pole_side != 0) & (np.sign(np.asarray(z, float)[..., 0] - np.asarray(zb, float)) == -pole_side)
+    crossed = (pole_side != 0) & (
+        np.sign(np.asarray(z, float)[..., 0] - np.asarray(zb, float)) == -pole_side
+    )
     through = crossed & (worst < 1.0)
     return np.where(through, 1.0, worst), np.where(through, 0, k), crossed
 
@@ -173,16 +191,32 @@ def node_stretches(mesh: Mesh, rho, z):
     return lt, lp
 
 
+def _unit_sphere() -> AbstractBody:
+    # imported here: physics.bodies.contact imports this module's penalty
+    from dynslip.physics.bodies.sphere import Sphere
+
+    return Sphere()
+
+
 class SheetModel(eqx.Module):
     """Material, mesh and contact penalty of the whole sheet: energies and forces.
 
     Arrays are full node arrays ``rho``, ``z`` of shape (N,), with ``rho[0] = 0`` and the
     last node at the clamp. ``zb`` is the ball centre height.
+
+    ``ball`` is the moving body (an :class:`~dynslip.physics.bodies.base.AbstractBody` in its
+    reference placement, displaced by ``zb``; the unit sphere by default: today's results);
+    ``bodies`` the held obstacles (a tuple, at their reference placements). A node feels every
+    body it penetrates with the same penalty; the held bodies are frictionless (their force
+    enters through the energy only) and the friction law acts on the ball's tangent
+    (docs/bodies.md).
     """
 
     mesh: Mesh
     material: AbstractMaterial
     penalty: Penalty
+    ball: AbstractBody = eqx.field(default_factory=_unit_sphere)
+    bodies: tuple = ()
 
     def elastic_energy(self, rho, z):
         """Relaxed elastic energy (G h0 R^2); NaN/inf outside the material's range."""
@@ -190,12 +224,32 @@ class SheetModel(eqx.Module):
         return jnp.sum(self.mesh.area_el * relaxed_energy(self.material, lt, lp))
 
     def penetration(self, rho, z, zb):
-        r = jnp.sqrt(rho**2 + (z - zb) ** 2)
-        return 1.0 - r
+        """Penetration of each node into the ball, minus its signed distance (R)."""
+        return -self.ball.distance(jnp.stack([rho, z], axis=-1), zb)
+
+    def held_penalty_energy(self, rho, z):
+        """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any)."""
+        x = jnp.stack([rho, z], axis=-1)
+        return sum(
+            (
+                jnp.sum(self.mesh.area * penalty_energy(self.penalty, -b.distance(x)))
+                for b in self.bodies
+            ),
+            jnp.zeros(()),
+        )
+
+    def held_load(self, rho, z):
+        """Axial force of the sheet on the held bodies, $\\sum_i \\partial E_h/\\partial z_i$
+        (G h0 R, + upward): the part of the clamp's pull they carry instead of the ball."""
+        if not self.bodies:
+            return jnp.zeros(())
+        return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z))
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)
-        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d))
+        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + self.held_penalty_energy(
+            rho, z
+        )
 
     def energy(self, rho, z, zb):
         return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)
@@ -213,21 +267,20 @@ class SheetModel(eqx.Module):
     def frame(self, rho, z, zb):
         """Outward unit normal n and tangent t (toward the equator) of the ball at each node.
 
-        n = (sin theta, cos theta) in (rho, z); t = (cos theta, -sin theta). At the pole
-        node (rho = 0) the tangent is radial and carries no motion.
+        From the ball's projection: for the sphere n = (sin theta, cos theta) in (rho, z),
+        t = (cos theta, -sin theta). At the pole node (rho = 0) the tangent is radial and
+        carries no motion.
         """
-        dx, dzz = rho, z - zb
-        r = jnp.sqrt(dx**2 + dzz**2)
-        r = jnp.where(r > 0, r, 1.0)
-        n = jnp.stack([dx / r, dzz / r])
-        t = jnp.stack([dzz / r, -dx / r])
-        return n, t
+        p = self.ball.project(jnp.stack([rho, z], axis=-1), zb)
+        return p.normal.T, p.tangent.T
 
     def normal_force(self, rho, z, zb):
         """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
         return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
 
-    def kinematics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None):
+    def kinematics(
+        self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None
+    ):
         """Node velocities relative to the ball and the force split, for the driver.
 
         Returns a dict with ``u`` (2, N) velocity relative to the ball (node N-1, the
@@ -250,11 +303,28 @@ class SheetModel(eqx.Module):
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)
-        return {"u": u, "ft": ft, "fn_total": fn, "N": normal, "S": s, "grads": (g_rho, g_z, g_zb),
-                "eta_a": eta_a, "theta_dir": t}
+        return {
+            "u": u,
+            "ft": ft,
+            "fn_total": fn,
+            "N": normal,
+            "S": s,
+            "grads": (g_rho, g_z, g_zb),
+            "eta_a": eta_a,
+            "theta_dir": t,
+        }
 
-    def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
-                    contact_threshold=1e-2, internal=None):
+    def diagnostics(
+        self,
+        rho,
+        z,
+        zb,
+        friction: AbstractFriction,
+        eps_density=0.0,
+        drag=1.0,
+        contact_threshold=1e-2,
+        internal=None,
+    ):
         """Per-node fields of the trajectory contract (see docs/trajectory-contract.md)."""
         k = self.kinematics(rho, z, zb, friction, eps_density, drag, internal)
         delta = jnp.zeros_like(rho) if internal is None else internal
@@ -266,15 +336,26 @@ class SheetModel(eqx.Module):
         contact = contact.at[-1].set(False)
         friction_force = (k["S"] - k["ft"]) / def_area  # density, + toward the equator
         slip = k["S"] / k["eta_a"]
-        mu_mob = jnp.where(contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan)
+        mu_mob = jnp.where(
+            contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan
+        )
         theta = jnp.where(contact, jnp.arctan2(rho, z - zb), jnp.nan)
         slipping = k["S"] != 0.0
-        state = jnp.where(~contact, 0, jnp.where(~slipping, 1, jnp.where(slip < 0, 2, 3))).astype(jnp.int8)
+        state = jnp.where(~contact, 0, jnp.where(~slipping, 1, jnp.where(slip < 0, 2, 3))).astype(
+            jnp.int8
+        )
         return {
-            "lambda_theta": lt, "lambda_phi": lp, "T_theta": tt, "T_phi": tp,
-            "pressure": jnp.where(contact, pressure, 0.0), "friction": jnp.where(contact, friction_force, 0.0),
-            "slip_velocity": jnp.where(contact, slip, 0.0), "mu_mobilised": mu_mob, "theta": theta,
-            "state": state, "contact": contact,
+            "lambda_theta": lt,
+            "lambda_phi": lp,
+            "T_theta": tt,
+            "T_phi": tp,
+            "pressure": jnp.where(contact, pressure, 0.0),
+            "friction": jnp.where(contact, friction_force, 0.0),
+            "slip_velocity": jnp.where(contact, slip, 0.0),
+            "mu_mobilised": mu_mob,
+            "theta": theta,
+            "state": state,
+            "contact": contact,
             "mu_current": jnp.where(contact, friction.coefficient(delta, rho.shape[0]), jnp.nan),
             "slip_distance": delta,
         }

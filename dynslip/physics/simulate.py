@@ -22,10 +22,17 @@ initial (pre-stretch) energy counted in $E(0)$.
 
 Integration: load stepping (:mod:`dynslip.physics.newton`, the schema default) or a
 stiff diffrax solver (Kvaerno5, the reference) with a PID controller, one stage at a time
-(a restart at every stage boundary: the protocol's kinks), each stage run in save segments; condition stops (clamp force below a threshold, rest) are
+(a restart at every stage boundary: the protocol's kinks), each stage run in save segments;
+condition stops (clamp force below a threshold, rest) are
 checked between segments, so their resolution is the save interval. The vector field
 and the segment solve are jitted once per mesh size and shared by every run
 (:func:`segment_solver`).
+
+Longer than 400 lines: one driver for both solver families, with the run's state machine
+(:class:`MemberRun`: stage set-up, segments, recording and stop rules) that
+:mod:`dynslip.physics.batch` steps in lockstep, and the failures it reports; the field and
+the solvers themselves live in :mod:`dynslip.physics.field`, :mod:`.loadstep` and
+:mod:`.newton`.
 """
 
 from __future__ import annotations
@@ -41,8 +48,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, sheet_structure, vector_field
-from dynslip.physics.friction import AbstractFriction, Coulomb
+from dynslip.physics.field import (
+    N_ACC,
+    Layout,
+    StageArgs,
+    _f,
+    evaluate,
+    heal,
+    sheet_structure,
+    vector_field,
+)
+from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.loadstep import run_segment
 from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
@@ -50,10 +66,27 @@ from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
 
-__all__ = ["Layout", "StageArgs", "Settings", "SolverFailure", "RunFailure", "StepLimit", "NonFinite",
-           "ContactUnresolved", "Result", "solver_for", "simulate", "MemberRun", "Segment",
-           "static_key", "initial_state",
-           "vector_field", "frame_record", "N_ACC"]
+__all__ = [
+    "Layout",
+    "StageArgs",
+    "Settings",
+    "SolverFailure",
+    "RunFailure",
+    "StepLimit",
+    "NonFinite",
+    "ContactUnresolved",
+    "Result",
+    "solver_for",
+    "simulate",
+    "MemberRun",
+    "Segment",
+    "static_key",
+    "initial_state",
+    "vector_field",
+    "frame_record",
+    "N_ACC",
+]
+
 
 @dataclasses.dataclass(frozen=True)
 class Settings:
@@ -67,12 +100,16 @@ class Settings:
     max_steps: int = 20000  # per segment
     save_interval: float = 1.0  # s
     contact_threshold: float = 1e-2  # G h0 / R
-    heal_rate: float = 0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
+    heal_rate: float = (
+        0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
+    )
     linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
     # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
     # increment bound in drag times, driven stages / stages with the ball or clamp under a force
     newton_max_iter: int = 20
-    newton_backtrack: int = 4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
+    newton_backtrack: int = (
+        4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
+    )
     max_increment: float = 20.0
     max_increment_free: float = 5.0
     # a run stops as failed when an element chord dips deeper than this into the ball, or the
@@ -81,9 +118,14 @@ class Settings:
 
 
 def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
-    cls = {"kvaerno5": diffrax.Kvaerno5, "kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4,
-           "implicit_euler": diffrax.ImplicitEuler}[name]
-    # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on both paths:
+    cls = {
+        "kvaerno5": diffrax.Kvaerno5,
+        "kvaerno3": diffrax.Kvaerno3,
+        "kvaerno4": diffrax.Kvaerno4,
+        "implicit_euler": diffrax.ImplicitEuler,
+    }[name]
+    # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on both
+    # paths:
     # the dense path otherwise builds diffrax's own VeryChord.
     chord = diffrax.with_stepsize_controller_tols(VeryChord)
     if linear_solver == "dense":
@@ -93,7 +135,8 @@ def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = Non
 
 
 class TimeStepping(eqx.Module):
-    """A stiff diffrax solver (Kvaerno5, the reference) with a PID controller over a save segment."""
+    """A stiff diffrax solver (Kvaerno5, the reference) with a PID controller over a save
+    segment."""
 
     name: str = eqx.field(static=True)
     max_steps: int = eqx.field(static=True)
@@ -105,14 +148,31 @@ class TimeStepping(eqx.Module):
         term = diffrax.ODETerm(vector_field(model, layout))
         solver = _solver(self.name, self.linear_solver, layout)
         ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
-        sol = diffrax.diffeqsolve(term, solver, t0, t1, dt0, y0, args=args, stepsize_controller=ctrl,
-                                  max_steps=self.max_steps, throw=False, saveat=diffrax.SaveAt(t1=True))
+        sol = diffrax.diffeqsolve(
+            term,
+            solver,
+            t0,
+            t1,
+            dt0,
+            y0,
+            args=args,
+            stepsize_controller=ctrl,
+            max_steps=self.max_steps,
+            throw=False,
+            saveat=diffrax.SaveAt(t1=True),
+        )
         y1 = sol.ys[-1]
         ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
         st = sol.stats
-        return SegmentOutput(y=y1, ok=ok, steps=st["num_steps"], accepted=st["num_accepted_steps"],
-                             rejected=st["num_rejected_steps"], newton_iterations=jnp.zeros((), jnp.int32),
-                             rate=zero_rate(layout.n))
+        return SegmentOutput(
+            y=y1,
+            ok=ok,
+            steps=st["num_steps"],
+            accepted=st["num_accepted_steps"],
+            rejected=st["num_rejected_steps"],
+            newton_iterations=jnp.zeros((), jnp.int32),
+            rate=zero_rate(layout.n),
+        )
 
 
 class FullStateLoadStep(eqx.Module):
@@ -124,11 +184,32 @@ class FullStateLoadStep(eqx.Module):
     def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
         s = self.settings
         y, ok, nst, nacc, nrej, nit = run_segment(
-            model, layout, y0, t0, t1, dt0, args, rtol, atol, max_steps=s.max_steps, max_iter=s.newton_max_iter,
-            max_increment=s.max_increment, max_increment_free=s.max_increment_free, linear_solver=s.linear_solver,
-            heal_rate=s.heal_rate, backtrack=s.newton_backtrack)
-        return SegmentOutput(y=y, ok=ok, steps=nst, accepted=nacc, rejected=nrej, newton_iterations=nit,
-                             rate=zero_rate(layout.n))
+            model,
+            layout,
+            y0,
+            t0,
+            t1,
+            dt0,
+            args,
+            rtol,
+            atol,
+            max_steps=s.max_steps,
+            max_iter=s.newton_max_iter,
+            max_increment=s.max_increment,
+            max_increment_free=s.max_increment_free,
+            linear_solver=s.linear_solver,
+            heal_rate=s.heal_rate,
+            backtrack=s.newton_backtrack,
+        )
+        return SegmentOutput(
+            y=y,
+            ok=ok,
+            steps=nst,
+            accepted=nacc,
+            rejected=nrej,
+            newton_iterations=nit,
+            rate=zero_rate(layout.n),
+        )
 
 
 LOAD_STEPPING = ("load_step", "load_step_full")
@@ -141,14 +222,24 @@ def solver_for(settings: Settings):
     ``implicit_euler``)."""
     s = settings
     if s.solver == "load_step":
-        return MotionNewton(max_iter=s.newton_max_iter, backtrack=s.newton_backtrack,
-                            linear="thomas" if s.linear_solver == "thomas" else "cyclic",
-                            max_increment=s.max_increment, max_increment_free=s.max_increment_free,
-                            heal_rate=s.heal_rate, max_steps=s.max_steps)
+        return MotionNewton(
+            max_iter=s.newton_max_iter,
+            backtrack=s.newton_backtrack,
+            linear="thomas" if s.linear_solver == "thomas" else "cyclic",
+            max_increment=s.max_increment,
+            max_increment_free=s.max_increment_free,
+            heal_rate=s.heal_rate,
+            max_steps=s.max_steps,
+        )
     if s.solver == "load_step_full":
         return FullStateLoadStep(settings=s)
-    return TimeStepping(name=s.solver, max_steps=s.max_steps, linear_solver=s.linear_solver, pcoeff=s.pcoeff,
-                        icoeff=s.icoeff)
+    return TimeStepping(
+        name=s.solver,
+        max_steps=s.max_steps,
+        linear_solver=s.linear_solver,
+        pcoeff=s.pcoeff,
+        icoeff=s.icoeff,
+    )
 
 
 _SOLVE_CACHE: dict = {}
@@ -176,7 +267,9 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
     dy, aux = evaluate(model, layout, t, y, args)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
-    d = model.diagnostics(rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y))
+    d = model.diagnostics(
+        rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y)
+    )
     acc = layout.unpack(y)[3]
     contact = d["contact"]
     idx = jnp.arange(layout.n)
@@ -187,13 +280,26 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
     slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
     return {
-        "rho": rho, "z": z, **{k: v for k, v in d.items() if k != "contact"},
-        "clamp_z": aux["zc"], "clamp_rho": aux["rhoc"], "clamp_force": aux["clamp_force"],
-        "clamp_force_rho": aux["clamp_force_rho"], "ball_z": zb, "ball_reaction": aux["ball_reaction"],
-        "ball_velocity": aux["ball_v"], "theta_max": theta_max, "rbar_max": rbar_max,
-        "work_clamp": acc[0], "work_ball": acc[1], "dissipation_drag": acc[2], "dissipation_friction": acc[3],
-        "energy_elastic": model.elastic_energy(rho, z), "energy_penalty": model.penalty_energy(rho, z, zb),
-        "slip_max": slip_max, "n_contact": jnp.sum(contact),
+        "rho": rho,
+        "z": z,
+        **{k: v for k, v in d.items() if k != "contact"},
+        "clamp_z": aux["zc"],
+        "clamp_rho": aux["rhoc"],
+        "clamp_force": aux["clamp_force"],
+        "clamp_force_rho": aux["clamp_force_rho"],
+        "ball_z": zb,
+        "ball_reaction": aux["ball_reaction"],
+        "ball_velocity": aux["ball_v"],
+        "theta_max": theta_max,
+        "rbar_max": rbar_max,
+        "work_clamp": acc[0],
+        "work_ball": acc[1],
+        "dissipation_drag": acc[2],
+        "dissipation_friction": acc[3],
+        "energy_elastic": model.elastic_energy(rho, z),
+        "energy_penalty": model.penalty_energy(rho, z, zb),
+        "slip_max": slip_max,
+        "n_contact": jnp.sum(contact),
     }
 
 
@@ -211,13 +317,16 @@ def state_from(layout: Layout, start: dict):
     if layout.n_int:
         internal = jnp.asarray(start.get("slip_distance", np.zeros(layout.n)), dtype=jnp.float64)
         internal = jnp.where(jnp.isfinite(internal), internal, 0.0)
-    return layout.pack(_f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(N_ACC), internal)
+    return layout.pack(
+        _f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(N_ACC), internal
+    )
 
 
 @eqx.filter_jit
 def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate=0.0):
     """The friction law's restart at a save-segment end (time-stepped solvers):
-    :func:`dynslip.physics.field.heal`. Load stepping applies the same reset after every increment."""
+    :func:`dynslip.physics.field.heal`. Load stepping applies the same reset after every
+    increment."""
     return heal(model, layout, y, args, heal_rate)
 
 
@@ -240,8 +349,12 @@ class StepLimit(RunFailure):
 
     def __init__(self, stage: str, t: float, t1: float, max_steps: int):
         self.t1, self.max_steps = t1, max_steps
-        super().__init__(stage, t, f"the solver did not reach t = {t1:.6g} s: step limit reached "
-                                   f"({max_steps} steps per save segment)")
+        super().__init__(
+            stage,
+            t,
+            f"the solver did not reach t = {t1:.6g} s: step limit reached "
+            f"({max_steps} steps per save segment)",
+        )
 
 
 class NonFinite(RunFailure):
@@ -253,13 +366,28 @@ class ContactUnresolved(RunFailure):
     beyond ``limit`` (R), on the element of material radii ``element`` (R), or the pole passed
     through the ball (``pole_crossed``, depth 1)."""
 
-    def __init__(self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool):
-        self.depth, self.limit, self.element, self.pole_crossed = depth, limit, element, pole_crossed
-        why = ("the pole passed through the ball" if pole_crossed else
-               f"the chord of the element on rbar [{element[0]:.4g}, {element[1]:.4g}] R lies {depth:.3g} R "
-               f"inside the ball (limit {limit:g} R)")
-        super().__init__(stage, t, f"contact not resolved by the mesh: {why}; a finer mesh near the contact, or "
-                                   "a larger chord-depth limit, is needed")
+    def __init__(
+        self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool
+    ):
+        self.depth, self.limit, self.element, self.pole_crossed = (
+            depth,
+            limit,
+            element,
+            pole_crossed,
+        )
+        why = (
+            "the pole passed through the ball"
+            if pole_crossed
+            else f"the chord of the element on rbar [{element[0]:.4g}, {element[1]:.4g}] R "
+            f"lies {depth:.3g} R "
+            f"inside the ball (limit {limit:g} R)"
+        )
+        super().__init__(
+            stage,
+            t,
+            f"contact not resolved by the mesh: {why}; a finer mesh near the contact, or "
+            "a larger chord-depth limit, is needed",
+        )
 
 
 @dataclasses.dataclass
@@ -272,18 +400,43 @@ class Result:
     failure: RunFailure | None = None  # the failure with its quantities (failed is its message)
 
 
-def _stage_args(stage, t0, zb0, f_start, fc_start, friction, eps, drag, ball_drag, weight, support_z=0.0,
-                support_k=1e3):
+def _stage_args(
+    stage,
+    t0,
+    zb0,
+    f_start,
+    fc_start,
+    friction,
+    eps,
+    drag,
+    ball_drag,
+    weight,
+    support_z=0.0,
+    support_k=1e3,
+):
     dur = stage.max_duration
     f0 = f_start if stage.ball_force_start is None else stage.ball_force_start
     fc0 = fc_start if stage.clamp_force_start is None else stage.clamp_force_start
     return StageArgs(
-        t0=_f(t0), clamp_mode=jnp.asarray(stage.clamp_mode, jnp.int32), vzc=_f(stage.clamp_vz),
-        vrhoc=_f(stage.clamp_vrho), fc0=_f(fc0), fc1=_f(stage.clamp_force_end),
-        ball_mode=jnp.asarray(stage.ball_mode, jnp.int32), vzb=_f(stage.ball_vz),
-        f0=_f(f0), f1=_f(stage.ball_force_end), ramp=_f(dur), friction=friction, eps=_f(eps),
-        drag=_f(drag), ball_drag=_f(ball_drag), weight=_f(weight),
-        support=_f(1.0 if stage.support else 0.0), support_z=_f(support_z), support_k=_f(support_k),
+        t0=_f(t0),
+        clamp_mode=jnp.asarray(stage.clamp_mode, jnp.int32),
+        vzc=_f(stage.clamp_vz),
+        vrhoc=_f(stage.clamp_vrho),
+        fc0=_f(fc0),
+        fc1=_f(stage.clamp_force_end),
+        ball_mode=jnp.asarray(stage.ball_mode, jnp.int32),
+        vzb=_f(stage.ball_vz),
+        f0=_f(f0),
+        f1=_f(stage.ball_force_end),
+        ramp=_f(dur),
+        friction=friction,
+        eps=_f(eps),
+        drag=_f(drag),
+        ball_drag=_f(ball_drag),
+        weight=_f(weight),
+        support=_f(1.0 if stage.support else 0.0),
+        support_z=_f(support_z),
+        support_k=_f(support_k),
     )
 
 
@@ -294,15 +447,25 @@ def _to_numpy(rec):
 def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
     """Everything a compiled segment solve is specialised on: the solver's settings other than
     the tolerances, the mesh size and the non-array parts of the model and stage loads."""
-    return (repr(solver_for(settings)), settings.solver, settings.max_steps, settings.linear_solver, layout.n,
-            settings.newton_max_iter, settings.newton_backtrack, settings.max_increment, settings.max_increment_free,
-            settings.heal_rate,
-            repr(eqx.filter((model, args), eqx.is_array, inverse=True)))
+    return (
+        repr(solver_for(settings)),
+        settings.solver,
+        settings.max_steps,
+        settings.linear_solver,
+        layout.n,
+        settings.newton_max_iter,
+        settings.newton_backtrack,
+        settings.max_increment,
+        settings.max_increment_free,
+        settings.heal_rate,
+        repr(eqx.filter((model, args), eqx.is_array, inverse=True)),
+    )
 
 
 @dataclasses.dataclass
 class Segment:
-    """One save segment a member asks for: ``solve(model, layout, y, t0, t1, dt0, args, rtol, atol)``."""
+    """One save segment a member asks for: ``solve(model, layout, y, t0, t1, dt0, args, rtol,
+    atol)``."""
 
     y: jax.Array
     t0: float
@@ -324,13 +487,38 @@ class MemberRun:
     the stop check (:meth:`record`, :meth:`_end_stage`).
     """
 
-    def __init__(self, model: SheetModel, protocol: Protocol, *, friction: AbstractFriction, eps: float,
-                 drag: float, ball_drag: float, pre_stretch: float, z_sheet: float, weight: float = 0.0,
-                 settings: Settings = Settings(), on_frame: Callable[[dict], None] | None = None,
-                 start: dict | None = None, support_stiffness: float = 1e3):
-        self.model, self.protocol, self.settings, self.on_frame = model, protocol, settings, on_frame
-        self.loads = dict(friction=friction, eps=eps, drag=drag, ball_drag=ball_drag, weight=weight,
-                          support_z=protocol.ball_z0, support_k=support_stiffness)
+    def __init__(
+        self,
+        model: SheetModel,
+        protocol: Protocol,
+        *,
+        friction: AbstractFriction,
+        eps: float,
+        drag: float,
+        ball_drag: float,
+        pre_stretch: float,
+        z_sheet: float,
+        weight: float = 0.0,
+        settings: Settings = Settings(),
+        on_frame: Callable[[dict], None] | None = None,
+        start: dict | None = None,
+        support_stiffness: float = 1e3,
+    ):
+        self.model, self.protocol, self.settings, self.on_frame = (
+            model,
+            protocol,
+            settings,
+            on_frame,
+        )
+        self.loads = dict(
+            friction=friction,
+            eps=eps,
+            drag=drag,
+            ball_drag=ball_drag,
+            weight=weight,
+            support_z=protocol.ball_z0,
+            support_k=support_stiffness,
+        )
         self.layout = Layout(model.mesh.n, friction.n_internal())
         if start is None:
             self.y = initial_state(model, self.layout, pre_stretch, z_sheet, protocol.ball_z0)
@@ -340,9 +528,16 @@ class MemberRun:
         self.t = 0.0
         self.frames: list = []
         self.stage_end: list = []
-        self.stats = {"steps": 0, "accepted": 0, "rejected": 0, "compile_s": 0.0, "run_s": 0.0, "segments": 0,
-                      "method": settings.solver,
-                      "newton_iterations": 0 if settings.solver in LOAD_STEPPING else None}
+        self.stats = {
+            "steps": 0,
+            "accepted": 0,
+            "rejected": 0,
+            "compile_s": 0.0,
+            "run_s": 0.0,
+            "segments": 0,
+            "method": settings.solver,
+            "newton_iterations": 0 if settings.solver in LOAD_STEPPING else None,
+        }
         self.dt_guess = 1e-3 * settings.save_interval
         self.reaction = 0.0
         self.clamp_reaction = (0.0, 0.0)
@@ -356,14 +551,17 @@ class MemberRun:
 
     # -- stage set-up
     def _begin_stage(self, si: int) -> None:
-        """Loads, save times and the stop rule's state of stage ``si`` (the run is done past the last)."""
+        """Loads, save times and the stop rule's state of stage ``si`` (the run is done past
+        the last)."""
         if si >= len(self.protocol.stages):
             self._finish()
             return
         self.si = si
         stage = self.protocol.stages[si]
         zb_now = float(self.y[2 * self.layout.n - 1])
-        self.args = _stage_args(stage, self.t, zb_now, self.reaction, self.clamp_reaction, **self.loads)
+        self.args = _stage_args(
+            stage, self.t, zb_now, self.reaction, self.clamp_reaction, **self.loads
+        )
         self.t_start = self.t
         n_seg = max(1, math.ceil(stage.max_duration / self.settings.save_interval - 1e-9))
         self.seg_ts = np.linspace(self.t, self.t + stage.max_duration, n_seg + 1)
@@ -378,11 +576,14 @@ class MemberRun:
 
     # -- one segment
     def segment(self) -> Segment:
-        """The next save segment; a finished run asks for a zero-length one (masked by the batch)."""
+        """The next save segment; a finished run asks for a zero-length one (masked by the
+        batch)."""
         if self.done:
             return Segment(self.y, self.t, self.t, self.dt_guess, self.args, self.rate)
         t1 = float(self.seg_ts[self.seg])
-        return Segment(self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args, self.rate)
+        return Segment(
+            self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args, self.rate
+        )
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
         """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
@@ -402,9 +603,15 @@ class MemberRun:
             if nst >= s.max_steps:
                 self._fail(StepLimit(self.stage.name, self.t, seg.t1, s.max_steps))
             else:
-                self._fail(NonFinite(self.stage.name, self.t, f"the solver did not reach t = {seg.t1:.6g} s: "
-                                     "non-finite state (NaN/inf: a stretch outside the material's range, or "
-                                     "divergence)"))
+                self._fail(
+                    NonFinite(
+                        self.stage.name,
+                        self.t,
+                        f"the solver did not reach t = {seg.t1:.6g} s: "
+                        "non-finite state (NaN/inf: a stretch outside the material's range, or "
+                        "divergence)",
+                    )
+                )
             return False
         self.dt_guess = (seg.t1 - self.t) / max(nacc, 1)
         self.y, self.t, self.rate = y1, seg.t1, out.rate
@@ -435,8 +642,13 @@ class MemberRun:
             self.e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
             return  # the initial frame
         if not np.all(np.isfinite(rec["energy_elastic"])):
-            self._fail(NonFinite(self.stage.name, self.t, "elastic energy not finite (a stretch outside the "
-                                                          "material's range)"))
+            self._fail(
+                NonFinite(
+                    self.stage.name,
+                    self.t,
+                    "elastic energy not finite (a stretch outside the material's range)",
+                )
+            )
             return
         unresolved = self._unresolved(rec)
         if unresolved is not None:
@@ -453,25 +665,40 @@ class MemberRun:
         self._end_stage()
 
     def _unresolved(self, rec: dict) -> ContactUnresolved | None:
-        """Why the frame ``rec`` is past what the mesh resolves, or None (``Settings.max_chord_depth``)."""
+        """Why the frame ``rec`` is past what the mesh resolves, or None
+        (``Settings.max_chord_depth``)."""
         limit = self.settings.max_chord_depth
         if limit is None:
             return None
         first = self.frames[0]
-        depth, k, crossed = deepest_chord(rec["rho"], rec["z"], rec["ball_z"],
-                                          np.sign(first["z"][0] - first["ball_z"]))
+        depth, k, crossed = deepest_chord(
+            rec["rho"], rec["z"], rec["ball_z"], np.sign(first["z"][0] - first["ball_z"])
+        )
         if crossed or depth > limit:
             rbar = np.asarray(self.model.mesh.rbar)
-            return ContactUnresolved(self.stage.name, self.t, float(depth), float(limit),
-                                     (float(rbar[k]), float(rbar[k + 1])), bool(crossed))
+            return ContactUnresolved(
+                self.stage.name,
+                self.t,
+                float(depth),
+                float(limit),
+                (float(rbar[k]), float(rbar[k + 1])),
+                bool(crossed),
+            )
         return None
 
     def _end_stage(self) -> None:
         last = self.frames[-1]
         self.reaction = float(last["ball_reaction"])
         self.clamp_reaction = (float(last["clamp_force_rho"]), float(last["clamp_force"]))
-        self.stage_end.append({"name": self.stage.name, "t_start": self.t_start, "t_end": self.t,
-                               "condition_met": bool(self.met), "clamp_z": float(last["clamp_z"])})
+        self.stage_end.append(
+            {
+                "name": self.stage.name,
+                "t_start": self.t_start,
+                "t_end": self.t,
+                "condition_met": bool(self.met),
+                "clamp_z": float(last["clamp_z"]),
+            }
+        )
         if self.failed:
             self._finish()
         else:
@@ -483,12 +710,19 @@ class MemberRun:
         self.stats["time_per_step_ms"] = 1e3 * self.stats["run_s"] / max(self.stats["steps"], 1)
 
     def result(self) -> Result:
-        return Result(frames=self.frames, stage_end=self.stage_end, stats=self.stats, failed=self.failed,
-                      e0=self.e0 or 0.0, failure=self.failure)
+        return Result(
+            frames=self.frames,
+            stage_end=self.stage_end,
+            stats=self.stats,
+            failed=self.failed,
+            e0=self.e0 or 0.0,
+            failure=self.failure,
+        )
 
 
 def _compiled(key, compile_fn, stats_list):
-    """The ahead-of-time compiled solve of ``key`` (compiled now, its time added to each stats' compile_s)."""
+    """The ahead-of-time compiled solve of ``key`` (compiled now, its time added to each stats'
+    compile_s)."""
     if key not in _COMPILED:
         c0 = _time.perf_counter()
         _COMPILED[key] = compile_fn()
@@ -520,17 +754,43 @@ def simulate(
     ``frames`` what was computed before it (the runner turns it into exit 3). Many members
     of the same shape run in lockstep with :func:`dynslip.physics.batch.simulate_batch`.
     """
-    run = MemberRun(model, protocol, friction=friction, eps=eps, drag=drag, ball_drag=ball_drag,
-                    pre_stretch=pre_stretch, z_sheet=z_sheet, weight=weight, settings=settings, on_frame=on_frame,
-                    start=start, support_stiffness=support_stiffness)
+    run = MemberRun(
+        model,
+        protocol,
+        friction=friction,
+        eps=eps,
+        drag=drag,
+        ball_drag=ball_drag,
+        pre_stretch=pre_stretch,
+        z_sheet=z_sheet,
+        weight=weight,
+        settings=settings,
+        on_frame=on_frame,
+        start=start,
+        support_stiffness=support_stiffness,
+    )
     solve = segment_solver(settings)
     layout, thr = run.layout, settings.contact_threshold
     run.record(frame_record(model, layout, _f(run.t), run.y, run.args, thr))
     while not run.done:
         seg = run.segment()
-        inputs = (model, layout, seg.y, _f(seg.t0), _f(seg.t1), _f(seg.dt0), seg.args, run.rtol, run.atol, seg.rate)
-        compiled = _compiled(static_key(settings, layout, model, seg.args),
-                             lambda inputs=inputs: solve.lower(*inputs).compile(), [run.stats])
+        inputs = (
+            model,
+            layout,
+            seg.y,
+            _f(seg.t0),
+            _f(seg.t1),
+            _f(seg.dt0),
+            seg.args,
+            run.rtol,
+            run.atol,
+            seg.rate,
+        )
+        compiled = _compiled(
+            static_key(settings, layout, model, seg.args),
+            lambda inputs=inputs: solve.lower(*inputs).compile(),
+            [run.stats],
+        )
         r0 = _time.perf_counter()
         out = compiled(*inputs)
         out = jax.block_until_ready(out)

@@ -51,7 +51,8 @@ class VeryChord(diffrax.VeryChord):
 
 
 class ImplicitEuler(diffrax.ImplicitEuler):
-    r"""``diffrax.ImplicitEuler`` whose failed root find rejects the step (diffrax issue #752, PR #753).
+    r"""``diffrax.ImplicitEuler`` whose failed root find rejects the step (diffrax issue #752,
+    PR #753).
 
     diffrax 0.7.2's ``ImplicitEuler.step`` returns the root finder's failure code but a
     finite error estimate when the nonlinear solve fails (iteration limit, divergence, a
@@ -67,8 +68,9 @@ class ImplicitEuler(diffrax.ImplicitEuler):
     """
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
-        y1, y_error, dense_info, solver_state, result = super().step(terms, t0, t1, y0, args, solver_state,
-                                                                     made_jump)
+        y1, y_error, dense_info, solver_state, result = super().step(
+            terms, t0, t1, y0, args, solver_state, made_jump
+        )
         y_error = reject_failed(y_error, result)
         return y1, y_error, dense_info, solver_state, result
 

@@ -1,0 +1,128 @@
+"""The cost of asking a body for the contact geometry (issue 21 phase 2), as ratios in one
+process: one Newton iteration of load stepping (increment residual + Newton matrix + bordered
+cyclic solve, :mod:`dynslip.physics.newton`) at the end state of the frozen let-go path
+(``benchmarks/method2_let_go.yaml``), for
+
+- ``inline``: today's closed form before the change, ``1 - |q|`` and ``q/|q|`` (a body whose
+  ``project`` is exactly that arithmetic: the baseline);
+- ``sphere``: the ball as :class:`dynslip.physics.bodies.Sphere` (the default);
+- ``sphere_torus``: the sphere and one held body, a torus rim the sheet lies on.
+
+``python benchmarks/run.py bodies`` (``DYNSLIP_BENCH_BODIES_NODES`` picks sizes, default
+50,200). Times in ms per call, dispatch included; the ratios are the targets' measure (sphere
+at most 1.1x inline, each added body at most 1.3x).
+"""
+
+import os
+import time
+from pathlib import Path
+
+SCENARIO = Path(__file__).resolve().parent / "method2_let_go.yaml"
+REPEAT = 200
+
+
+def _ms(f, *a) -> float:
+    import jax
+
+    jax.block_until_ready(f(*a))
+    t = time.perf_counter()
+    for _ in range(REPEAT):
+        out = f(*a)
+    jax.block_until_ready(out)
+    return 1e3 * (time.perf_counter() - t) / REPEAT
+
+
+def _inline_ball():
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from dynslip.physics.bodies import AbstractBody
+    from dynslip.physics.bodies.segments import Projection
+
+    class InlineBall(AbstractBody):
+        """The unit ball by the arithmetic newton.contact_gap had before bodies."""
+
+        segments: tuple = eqx.field(static=True, default=())
+
+        def project(self, x, z=0.0):
+            q = jnp.stack([x[..., 0], x[..., 1] - z], axis=-1)
+            r = jnp.sqrt(q[..., 0] ** 2 + q[..., 1] ** 2)
+            rs = jnp.where(r > 0, r, 1.0)
+            n = q / rs[..., None]
+            return Projection(
+                distance=r - 1.0,
+                normal=n,
+                s=jnp.zeros_like(r),
+                tangent=jnp.stack([n[..., 1], -n[..., 0]], axis=-1),
+            )
+
+    return InlineBall()
+
+
+def _one(nodes: int) -> dict:
+    import dataclasses
+
+    import jax
+    import jax.numpy as jnp
+
+    from dynslip.app.forming import build_core
+    from dynslip.physics import newton as nw
+    from dynslip.physics.bodies import Sphere, Torus
+    from dynslip.physics.linalg import bordered_solve
+    from dynslip.physics.simulate import MemberRun, simulate
+    from dynslip.schema.base import load
+
+    model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))
+    res = simulate(model, protocol, **kw)
+    end = res.frames[-1]
+    run = MemberRun(
+        model,
+        protocol,
+        **kw,
+        start={
+            "rho": end["rho"],
+            "z": end["z"],
+            "zb": end["ball_z"],
+            "slip_distance": end["slip_distance"],
+        },
+    )
+    layout, args = run.layout, run.args
+    rho, z, zb, _ = layout.unpack(run.y)
+    q = jnp.stack([rho, z - zb], 1)
+    inc = nw.Increment(
+        q0=q,
+        zb0=zb,
+        delta0=layout.internal(run.y),
+        t1=jnp.asarray(1.0),
+        h=jnp.asarray(1.0),
+        args=args,
+    )
+    fr = args.friction
+    # a rim the end state's free span lies on: centred 0.1 R below the node at rbar ~ 0.6 of
+    # the edge
+    k = int(0.6 * (nodes - 1))
+    rim = Torus(ring_radius=float(rho[k]), minor_radius=0.2, centre_z=float(z[k]) - 0.19)
+    models = {
+        "inline": dataclasses.replace(model, ball=_inline_ball()),
+        "sphere": dataclasses.replace(model, ball=Sphere()),
+        "sphere_torus": dataclasses.replace(model, ball=Sphere(), bodies=(rim,)),
+    }
+    out = {}
+    for name, m in models.items():
+
+        def iteration(inc, q, zb, m=m):
+            r = nw.residual(m, fr, inc, q, zb)
+            b = nw.newton_blocks(m, fr, inc, q, zb)
+            return bordered_solve(*b, *r, "cyclic")
+
+        out[f"{name}_iteration_ms"] = _ms(jax.jit(iteration), inc, q, zb)
+    out["ratio_sphere_vs_inline"] = out["sphere_iteration_ms"] / out["inline_iteration_ms"]
+    out["ratio_one_body_vs_sphere"] = out["sphere_torus_iteration_ms"] / out["sphere_iteration_ms"]
+    return out
+
+
+def run() -> dict:
+    import dynslip  # noqa: F401  (x64, compilation cache)
+
+    sizes = [int(v) for v in os.environ.get("DYNSLIP_BENCH_BODIES_NODES", "50,200").split(",") if v]
+    return {f"N{n}": _one(n) for n in sizes}
