@@ -71,6 +71,12 @@ class Figure:
 
 
 FIGURES = {
+    "export_paraview.png": Figure(
+        "method2_let_go",
+        "dynslip run scenarios/method2_let_go.yaml; dynslip export DIR/trajectory.nc; the last "
+        "frame's .vtu files read back with meshio and drawn with matplotlib's 3D axes",
+        "export_view",
+    ),
     "meridian_method2.png": Figure(
         "method2", "dynslip run scenarios/method2.yaml (DIR/meridian.png)", "copy_meridian"
     ),
@@ -185,6 +191,49 @@ def world(run_dir: Path, out: Path) -> None:
         title=f"the tube path, rim to -80 mm (N = 100)\n{end}",
     )
     save_figure(fig, out, dpi=120)
+
+
+def export_view(run_dir: Path, out: Path) -> None:
+    """The exported VTU files of the run's last frame, read back with meshio, the sheet coloured
+    by its contact pressure over the ball (half the revolution cut away to show the ball)."""
+    import xml.etree.ElementTree as ET
+
+    import meshio
+    import numpy as np
+    from matplotlib import cm
+    from matplotlib.figure import Figure as MplFigure
+
+    from dynslip.app.export import run_export
+
+    pvd = run_export(run_dir / "trajectory.nc", run_dir / "paraview", force=True)
+    files = [e.get("file") for e in ET.parse(pvd).getroot().iter("DataSet")]
+    sheet = meshio.read(pvd.parent / [f for f in files if "sheet" in f][-1])
+    ball = meshio.read(pvd.parent / [f for f in files if "ball" in f][-1])
+    fig = MplFigure(figsize=(6.4, 5.6), constrained_layout=True)
+    ax = fig.add_subplot(projection="3d")
+    name = next(k for k in sheet.point_data if k.startswith("pressure"))
+    p = np.asarray(sheet.point_data[name])
+    for mesh, colour in ((ball, None), (sheet, p)):
+        pts, quads = mesh.points, mesh.cells_dict["quad"]
+        keep = pts[quads].mean(axis=1)[:, 1] <= 1e-9  # the half y <= 0
+        polys = pts[quads[keep]]
+        from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+        if colour is None:
+            col = Poly3DCollection(polys, facecolor="0.75", edgecolor="none", alpha=0.6)
+        else:
+            c = colour[quads[keep]].mean(axis=1)
+            col = Poly3DCollection(polys, facecolor=cm.viridis(c / max(c.max(), 1e-300)),
+                                   edgecolor="none")
+        ax.add_collection3d(col)
+    lim = float(np.abs(sheet.points).max())
+    ax.set(xlim=(-lim, lim), ylim=(-lim, lim), zlim=(-lim, lim), xlabel="x (mm)",
+           ylabel="y (mm)", zlabel="z (mm)")
+    ax.set_box_aspect((1, 1, 1))
+    ax.view_init(elev=15, azim=-60)
+    ax.set_title(f"dynslip export, last frame, read back with meshio: sheet coloured by\n"
+                 f"{name} (0 to {p.max():.3g}), ball grey", fontsize=9)
+    fig.savefig(out, dpi=110)
 
 
 def make_run(name: str, runs_dir: Path, fast: bool, reuse: bool) -> Path:
