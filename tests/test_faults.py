@@ -268,7 +268,8 @@ def test_non_finite_state_mid_run_keeps_the_finite_frames(tmp_path):
     assert p.returncode == 3 and "Traceback" not in p.stderr
     first = p.stderr.strip().splitlines()[0]
     assert "non-finite state" in first and "stage 'push_down'" in first and "t = " in first
-    t_fail = float(first.split("between t = ")[1].split(" s")[0])
+    # "stage 'push_down' at t = T0 s: the solver did not reach t = T1 s: non-finite state ..."
+    t_fail = float(first.split("at t = ")[1].split(" s")[0])
     (kept,) = tmp_path.glob("nf.incomplete-*")
     assert not (tmp_path / "nf").exists()
     assert "this folder" in (kept / "INCOMPLETE").read_text()

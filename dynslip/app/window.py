@@ -154,15 +154,15 @@ def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, l
 
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
-    known, known_errors = log.load()
+    known, known_errors, known_depths = log.load()
     if known:
         console.print(f"resuming: {len(known)} evaluations kept by an earlier attempt ({log.path})")
     lines = []
-    depths: dict[float, float] = {}
+    depths: dict[float, float] = dict(known_depths)  # the kept members' mesh checks
     errors: dict[float, str] = {}
 
     def progress(mu, v):
-        log.record(mu, v, errors.get(float(mu)))
+        log.record(mu, v, errors.get(float(mu)), depths.get(float(mu)))
         word = {True: "trapped", False: "not trapped", None: "FAILED or unresolved"}[v]
         lines.append(f"{field_name} = {mu:.6g}: {word}")
         console.print(f"  {field_name} = {mu:.6g}: {word}")

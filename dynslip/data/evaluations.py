@@ -3,8 +3,9 @@
 
 ``<out>/evaluations.json`` holds a ``key`` (a hash of what decides each evaluation's value:
 the resolved scenario, the field searched and the tied fields) and the evaluations in the
-order they were made, each ``[mu, trapped or null, error or null]``; it is rewritten whole
-(write then rename) after every evaluation. A log with another key is ignored (and replaced).
+order they were made, each ``[mu, trapped or null, error or null, deepest chord or null]``
+(the mesh check's depth, so a resumed search reports the resolution of every member); it is
+rewritten whole (write then rename) after every evaluation. A log with another key is ignored (and replaced).
 """
 
 from __future__ import annotations
@@ -31,30 +32,37 @@ class EvaluationLog:
         self.key = key
         self.rows: list[list] = []
 
-    def load(self) -> tuple[dict[float, bool | None], dict[float, str]]:
-        """The evaluations kept by an earlier attempt of the same search: (known, errors)."""
+    def load(self) -> tuple[dict[float, bool | None], dict[float, str], dict[float, float]]:
+        """The evaluations kept by an earlier attempt of the same search:
+        (known, errors, depths)."""
         try:
             data = json.loads(self.path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
-            return {}, {}
+            return {}, {}, {}
         if not isinstance(data, dict) or data.get("key") != self.key:
-            return {}, {}
-        known, errors = {}, {}
+            return {}, {}, {}
+        known, errors, depths = {}, {}, {}
         for row in data.get("evaluations", []):
             if not (
                 isinstance(row, list)
-                and len(row) == 3
+                and len(row) == 4
                 and isinstance(row[0], (int, float))
                 and row[1] in (True, False, None)
             ):
                 continue
             mu = float(row[0])
             known[mu] = row[1]
-            if isinstance(row[2], str):
-                errors[mu] = row[2]
-            self.rows.append([mu, row[1], row[2] if isinstance(row[2], str) else None])
-        return known, errors
+            error = row[2] if isinstance(row[2], str) else None
+            depth = float(row[3]) if isinstance(row[3], (int, float)) else None
+            if error is not None:
+                errors[mu] = error
+            if depth is not None:
+                depths[mu] = depth
+            self.rows.append([mu, row[1], error, depth])
+        return known, errors, depths
 
-    def record(self, mu: float, value: bool | None, error: str | None = None) -> None:
-        self.rows.append([float(mu), value, error])
+    def record(
+        self, mu: float, value: bool | None, error: str | None = None, depth: float | None = None
+    ) -> None:
+        self.rows.append([float(mu), value, error, depth])
         write_json(self.path, {"key": self.key, "evaluations": self.rows})
