@@ -5,7 +5,8 @@
 the resolved scenario, the field searched and the tied fields) and the evaluations in the
 order they were made, each ``[mu, trapped or null, error or null, deepest chord or null]``
 (the mesh check's depth, so a resumed search reports the resolution of every member); it is
-rewritten whole (write then rename) after every evaluation. A log with another key is ignored (and replaced).
+rewritten whole (write then rename) after every evaluation. A log with another key is
+ignored (and replaced).
 """
 
 from __future__ import annotations
