@@ -92,26 +92,28 @@ def heals(slip_speed, normal, heal_rate):
 class AbstractFriction(eqx.Module):
     """A friction law: tangential slip force from the driving and normal forces.
 
-    ``slip_force(ft, fn, internal, eps)`` returns $S$ (same shape as ``ft``), the part of
+    ``slip_force(ft, fn, internal, eps, area)`` returns $S$ (same shape as ``ft``), the part of
     the tangential force that is not cancelled by friction; the slip velocity is
     $S/(\\eta A)$. ``eps`` is the force-space smoothing per node (the law's own ``eps``
-    when None). Laws with memory carry ``n_internal()`` values per node.
+    when None). ``area`` is the node's reference area $A$ (units of $R^2$), so that a law may
+    depend on the contact pressure $N/A$; the laws here ignore it. Laws with memory carry
+    ``n_internal()`` values per node.
     """
 
     eps: eqx.AbstractVar[float | jnp.ndarray]
 
     @abc.abstractmethod
-    def threshold(self, fn, internal=None):
-        """Friction threshold $\\mu N$ per node."""
+    def threshold(self, fn, internal=None, area=None):
+        """Friction threshold $\\mu N$ per node (``area``: the node's reference area)."""
 
-    def slip_force(self, ft, fn, internal=None, eps=None):
+    def slip_force(self, ft, fn, internal=None, eps=None, area=None):
         """Unbalanced tangential force $S$; exactly zero while stuck."""
         e = self.eps if eps is None else eps
-        return soft_threshold(ft, self.threshold(fn, internal), e)
+        return soft_threshold(ft, self.threshold(fn, internal, area), e)
 
-    def stuck(self, ft, fn, internal=None, eps=None):
+    def stuck(self, ft, fn, internal=None, eps=None, area=None):
         """Force criterion for sticking: $S = 0$ exactly."""
-        return self.slip_force(ft, fn, internal, eps) == 0.0
+        return self.slip_force(ft, fn, internal, eps, area) == 0.0
 
     def coefficient(self, internal, n: int):
         """The current friction coefficient per node (n,)."""
@@ -142,7 +144,7 @@ class Coulomb(AbstractFriction):
     mu: float | jnp.ndarray = 1.0
     eps: float | jnp.ndarray = 0.0
 
-    def threshold(self, fn, internal=None):
+    def threshold(self, fn, internal=None, area=None):
         return self.mu * jnp.maximum(fn, 0.0)
 
     def coefficient(self, internal, n: int):
@@ -166,7 +168,7 @@ class SlipWeakening(AbstractFriction):
         w = jnp.clip(1.0 - internal / self.d_c, 0.0, 1.0)
         return self.mu_k + (self.mu_s - self.mu_k) * w
 
-    def threshold(self, fn, internal=None):
+    def threshold(self, fn, internal=None, area=None):
         mu = self.mu_s if internal is None else self.coefficient(internal)
         return mu * jnp.maximum(fn, 0.0)
 
@@ -181,7 +183,7 @@ class SlipWeakening(AbstractFriction):
 
 
 #: the one registry of friction laws: a law's name (the schema's ``law``) -> its class; the
-#: schema builds them (:meth:`dynslip.schema.forming.FrictionSpec.core`)
+#: schema builds them (:meth:`dynslip.schema.friction.FrictionSpec.core`)
 FRICTION_LAWS: dict[str, type[AbstractFriction]] = {"coulomb": Coulomb,
                                                      "slip_weakening": SlipWeakening}
 

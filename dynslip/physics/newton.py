@@ -197,12 +197,12 @@ def forces_and_hessians(model: SheetModel, q, zb):
 # --------------------------------------------------------------------------- friction return map
 
 
-def _slip(friction: AbstractFriction, ft, normal, delta, eps):
+def _slip(friction: AbstractFriction, ft, normal, delta, eps, area):
     """$|S|$ of one node with slip distance ``delta`` (None for a memoryless law)."""
-    return jnp.abs(friction.slip_force(ft, normal, delta, eps=eps))
+    return jnp.abs(friction.slip_force(ft, normal, delta, eps=eps, area=area))
 
 
-def slip_update(friction, ft, normal, eps, delta0, c):
+def slip_update(friction, ft, normal, eps, delta0, c, area=None):
     r"""The node's return map: the slip force with the coefficient of the increment's start,
     $S(F_t, \mu(\delta_0) N)$ (exactly zero on the trial's stick side), and the slip distance
     it adds, $\delta_1 = \delta_0 + c\,|S|$, $c = \Delta t/(\eta A)$; $\delta_1 = \delta_0$ out of
@@ -219,7 +219,7 @@ def slip_update(friction, ft, normal, eps, delta0, c):
     let-go path at N = 50, docs/speed.md). A corrector ($\mu$ at the predicted $\delta_1$) is
     continuous too but needed 1185."""
     live = normal > 0
-    d1 = delta0 + c * _slip(friction, ft, normal, delta0, eps)
+    d1 = delta0 + c * _slip(friction, ft, normal, delta0, eps, area)
     return delta0, jnp.where(live, d1, delta0)
 
 
@@ -254,8 +254,8 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
     eps = args.eps * area
     delta1, delta_mu = None, None
     if delta0 is not None:
-        delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a)
-    s = friction.slip_force(ft, normal, delta_mu, eps=eps)
+        delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
+    s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
     u = (fn * n + s * t) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1

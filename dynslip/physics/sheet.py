@@ -299,7 +299,7 @@ class SheetModel(eqx.Module):
         fn = jnp.where(pole, f[1] * jnp.sign(n[1]), fn)
         normal = self.normal_force(rho, z, zb)
         eps = eps_density * self.mesh.area
-        s = friction.slip_force(ft, normal, internal, eps=eps)
+        s = friction.slip_force(ft, normal, internal, eps=eps, area=self.mesh.area)
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)
