@@ -48,3 +48,20 @@ def assert_energy_closes(summary):
         assert e["relative_residual"] < LOAD_STEP_ENERGY_RESIDUAL, e
     else:
         assert e["relative_residual"] < KVAERNO5_ENERGY_RESIDUAL, e
+
+
+#: threads distributed starts in the process of a dask Client or LocalCluster, which outlive it
+DASK_THREADS = ("IO loop", "Dask-Offload")
+
+
+@pytest.fixture(autouse=True)
+def _no_dask_threads_in_the_test_process():
+    """Every dask cluster and client of the suite lives in a child process (helpers.dask_cluster):
+    with distributed's threads alive in the pytest process, a later XLA compile crashed the
+    CI run (a segfault in tests/test_resolution.py, after tests/test_faults.py had hosted a
+    LocalCluster). A test that starts one here fails by name instead."""
+    import threading
+
+    yield
+    left = sorted({t.name for t in threading.enumerate() if t.name.startswith(DASK_THREADS)})
+    assert not left, f"this test left dask threads in the pytest process: {left}"

@@ -4,7 +4,10 @@ without running the simulator); :func:`one_line`, the check of a one-line error 
 
 from __future__ import annotations
 
+import contextlib
 import json
+import subprocess
+import sys
 
 import numpy as np
 import xarray as xr
@@ -120,3 +123,36 @@ def one_line(err: str) -> str:
     assert len(lines) == 1, err
     assert "Traceback" not in err
     return lines[0]
+
+
+#: a dask LocalCluster (2 single-threaded worker processes on loopback) in a child process,
+#: which prints its scheduler's address and the workers' pids as one JSON line and lives until
+#: its stdin closes. Never in the pytest process: distributed's event-loop and offload threads
+#: outlive the cluster there, and a later XLA compile in that process crashed CI (segfault).
+_CLUSTER_CHILD = """
+import json, os, sys
+from distributed import Client, LocalCluster
+with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                  dashboard_address=None) as cluster, Client(cluster) as client:
+    pids = list(client.run(os.getpid).values())
+    print(json.dumps({"address": cluster.scheduler_address, "pids": pids}), flush=True)
+    sys.stdin.read()
+"""
+
+
+@contextlib.contextmanager
+def dask_cluster():
+    """A dask cluster out of the test process; yields ``{"address": ..., "pids": [...]}``."""
+    p = subprocess.Popen([sys.executable, "-c", _CLUSTER_CHILD], stdin=subprocess.PIPE,
+                         stdout=subprocess.PIPE, text=True)
+    try:
+        line = p.stdout.readline()
+        assert line, f"the dask cluster did not start (exit {p.poll()})"
+        yield json.loads(line)
+    finally:
+        p.stdin.close()
+        try:
+            p.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()

@@ -304,7 +304,8 @@ def test_dask_worker_killed_mid_sweep_every_member_once(tmp_path):
     the lost member elsewhere, or the sweep stops (exit 3) and the rerun runs only the missing
     members; either way sweep.nc equals that of an uninterrupted sweep."""
     import numpy as np
-    from distributed import Client, LocalCluster
+
+    from helpers import dask_cluster
 
     (tmp_path / "s.yaml").write_text(SWEEP.format(base=SCENARIO))
     ref = dynslip(
@@ -317,24 +318,15 @@ def test_dask_worker_killed_mid_sweep_every_member_once(tmp_path):
         cwd=tmp_path,
     )
     assert ref.returncode == 0, ref.stderr
-    with (
-        LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster,
-        Client(cluster) as client,
-    ):
-        pids = list(client.run(os.getpid).values())
+    with dask_cluster() as cluster:
+        pids = cluster["pids"]
         p = start(
             "sweep",
             tmp_path / "s.yaml",
             "--mode",
             "dask",
             "--scheduler",
-            cluster.scheduler_address,
+            cluster["address"],
             "--out",
             tmp_path / "d",
             cwd=tmp_path,
@@ -352,7 +344,7 @@ def test_dask_worker_killed_mid_sweep_every_member_once(tmp_path):
                 "--mode",
                 "dask",
                 "--scheduler",
-                cluster.scheduler_address,
+                cluster["address"],
                 "--out",
                 tmp_path / "d",
                 cwd=tmp_path,

@@ -284,9 +284,6 @@ def test_killed_sweep_resumes_with_every_member_once(tmp_path):
 
 
 def test_sequential_batched_and_dask_give_identical_datasets(tmp_path):
-    import cloudpickle
-    from distributed import LocalCluster
-
     body = {
         "overrides": {"physics.friction.mu": 1.0},  # fails at depth 6: failed members travel too
         "grid": {"physics.protocol.depth": [4.0, 6.0], "physics.material": ["neo_hookean", "gent"]},
@@ -296,18 +293,20 @@ def test_sequential_batched_and_dask_give_identical_datasets(tmp_path):
     sweep(path, tmp_path / "seq", mode="sequential")
     batched = sweep(path, tmp_path / "bat", mode="batched")
     assert batched["batched"].startswith("grouped sequential")
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the fake travels to the workers
-    try:
-        with LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster:
-            sweep(path, tmp_path / "dask", mode="dask", scheduler=cluster.scheduler_address)
-    finally:
-        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    # the dask sweep in a child process (with the cluster, helpers.dask_cluster): never
+    # distributed's threads in the pytest process; the fake travels to the workers by value
+    script = (
+        "import cloudpickle, test_sweep\n"
+        "from helpers import dask_cluster\n"
+        "cloudpickle.register_pickle_by_value(test_sweep)\n"
+        "with dask_cluster() as c:\n"
+        f"    test_sweep.sweep({str(path)!r}, {str(tmp_path / 'dask')!r}, mode='dask', "
+        "scheduler=c['address'])\n"
+    )
+    env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+    r = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
     dss = [xr.open_dataset(tmp_path / d / "sweep.nc") for d in ("seq", "bat", "dask")]
     assert list((dss[0]["status"] == "ok").sum("physics.material").values) == [2, 0]
     assert (dss[0]["n_windows"] == 2).all() and (
@@ -364,13 +363,32 @@ def test_bad_inputs_are_one_line_input_errors(tmp_path, monkeypatch):
         ),
         (["sweep", str(tmp_path / "missing.yaml")], "not found"),
     ]:
-        proc_err = _cli(cli, argv)
+        # a scheduler address is tried in a child process: distributed's client threads never
+        # start in the pytest process (helpers.dask_cluster)
+        proc_err = _cli_child(argv) if "--scheduler" in argv else _cli(cli, argv)
         assert proc_err[0] == 2, (argv, proc_err)
         lines = proc_err[1].strip().splitlines()
         assert len(lines) == 1 and needle in lines[0] and "Traceback" not in proc_err[1], (
             argv,
             proc_err,
         )
+
+
+def _cli_child(argv):
+    """``_cli`` in a child process, with the same stand-ins as the calling test patches in."""
+    script = (
+        "import sys, test_sweep\n"
+        "import dynslip.schema.base as b, dynslip.app.sweep as s\n"
+        "from dynslip import cli\n"
+        "b.validate_data = test_sweep.fake_validate\n"
+        "s.default_member_fn = test_sweep.fake_member\n"
+        "s.CONNECT_TIMEOUT_S = 1.0\n"
+        f"sys.exit(cli.main({[*argv, '--out', str(Path(argv[1]).with_suffix('.out'))]!r}))\n"
+    )
+    env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+    r = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                       timeout=300)
+    return r.returncode, r.stderr
 
 
 def _cli(cli, argv):
