@@ -65,3 +65,42 @@ def _no_dask_threads_in_the_test_process():
     yield
     left = sorted({t.name for t in threading.enumerate() if t.name.startswith(DASK_THREADS)})
     assert not left, f"this test left dask threads in the pytest process: {left}"
+
+
+#: the most memory maps the pytest process held at the end of a test module
+_PEAK_MAPS = [0]
+
+
+def _maps() -> int:
+    try:
+        with open("/proc/self/maps") as f:
+            return sum(1 for _ in f)
+    except OSError:  # not Linux
+        return 0
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Every XLA CPU executable holds about 20 memory maps until it is released, and the kernel
+    allows 65530 per process (vm.max_map_count): the whole suite in one process compiled past
+    that, and XLA crashed (a segfault writing the compilation cache, an abort before). After
+    each test module its executables are released (the driver's compiled segment solves and
+    JAX's caches); the next module reads what it shares from the persistent cache."""
+    yield
+    import gc
+
+    import jax
+
+    from dynslip.physics import simulate
+
+    _PEAK_MAPS[0] = max(_PEAK_MAPS[0], _maps())
+    simulate._COMPILED.clear()
+    jax.clear_caches()
+    gc.collect()
+
+
+def pytest_terminal_summary(terminalreporter):
+    terminalreporter.write_line(
+        f"memory maps: at most {_PEAK_MAPS[0]} at a module's end (the kernel's limit: "
+        f"vm.max_map_count)"
+    )
