@@ -136,7 +136,7 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N)
     import xarray as xr
 
     from dynslip.analysis.release import force_ramp_metrics
-    from dynslip.schema.forming import ball_drag_coefficient
+    from dynslip.physics.protocols import ball_drag_coefficient
 
     r_mm, fs, tau = 20.0, 2.0, 0.1
     t = np.arange(0.0, 21.0)
