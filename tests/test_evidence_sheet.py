@@ -1,0 +1,149 @@
+"""Evidence for the headline results through the whole sheet (issue 27): stick/slip read off the
+sheet's motion, a release tear-out against the equilibrium of the free span, a real window
+search against the critical mu that equilibrium predicts, and the headline that the tube path
+does not trap at the measured friction.
+
+Every reference is a closed form, an equilibrium identity computed here from the saved
+positions (not from the driver's diagnostics), or labelled a regression with the command and
+commit that produced it. docs/evidence.md lists, per test, the broken variants it catches.
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dynslip.physics.friction import SlipWeakening
+from dynslip.physics.simulate import Settings, simulate
+from test_forming import MODEL, PRE, Z0, push_protocol
+
+# ----------------------------------------------------------------- stick/slip through the sheet
+
+MU_S, MU_K, D_C = 0.99, 0.82, 0.02
+ETA = 0.1  # the drag per reference area of the run below (G h0 R / (R/s) per R^2)
+
+
+def _penalty_normal_force(pen_depth):
+    """N_i = A_i phi'(d_i), the penalty law of docs (physics/sheet.py module docstring) written
+    out here: 0 for d <= 0, k d^2 / (2 w) for 0 < d < w, k (d - w/2) beyond."""
+    k, w = float(MODEL.penalty.k), float(MODEL.penalty.w)
+    d = pen_depth
+    p = np.where(d <= 0, 0.0, np.where(d < w, k * np.clip(d, 0.0, w) ** 2 / (2 * w), k * (d - w / 2)))
+    return np.asarray(MODEL.mesh.area) * p
+
+
+_elastic_gradient = jax.jit(jax.vmap(jax.grad(MODEL.elastic_energy, argnums=(0, 1))))
+
+
+@pytest.fixture(scope="module")
+def weakening_push():
+    """The held push-down of test_forming (N = 40, Gent, the rim pushed from 1.02 R to -1.5 R
+    at 0.2 R/s: the sheet loads the ball ever more as it wraps), with slip-distance weakening
+    mu_s = 0.99, mu_k = 0.82, d_c = 0.02 R, by load stepping (the default solver: every node's
+    rate from physics/newton.py node_rate), frames every 0.1 s."""
+    fr = SlipWeakening(
+        mu_s=jnp.asarray(MU_S), mu_k=jnp.asarray(MU_K), d_c=jnp.asarray(D_C), eps=jnp.asarray(1e-3)
+    )
+    res = simulate(
+        MODEL,
+        push_protocol(),
+        friction=fr,
+        eps=1e-3,
+        drag=ETA,
+        ball_drag=ETA * 4 * math.pi,
+        pre_stretch=PRE,
+        z_sheet=Z0,
+        settings=Settings(solver="load_step", save_interval=0.1),
+    )
+    assert res.failed is None, res.failed
+    return res
+
+
+def _stick_slip_record(res):
+    """Per node and frame, from the saved positions only: the tangential elastic force F_t
+    (jax.grad of the elastic energy, projected on the ball's tangent), the normal force N (the
+    penalty law written out above, from the penetration), the tangential displacement relative
+    to the ball since the last frame, and the slip distance accumulated from those
+    displacements since the node last stood still (reset out of contact). The friction law and
+    the driver's diagnostics are not used."""
+    fs = res.frames
+    rho = np.array([np.asarray(f["rho"]) for f in fs])
+    z = np.array([np.asarray(f["z"]) for f in fs])
+    zb = np.array([float(f["ball_z"]) for f in fs])
+    t = np.array([float(f["time"]) for f in fs])
+    g_rho, g_z = (np.asarray(a) for a in _elastic_gradient(jnp.asarray(rho), jnp.asarray(z)))
+    dz = z - zb[:, None]
+    r = np.hypot(rho, dz)
+    normal = np.array([_penalty_normal_force(1.0 - ri) for ri in r])
+    th = np.arctan2(rho, dz)
+    ft = -(g_rho * np.cos(th) - g_z * np.sin(th))  # t = (cos theta, -sin theta): toward the equator
+    area = np.asarray(MODEL.mesh.area)
+    contact = normal > 1e-2 * area  # pressure above the contact threshold (G h0 / R)
+    stuck_ratio, onsets, kinetic, weakening = [], [], [], []
+    for j in range(1, rho.shape[1] - 1):  # the pole carries no tangential force; the rim is held
+        delta, was_stuck = 0.0, False
+        for i in range(1, t.size):
+            ds = abs(th[i, j] - th[i - 1, j]) * r[i, j]
+            if normal[i, j] <= 0 and normal[i - 1, j] <= 0:
+                delta, was_stuck = 0.0, False
+                continue
+            # compared only inside the contact, and never at its outermost node (the penalty's edge)
+            if not (contact[i, j] and contact[i - 1, j] and contact[i, j + 1]):
+                delta += ds
+                was_stuck = False
+                continue
+            ratio = abs(ft[i, j]) / normal[i, j]
+            if ds < 1e-12:  # the node stood still on the ball over the frame (to round-off)
+                stuck_ratio.append(ratio)
+                delta, was_stuck = 0.0, True
+                continue
+            # the friction force is F_t less the drag eta A v_t (the overdamped law)
+            fric = ratio - ETA * area[j] * ds / (t[i] - t[i - 1]) / normal[i, j]
+            if was_stuck:
+                onsets.append((j, fric))
+            delta += ds
+            was_stuck = False
+            mu = MU_K + (MU_S - MU_K) * max(0.0, 1.0 - delta / D_C)
+            (kinetic if delta > 1.5 * D_C else weakening).append((j, fric - mu))
+    return np.array(stuck_ratio), onsets, np.array(kinetic), np.array(weakening)
+
+
+def test_stick_slip_through_the_sheet_onset_at_mu_s_sliding_at_mu_k(weakening_push):
+    """Stick/slip read off the sheet's motion under a slowly growing load: a node stands still
+    on the ball (its tangential displacement relative to the ball below 1e-12 R, round-off:
+    motion along the normal leaves its polar angle unchanged) only while |F_t| <= mu_s N; it starts to move when
+    |F_t| reaches mu_s N (onset; less the force-space smoothing, 1e-3 G h0/R); once its slip
+    distance, measured from its own displacements, is past d_c it slides at |F_t| - eta A v_t =
+    mu_k N; in between at mu(delta) = mu_k + (mu_s - mu_k)(1 - delta/d_c). F_t, N and the slip
+    are computed here from the saved positions, not from the driver's friction diagnostics.
+
+    Measured (``pytest -s tests/test_evidence_sheet.py -k stick_slip``, b988ecf): 3 nodes stuck
+    before their onset; largest stuck ratio 0.9786; onset friction / N 0.98877-0.98904 (mu_s - 1.2e-3:
+    the smoothing band); on 605 node-frames past 1.5 d_c the friction / mu_k N - 1 is at most
+    5.1e-4 (median 1e-5); on 598 weakening node-frames |friction / N - mu(delta)| at most 0.012
+    (7% of mu_s - mu_k: the load increment's first-order lag, mu taken at the increment's start,
+    physics/newton.py slip_update)."""
+    stuck, onsets, kinetic, weakening = _stick_slip_record(weakening_push)
+    onset_nodes = sorted({j for j, _ in onsets})
+    first_onset = {j: f for j, f in reversed(onsets)}  # each node's first onset
+    print(
+        f"stick/slip: {stuck.size} stuck node-frames, largest |F_t|/N {stuck.max():.5f}; onset "
+        f"at nodes {onset_nodes}: {[round(float(first_onset[j]), 5) for j in onset_nodes]}; "
+        f"{len(kinetic)} kinetic node-frames, max |fric/mu_k N - 1| "
+        f"{np.max(np.abs(kinetic[:, 1])) / MU_K:.2e}; {len(weakening)} weakening node-frames, "
+        f"max |fric/N - mu(delta)| {np.max(np.abs(weakening[:, 1])):.3e}"
+    )
+    assert stuck.size >= 20 and len(onset_nodes) >= 3
+    # stick: inside the static cone (the smoothing only lowers the threshold)
+    assert stuck.max() <= MU_S + 1e-9
+    # onset at mu_s N: within 5e-3 (measured 1.2e-3 below it: the smoothing band)
+    assert all(abs(f - MU_S) < 5e-3 for f in first_onset.values()), first_onset
+    # sliding past d_c at mu_k N: 5e-3 relative (measured 5.1e-4), on several nodes
+    assert len({int(j) for j in kinetic[:, 0]}) >= 5
+    assert np.max(np.abs(kinetic[:, 1])) / MU_K < 5e-3
+    # weakening: mu(delta) of the measured slip distance, within 0.03 (measured 0.012: first order
+    # in the increment, so not 10x; the kinetic and static ends are 0.17 apart)
+    assert len(weakening) >= 20
+    assert np.max(np.abs(weakening[:, 1])) < 0.03
