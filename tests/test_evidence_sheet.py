@@ -30,7 +30,8 @@ def _penalty_normal_force(pen_depth):
     out here: 0 for d <= 0, k d^2 / (2 w) for 0 < d < w, k (d - w/2) beyond."""
     k, w = float(MODEL.penalty.k), float(MODEL.penalty.w)
     d = pen_depth
-    p = np.where(d <= 0, 0.0, np.where(d < w, k * np.clip(d, 0.0, w) ** 2 / (2 * w), k * (d - w / 2)))
+    quad = k * np.clip(d, 0.0, w) ** 2 / (2 * w)
+    p = np.where(d <= 0, 0.0, np.where(d < w, quad, k * (d - w / 2)))
     return np.asarray(MODEL.mesh.area) * p
 
 
@@ -111,20 +112,21 @@ def _stick_slip_record(res):
 
 
 def test_stick_slip_through_the_sheet_onset_at_mu_s_sliding_at_mu_k(weakening_push):
-    """Stick/slip read off the sheet's motion under a slowly growing load: a node stands still
+    """Stick/slip read off the sheet's motion under a slowly growing load. A node stands still
     on the ball (its tangential displacement relative to the ball below 1e-12 R, round-off:
-    motion along the normal leaves its polar angle unchanged) only while |F_t| <= mu_s N; it starts to move when
-    |F_t| reaches mu_s N (onset; less the force-space smoothing, 1e-3 G h0/R); once its slip
-    distance, measured from its own displacements, is past d_c it slides at |F_t| - eta A v_t =
-    mu_k N; in between at mu(delta) = mu_k + (mu_s - mu_k)(1 - delta/d_c). F_t, N and the slip
-    are computed here from the saved positions, not from the driver's friction diagnostics.
+    motion along the normal leaves its polar angle unchanged) only while |F_t| <= mu_s N; it
+    starts to move when |F_t| reaches mu_s N (onset, less the force-space smoothing); once its
+    slip distance, measured from its own displacements, is past d_c it slides at
+    |F_t| - eta A v_t = mu_k N; in between at mu(delta) = mu_k + (mu_s - mu_k)(1 - delta/d_c).
+    F_t, N and the slip are computed here from the saved positions, not from the driver's
+    friction diagnostics.
 
-    Measured (``pytest -s tests/test_evidence_sheet.py -k stick_slip``, b988ecf): 3 nodes stuck
-    before their onset; largest stuck ratio 0.9786; onset friction / N 0.98877-0.98904 (mu_s - 1.2e-3:
-    the smoothing band); on 605 node-frames past 1.5 d_c the friction / mu_k N - 1 is at most
-    5.1e-4 (median 1e-5); on 598 weakening node-frames |friction / N - mu(delta)| at most 0.012
-    (7% of mu_s - mu_k: the load increment's first-order lag, mu taken at the increment's start,
-    physics/newton.py slip_update)."""
+    Measured (``pytest -s tests/test_evidence_sheet.py -k stick_slip``, b988ecf): 3 nodes
+    stuck before their onset; largest stuck ratio 0.9786; onset friction / N 0.98877-0.98904
+    (mu_s - 1.2e-3: the smoothing band); on 605 node-frames past 1.5 d_c, |friction / mu_k N
+    - 1| at most 5.1e-4 (median 1e-5); on 598 weakening node-frames, |friction / N -
+    mu(delta)| at most 0.012 (7% of mu_s - mu_k: the increment's first-order lag, mu taken at
+    the increment's start, physics/newton.py slip_update)."""
     stuck, onsets, kinetic, weakening = _stick_slip_record(weakening_push)
     onset_nodes = sorted({j for j, _ in onsets})
     first_onset = {j: f for j, f in reversed(onsets)}  # each node's first onset
