@@ -62,7 +62,7 @@ from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.loadstep import FullStateLoadStep
 from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
-from dynslip.physics.protocols import Duration, Protocol
+from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
 from dynslip.physics.upstream import VeryChord
 
@@ -86,8 +86,6 @@ __all__ = [
     "stack",
     "MemberRun",
     "Segment",
-    "Chunk",
-    "CHUNK",
     "static_key",
     "initial_state",
     "vector_field",
@@ -440,32 +438,10 @@ def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
     )
 
 
-#: The most save segments one compiled call solves (the length of the preallocated output).
-CHUNK = 32
-#: Stages with a condition stop solve 1, 2, 4, ... segments per call (at most this many), so
-#: that the segments solved past the stop (discarded) stay fewer than those before it.
-CHUNK_CONDITION = 8
-
-
-@dataclasses.dataclass
-class Chunk:
-    """The save segments a member asks for in one call of :func:`segment_step`: from ``y`` at
-    ``t0``, the first ``n`` end times of ``ts`` (``CHUNK`` long, padded); ``n = 0`` asks for
-    the frame of ``y`` alone (a run's first frame, a finished batch member)."""
-
-    y: jax.Array
-    t0: float
-    ts: np.ndarray
-    n: int
-    dt_guess: float
-    args: StageArgs
-    rate: tuple
-
-
 @dataclasses.dataclass
 class Segment:
-    """One save segment of a chunk, as :meth:`MemberRun.advance` takes it: start state, start
-    and end times, first increment tried, loads and the predictor's rate."""
+    """One save segment a member asks for (the inputs of :func:`segment_step` but the model,
+    layout, tolerances and contact threshold)."""
 
     y: jax.Array
     t0: float
@@ -573,27 +549,14 @@ class MemberRun:
         self.rate = zero_rate(self.layout.n)
         self.met = stage.stop.met_at_duration
         self.stop_state = stage.stop.init()
-        self.by_duration = isinstance(stage.stop, Duration)
-        self.ahead = 1
 
-    # -- one chunk of segments
-    def chunk(self) -> Chunk:
-        """The next save segments to solve in one call: the stage's remaining ones (at most
-        ``CHUNK``) under a duration rule, where nothing can end the stage earlier but a
-        failure; 1, 2, 4, ... (at most ``CHUNK_CONDITION``) under a condition rule, whose
-        stop is checked on each frame (:meth:`record`: segments past it are discarded).
-        None before the first frame and for a finished run."""
+    # -- one segment
+    def segment(self) -> Segment:
+        """The next save segment; before the first frame, and for a finished run (masked by
+        the batch), a zero-length one."""
         if self.done or not self.frames:
-            n = 0
-        else:
-            n = min(len(self.seg_ts) - self.seg, CHUNK if self.by_duration else self.ahead)
-            self.ahead = min(2 * self.ahead, CHUNK_CONDITION)
-        ts = np.full(CHUNK, self.t)
-        ts[:n] = self.seg_ts[self.seg : self.seg + n]
-        return Chunk(self.y, self.t, ts, n, self.dt_guess, self.args, self.rate)
-
-    def segment(self, t1: float) -> Segment:
-        """The save segment from the current state to ``t1``."""
+            return Segment(self.y, self.t, self.t, self.dt_guess, self.args, self.rate)
+        t1 = float(self.seg_ts[self.seg])
         return Segment(
             self.y, self.t, t1, min(self.dt_guess, 0.5 * (t1 - self.t)), self.args, self.rate
         )
@@ -742,72 +705,21 @@ _STEPS: dict = {}
 
 
 def segment_step(solver, batched: bool = False):
-    """Jitted ``step(model, layout, y0, t0, ts, n, dt_guess, args, rtol, atol, rate,
-    contact_threshold) -> (outputs, frames)``: up to ``CHUNK`` save segments of ``solver`` in
-    one program, from ``y0`` at ``t0`` to ``ts[0]``, ``ts[1]``, ... ``ts[n-1]``, each started
-    as the host would start it (first increment ``min(dt_guess, (t1 - t0)/2)``, ``dt_guess``
-    the last segment's length over its accepted increments, the predictor's rate carried);
-    a failed segment ends the chunk. ``outputs`` (a :class:`SegmentOutput`) and ``frames``
-    (:func:`frame_record` at each segment's end) are written into preallocated arrays of
-    ``max(n, 1)`` used rows (row 0 with ``n = 0``: the frame of ``y0`` at ``t0``). ``batched``:
-    vmapped over a leading member axis of every input but the layout (a model's float
-    constants, such as Gent's J_m, broadcast)."""
+    """Jitted ``step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold)
+    -> (SegmentOutput, frame)``: one save segment of ``solver`` and the frame of its end state
+    (:func:`frame_record` at ``t1``), in one program, so a segment costs one call and one
+    transfer. ``batched``: vmapped over a leading member axis of every input but the layout
+    (a model's float constants, such as Gent's J_m, broadcast)."""
     key = (solver, batched)
     if key not in _STEPS:
 
-        def one(model, layout, y, t, t1, dt0, args, rtol, atol, rate, thr):
-            out = solver.segment(model, layout, y, t, t1, dt0, args, rtol, atol, rate)
-            # the counts as int32 whatever the solver's (diffrax's are int64): one buffer type
-            out = eqx.tree_at(
-                lambda o: (o.steps, o.accepted, o.rejected, o.newton_iterations),
-                out,
-                tuple(
-                    jnp.asarray(v, jnp.int32)
-                    for v in (out.steps, out.accepted, out.rejected, out.newton_iterations)
-                ),
-            )
-            return out, frame_record(model, layout, t1, out.y, args, thr)
-
-        def step(model, layout, y0, t0, ts, n, dt_guess, args, rtol, atol, rate, thr):
-            def body(c):
-                k, y, t, dtg, rate, alive, buf = c
-                t1 = jnp.where(k < n, ts[k], t)
-                dt0 = jnp.where(t1 > t, jnp.minimum(dtg, 0.5 * (t1 - t)), dtg)
-                out, frame = one(model, layout, y, t, t1, dt0, args, rtol, atol, rate, thr)
-                buf = jax.tree_util.tree_map(lambda b, v: b.at[k].set(v), buf, (out, frame))
-                go = out.ok & (t1 > t)
-                dtg = jnp.where(go, (t1 - t) / jnp.maximum(out.accepted, 1), dtg)
-                rate = jax.tree_util.tree_map(lambda a, b: jnp.where(go, a, b), out.rate, rate)
-                return k + 1, out.y, t1, dtg, rate, out.ok, buf
-
-            # the preallocated rows: shapes known without tracing the solve (only the frame's)
-            count = jnp.zeros(CHUNK, jnp.int32)
-            outs = SegmentOutput(
-                y=jnp.zeros((CHUNK, *y0.shape), y0.dtype),
-                ok=jnp.zeros(CHUNK, bool),
-                steps=count,
-                accepted=count,
-                rejected=count,
-                newton_iterations=count,
-                rate=jax.tree_util.tree_map(lambda r: jnp.zeros((CHUNK, *r.shape), r.dtype), rate),
-            )
-            shapes = eqx.filter_eval_shape(frame_record, model, layout, t0, y0, args, thr)
-            frames = jax.tree_util.tree_map(lambda v: jnp.zeros((CHUNK, *v.shape), v.dtype), shapes)
-            init = (
-                jnp.array(0, jnp.int32),
-                y0,
-                t0,
-                dt_guess,
-                rate,
-                jnp.array(True),
-                (outs, frames),
-            )
-            c = jax.lax.while_loop(lambda c: (c[0] < jnp.maximum(n, 1)) & c[5], body, init)
-            return c[-1]
+        def step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold):
+            out = solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
+            return out, frame_record(model, layout, t1, out.y, args, contact_threshold)
 
         if batched:
             a = eqx.if_array(0)
-            step = eqx.filter_vmap(step, in_axes=(a, None, a, a, a, a, a, a, a, a, a, a))
+            step = eqx.filter_vmap(step, in_axes=(a, None, a, a, a, a, a, a, a, a, a))
         _STEPS[key] = eqx.filter_jit(step)
     return _STEPS[key]
 
@@ -825,33 +737,14 @@ def stack(trees):
     return eqx.combine(stacked, static[0])
 
 
-def _chunk_inputs(chunks: list[Chunk], batched: bool) -> tuple:
-    """The per-member inputs of :func:`segment_step`: ``y0, t0, ts, n, dt_guess, args`` and the
-    rate, stacked over the members when ``batched``."""
-    if not batched:
-        c = chunks[0]
-        return (c.y, _f(c.t0), _f(c.ts), np.asarray(c.n, np.int32), _f(c.dt_guess), c.args), c.rate
-    return (
-        np.stack([np.asarray(c.y) for c in chunks]),
-        np.asarray([c.t0 for c in chunks]),
-        np.stack([c.ts for c in chunks]),
-        np.asarray([c.n for c in chunks], np.int32),
-        np.asarray([c.dt_guess for c in chunks]),
-        stack([c.args for c in chunks]),
-    ), jax.tree_util.tree_map(
-        lambda *r: np.stack([np.asarray(x) for x in r]), *[c.rate for c in chunks]
-    )
-
-
 def drive(runs: list[MemberRun]) -> list[Result]:
     """The host loop of one run (``len(runs) == 1``: :func:`segment_step` as compiled) or of
-    B members in lockstep (the step vmapped over them: :mod:`dynslip.physics.batch`). Each
-    tick asks every member for its next chunk of save segments (:meth:`MemberRun.chunk`),
-    solves them all in one call, and hands each active member its segments' outputs and
-    frames in order (:meth:`MemberRun.advance`, :meth:`MemberRun.record`) until its chunk
-    is used up, it fails, or its stage ends (the rest of the chunk is discarded); the first
-    tick's frames are the initial ones. Raises ``ValueError`` when the members need
-    different compiled steps (:func:`static_key`)."""
+    B members in lockstep (the step vmapped over them, one call per save segment for all:
+    :mod:`dynslip.physics.batch`). Each tick asks every member for its next segment, solves
+    them together, and hands each active member its output and frame
+    (:meth:`MemberRun.advance`, :meth:`MemberRun.record`); the first tick is a zero-length
+    segment per member, whose frame is the initial one. Raises ``ValueError`` when the
+    members need different compiled steps (:func:`static_key`)."""
     first = runs[0]
     if any(r.key != first.key for r in runs[1:]):
         raise ValueError(
@@ -861,7 +754,7 @@ def drive(runs: list[MemberRun]) -> list[Result]:
     batched = len(runs) > 1
     step = segment_step(first.solver, batched)
     layout = first.layout
-    key = ("chunk", CHUNK, batched and len(runs), *first.key)
+    key = ("batch", len(runs), *first.key) if batched else first.key
     if batched:
         model = stack([r.model for r in runs])
         tol = (np.asarray([float(r.rtol) for r in runs]), np.asarray([float(r.atol) for r in runs]))
@@ -873,9 +766,22 @@ def drive(runs: list[MemberRun]) -> list[Result]:
             _f(first.settings.contact_threshold),
         )
     while not all(r.done for r in runs):
-        chunks = [r.chunk() for r in runs]
-        per, rate = _chunk_inputs(chunks, batched)
-        inputs = (model, layout, *per, *tol, rate, thr)
+        segs = [r.segment() for r in runs]
+        if batched:
+            seg = (
+                np.stack([np.asarray(s.y) for s in segs]),
+                np.asarray([s.t0 for s in segs]),
+                np.asarray([s.t1 for s in segs]),
+                np.asarray([s.dt0 for s in segs]),
+                stack([s.args for s in segs]),
+            )
+            rate = jax.tree_util.tree_map(
+                lambda *r: np.stack([np.asarray(x) for x in r]), *[s.rate for s in segs]
+            )
+        else:
+            s = segs[0]
+            seg, rate = (s.y, _f(s.t0), _f(s.t1), _f(s.dt0), s.args), s.rate
+        inputs = (model, layout, *seg, *tol, rate, thr)
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(
             key,
@@ -884,30 +790,23 @@ def drive(runs: list[MemberRun]) -> list[Result]:
         )
         r0 = _time.perf_counter()
         out, frames = jax.device_get(compiled(*inputs))
-        # the tick's time, shared by its active members and their segments
-        run_s = (_time.perf_counter() - r0) / sum(max(chunks[b].n, 1) for b in active)
-        # the tick's cost per segment: the batch's largest increment count
-        lockstep = np.max(out.steps.reshape(-1, CHUNK), axis=0)
+        # the tick's time, shared by its active members
+        run_s = (_time.perf_counter() - r0) / len(active)
+        lockstep = int(np.max(out.steps))  # the tick's cost: the batch's largest increment count
         for b in active:
-            r, c = runs[b], chunks[b]
+            r = runs[b]
             ob, fb = (
                 (out, frames)
                 if not batched
                 else jax.tree_util.tree_map(lambda o, b=b: o[b], (out, frames))
             )
-            if c.n == 0:
-                r.record({k: v[0] for k, v in fb.items()})
+            if not r.frames:
+                r.record(fb)
                 continue
-            si = r.si
-            for k in range(c.n):
-                if batched:
-                    r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + int(lockstep[k])
-                seg = r.segment(float(c.ts[k]))
-                if not r.advance(seg, jax.tree_util.tree_map(lambda o, k=k: o[k], ob), run_s):
-                    break
-                r.record({name: v[k] for name, v in fb.items()})
-                if r.done or r.si != si:
-                    break
+            if batched:
+                r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + lockstep
+            if r.advance(segs[b], ob, run_s):
+                r.record(fb)
     return [r.result() for r in runs]
 
 
