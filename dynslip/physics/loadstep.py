@@ -83,8 +83,7 @@ from equinox.internal import ω
 
 from dynslip.physics.field import heal, sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.newton import SegmentOutput, zero_rate
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.newton import SegmentOutput, increment_cap, zero_rate
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
 
 __all__ = [
@@ -224,13 +223,6 @@ def load_step_solver(
             rtol=rtol, atol=atol, norm=optx.max_norm, linear_solver=lin, cauchy_termination=True
         )
     return LoadStepEuler(root_finder=newton, root_find_max_steps=max_iter)
-
-
-def increment_cap(args, max_increment, max_increment_free):
-    """$\\Delta t_{max}$ (s): ``max_increment`` drag times in driven stages, ``max_increment_free``
-    where the ball or the clamp moves under a force (``args.drag`` is the drag time)."""
-    free = (args.ball_mode != BALL_HOLD) | (args.clamp_mode != CLAMP_POSITION)
-    return args.drag * jnp.where(free, max_increment_free, max_increment)
 
 
 class FullStateLoadStep(eqx.Module):
