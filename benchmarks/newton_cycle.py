@@ -60,7 +60,7 @@ def stages(n: int, sets: list[str]) -> None:
     )  # stage -> steps, rejected, Newton iterations, segments
 
     def count(run, seg, out):
-        per[run.stage.name] += [int(out[2]), int(out[4]), int(out[5]) if len(out) > 5 else 0, 1]
+        per[run.stage.name] += [int(out.steps), int(out.rejected), int(out.newton_iterations), 1]
 
     _capture(count)
     values = {"numerics.nodes": n} | {k: _value(v) for k, v in (a.split("=", 1) for a in sets)}

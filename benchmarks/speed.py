@@ -114,6 +114,9 @@ def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
         "run_s": st["run_s"],
         "compile_s": st["compile_s"],
         "wall_s": wall,
+        # the driver's own time: the whole run less the compiled segment solves and the compile
+        "host_s": wall - st["run_s"] - st["compile_s"],
+        "segments": st["segments"],
         "ms_per_step": st["time_per_step_ms"],
         "simulated_s": float(res.frames[-1]["time"]),
         "trapped": summ["trapped"],

@@ -18,7 +18,7 @@ import optimistix as optx
 import pytest
 
 from dynslip.physics.friction import Coulomb, make_friction
-from dynslip.physics.loadstep import DampedNewton, LoadStepEuler, increments, run_segment
+from dynslip.physics.loadstep import DampedNewton, FullStateLoadStep, LoadStepEuler, increments
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Layout, Settings, _stage_args, initial_state, simulate
 from dynslip.physics.upstream import ImplicitEuler
@@ -146,20 +146,11 @@ def test_load_step_matches_kvaerno5_on_a_short_push_down(reference, backtrack):
 def _fixed_increments(model, layout, y0, t1, h, args):
     """The push-down stage in increments of h (the cap; with h <= tau Newton converges fast, so
     every increment but the first few and a cut-back or two is h)."""
-    return run_segment(
-        model,
-        layout,
-        y0,
-        jnp.asarray(0.0),
-        t1,
-        h,
-        args,
-        jnp.asarray(1e-8),
-        jnp.asarray(1e-10),
-        max_steps=100000,
-        max_iter=16,
-        max_increment=h / TAU,
-        max_increment_free=h / TAU,
+    solver = FullStateLoadStep(
+        max_steps=100000, newton_max_iter=16, max_increment=h / TAU, max_increment_free=h / TAU
+    )
+    return solver.segment(
+        model, layout, y0, jnp.asarray(0.0), t1, h, args, jnp.asarray(1e-8), jnp.asarray(1e-10)
     )
 
 
@@ -196,10 +187,9 @@ def test_energy_residual_and_end_state_are_first_order_in_the_increment(referenc
     hs = np.array([0.1, 0.05, 0.025, 0.0125])
     resid, err, steps = [], [], []
     for h in hs:
-        y1, ok, nst, nacc, nrej, nit = _fixed_increments(
-            MODEL, layout, y0, t1, jnp.asarray(h), args
-        )
-        assert bool(ok)
+        out = _fixed_increments(MODEL, layout, y0, t1, jnp.asarray(h), args)
+        y1, nacc, nrej, nit = out.y, out.accepted, out.rejected, out.newton_iterations
+        assert bool(out.ok)
         w, e, d = energy(y1)
         resid.append(abs(w - (e - e0) - d) / abs(w))
         rho, z, _, _ = layout.unpack(y1)
@@ -250,7 +240,7 @@ def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta, heal_ra
     def after(t, y):  # the slip rate x' at the increment's end
         return y.at[1].set(fr.reset(y[1], vf(t, y, None)[0], normal, heal_rate))
 
-    y1, ok, *_ = increments(
+    out = increments(
         diffrax.ODETerm(vf),
         solver,
         y0,
@@ -262,8 +252,9 @@ def _node_segment(fr, y0, t0, t1, x_drive0, v_drive, stiff, normal, eta, heal_ra
         10000,
         after=None if heal_rate is None else after,
     )
+    y1 = out.y
     f1 = stiff * (x_drive0 + v_drive * (t1 - t0) - y1[0])
-    return y1, ok, f1, fr.slip_force(f1, normal, y1[1])
+    return y1, out.ok, f1, fr.slip_force(f1, normal, y1[1])
 
 
 def test_one_node_ramp_under_load_stepping():

@@ -3,7 +3,7 @@ iteration count.
 
 Since issue 23 ``numerics.solver: load_step`` runs :mod:`dynslip.physics.newton` (Newton on
 the motion alone); this module is the full-state Newton it replaced, kept as the physics-only
-choice ``load_step_full`` (:func:`dynslip.physics.simulate.solver_for`), the baseline of
+choice ``load_step_full`` (:class:`FullStateLoadStep`), the baseline of
 ``benchmarks/speed.py``, and for its increment loop over any diffrax term (:func:`increments`).
 
 The forming path is slow loading of a rate-independent problem (stages of 10-90 s
@@ -83,7 +83,7 @@ from equinox.internal import ω
 
 from dynslip.physics.field import heal, sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.newton import SegmentOutput, increment_cap, zero_rate
 from dynslip.physics.upstream import ImplicitEuler, reject_failed
 
 __all__ = [
@@ -91,7 +91,7 @@ __all__ = [
     "IncrementState",
     "load_step_solver",
     "increments",
-    "run_segment",
+    "FullStateLoadStep",
     "GROW",
     "CUT",
     "GROW_BELOW",
@@ -225,56 +225,54 @@ def load_step_solver(
     return LoadStepEuler(root_finder=newton, root_find_max_steps=max_iter)
 
 
-def increment_cap(args, max_increment, max_increment_free):
-    """$\\Delta t_{max}$ (s): ``max_increment`` drag times in driven stages, ``max_increment_free``
-    where the ball or the clamp moves under a force (``args.drag`` is the drag time)."""
-    free = (args.ball_mode != BALL_HOLD) | (args.clamp_mode != CLAMP_POSITION)
-    return args.drag * jnp.where(free, max_increment_free, max_increment)
+class FullStateLoadStep(eqx.Module):
+    """The segment solver of this module (``load_step_full``): load increments of the sheet by
+    :class:`LoadStepEuler` (Newton on the whole state) at most ``max_steps`` per segment, at
+    most ``newton_max_iter`` Newton corrections each, ``newton_backtrack`` halvings
+    (:class:`DampedNewton`),
+    ``linear_solver`` ``"structured"`` or ``"dense"``, increments bounded by
+    :func:`increment_cap`, the friction law's healing (``heal_rate``) after every increment.
+    ``max_increment`` and ``max_increment_free`` may be traced (a test sweeps them)."""
+
+    max_steps: int = eqx.field(static=True, default=20000)
+    newton_max_iter: int = eqx.field(static=True, default=20)
+    newton_backtrack: int = eqx.field(static=True, default=4)
+    linear_solver: str = eqx.field(static=True, default="structured")
+    heal_rate: float = eqx.field(static=True, default=0.0)
+    max_increment: float = 20.0
+    max_increment_free: float = 5.0
+
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
+        Newton starts from zero at the segment's start (``rate`` is not used: its output is
+        zero)."""
+        del rate
+        term = diffrax.ODETerm(vector_field(model, layout))
+        solver = load_step_solver(
+            layout, rtol, atol, self.linear_solver, self.newton_max_iter, self.newton_backtrack
+        )
+        cap = increment_cap(args, self.max_increment, self.max_increment_free)
+        out = increments(
+            term,
+            solver,
+            y0,
+            t0,
+            t1,
+            dt0,
+            args,
+            cap,
+            self.max_steps,
+            after=lambda t, y: heal(model, layout, y, args, self.heal_rate),
+        )
+        return eqx.tree_at(lambda o: o.rate, out, zero_rate(layout.n))
 
 
-def run_segment(
-    model,
-    layout,
-    y0,
-    t0,
-    t1,
-    dt0,
-    args,
-    rtol,
-    atol,
-    *,
-    max_steps: int,
-    max_iter: int,
-    max_increment: float,
-    max_increment_free: float,
-    linear_solver: str = "structured",
-    heal_rate: float = 0.0,
-    backtrack: int = 4,
-):
-    """Load increments of the sheet from ``t0`` to ``t1``: ``(y1, ok, steps, accepted, rejected,
-    newton_iterations)``. Not jitted (:class:`dynslip.physics.simulate.FullStateLoadStep` jits
-    it). ``dt0`` is the first increment tried.
-    """
-    term = diffrax.ODETerm(vector_field(model, layout))
-    solver = load_step_solver(layout, rtol, atol, linear_solver, max_iter, backtrack)
-    cap = increment_cap(args, max_increment, max_increment_free)
-    return increments(
-        term,
-        solver,
-        y0,
-        t0,
-        t1,
-        dt0,
-        args,
-        cap,
-        max_steps,
-        after=lambda t, y: heal(model, layout, y, args, heal_rate),
-    )
-
-
-def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=None):
+def increments(
+    term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=None
+) -> SegmentOutput:
     """The increment loop over ``solver.step`` (a :class:`LoadStepEuler`) for any diffrax term:
-    ``(y1, ok, steps, accepted, rejected, newton_iterations)``; increments at most ``cap``.
+    a :class:`dynslip.physics.newton.SegmentOutput` (its ``rate``: the last accepted increment
+    per unit time of the whole state); increments at most ``cap``.
     ``after(t, y)`` (e.g. the friction law's healing) maps each increment's end state."""
     dt_min = MIN_FRACTION * (t1 - t0)
     zero = jnp.array(0, dtype=jnp.int32)
@@ -325,6 +323,7 @@ def increments(term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=N
         zero,
         zero,
     )
-    t, y, _, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
+    t, y, state, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
     ok = (t >= t1) & jnp.all(jnp.isfinite(y))
-    return y, ok, nacc + nrej, nacc, nrej, nit
+    # the fields in order: y, ok, steps, accepted, rejected, newton_iterations, rate
+    return SegmentOutput(y, ok, nacc + nrej, nacc, nrej, nit, state.rate)

@@ -77,6 +77,13 @@ SHRINK = 0.7
 MIN_FRACTION = 1e-10
 
 
+def increment_cap(args, max_increment, max_increment_free):
+    """$\\Delta t_{max}$ (s): ``max_increment`` drag times in driven stages, ``max_increment_free``
+    where the ball or the clamp moves under a force (``args.drag`` is the drag time)."""
+    free = (args.ball_mode != BALL_HOLD) | (args.clamp_mode != CLAMP_POSITION)
+    return args.drag * jnp.where(free, max_increment_free, max_increment)
+
+
 class SegmentOutput(eqx.Module):
     """What a segment solve returns (both solvers): the end state, whether it reached the
     segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
@@ -461,8 +468,6 @@ class MotionNewton(eqx.Module):
     ) -> SegmentOutput:
         """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
         ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment."""
-        from dynslip.physics.loadstep import increment_cap
-
         cap = increment_cap(args, self.max_increment, self.max_increment_free)
         dt_min = MIN_FRACTION * (t1 - t0)
         zero = jnp.array(0, dtype=jnp.int32)

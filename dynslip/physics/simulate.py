@@ -60,7 +60,7 @@ from dynslip.physics.field import (
 )
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.loadstep import run_segment
+from dynslip.physics.loadstep import FullStateLoadStep
 from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
@@ -76,8 +76,14 @@ __all__ = [
     "NonFinite",
     "ContactUnresolved",
     "Result",
+    "SOLVERS",
+    "TimeStepping",
     "solver_for",
+    "segment_solver",
+    "segment_step",
     "simulate",
+    "drive",
+    "stack",
     "MemberRun",
     "Segment",
     "static_key",
@@ -117,40 +123,34 @@ class Settings:
     max_chord_depth: float | None = None
 
 
-def _solver(name: str, linear_solver: str = "dense", layout: Layout | None = None):
-    cls = {
-        "kvaerno5": diffrax.Kvaerno5,
-        "kvaerno3": diffrax.Kvaerno3,
-        "kvaerno4": diffrax.Kvaerno4,
-        "implicit_euler": diffrax.ImplicitEuler,
-    }[name]
-    # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on both
-    # paths:
-    # the dense path otherwise builds diffrax's own VeryChord.
-    chord = diffrax.with_stepsize_controller_tols(VeryChord)
-    if linear_solver == "dense":
-        return cls(root_finder=chord())
-    lin = BorderedBlockTridiagonal(sheet_structure(layout))
-    return cls(root_finder=chord(linear_solver=lin))
-
-
 class TimeStepping(eqx.Module):
-    """A stiff diffrax solver (Kvaerno5, the reference) with a PID controller over a save
-    segment."""
+    """A stiff diffrax solver (``method``: :class:`diffrax.Kvaerno5`, the reference, or another
+    implicit one) with a PID controller over a save segment; at the segment's end the friction
+    law's reset (healing, :func:`dynslip.physics.field.heal`, ``heal_rate``): a reset inside
+    the steps would be a discontinuity in an adaptive error-controlled step."""
 
-    name: str = eqx.field(static=True)
+    method: type = eqx.field(static=True)
     max_steps: int = eqx.field(static=True)
     linear_solver: str = eqx.field(static=True, default="structured")
     pcoeff: float = eqx.field(static=True, default=0.3)
     icoeff: float = eqx.field(static=True, default=0.3)
+    heal_rate: float = eqx.field(static=True, default=0.0)
+
+    def _diffrax_solver(self, layout: Layout):
+        # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on
+        # both paths: the dense path otherwise builds diffrax's own VeryChord.
+        chord = diffrax.with_stepsize_controller_tols(VeryChord)
+        if self.linear_solver == "dense":
+            return self.method(root_finder=chord())
+        lin = BorderedBlockTridiagonal(sheet_structure(layout))
+        return self.method(root_finder=chord(linear_solver=lin))
 
     def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
         term = diffrax.ODETerm(vector_field(model, layout))
-        solver = _solver(self.name, self.linear_solver, layout)
         ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
         sol = diffrax.diffeqsolve(
             term,
-            solver,
+            self._diffrax_solver(layout),
             t0,
             t1,
             dt0,
@@ -163,6 +163,8 @@ class TimeStepping(eqx.Module):
         )
         y1 = sol.ys[-1]
         ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
+        # a zero-length segment (a run's first frame, a finished batch member) is not healed
+        y1 = jnp.where(t1 > t0, heal(model, layout, y1, args, self.heal_rate), y1)
         st = sol.stats
         return SegmentOutput(
             y=y1,
@@ -175,91 +177,72 @@ class TimeStepping(eqx.Module):
         )
 
 
-class FullStateLoadStep(eqx.Module):
-    """The load stepping of :mod:`dynslip.physics.loadstep` (Newton on the whole state: motion,
-    slip distance and energy accumulators), kept as the baseline of the motion-only Newton."""
-
-    settings: Settings = eqx.field(static=True)
-
-    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
-        s = self.settings
-        y, ok, nst, nacc, nrej, nit = run_segment(
-            model,
-            layout,
-            y0,
-            t0,
-            t1,
-            dt0,
-            args,
-            rtol,
-            atol,
-            max_steps=s.max_steps,
-            max_iter=s.newton_max_iter,
-            max_increment=s.max_increment,
-            max_increment_free=s.max_increment_free,
-            linear_solver=s.linear_solver,
-            heal_rate=s.heal_rate,
-            backtrack=s.newton_backtrack,
-        )
-        return SegmentOutput(
-            y=y,
-            ok=ok,
-            steps=nst,
-            accepted=nacc,
-            rejected=nrej,
-            newton_iterations=nit,
-            rate=zero_rate(layout.n),
-        )
+def _from_settings(cls, settings: Settings, **given):
+    """``cls`` (a solver object) with each of its fields that :class:`Settings` has by the same
+    name taken from ``settings``, and the ``given`` ones."""
+    take = {f.name for f in dataclasses.fields(cls)} - set(given)
+    return cls(**{k: getattr(settings, k) for k in take if hasattr(settings, k)}, **given)
 
 
-LOAD_STEPPING = ("load_step", "load_step_full")
-
-
-def solver_for(settings: Settings):
-    """The segment solver object of ``settings.solver``: ``load_step`` (the default,
-    :class:`dynslip.physics.newton.MotionNewton`), ``load_step_full`` (the full-state Newton
-    baseline), or a diffrax solver name (``kvaerno5``, ``kvaerno3``, ``kvaerno4``,
-    ``implicit_euler``)."""
-    s = settings
-    if s.solver == "load_step":
-        return MotionNewton(
-            max_iter=s.newton_max_iter,
-            backtrack=s.newton_backtrack,
-            linear="thomas" if s.linear_solver == "thomas" else "cyclic",
-            max_increment=s.max_increment,
-            max_increment_free=s.max_increment_free,
-            heal_rate=s.heal_rate,
-            max_steps=s.max_steps,
-        )
-    if s.solver == "load_step_full":
-        return FullStateLoadStep(settings=s)
-    return TimeStepping(
-        name=s.solver,
-        max_steps=s.max_steps,
-        linear_solver=s.linear_solver,
-        pcoeff=s.pcoeff,
-        icoeff=s.icoeff,
+def _motion_newton(s: Settings) -> MotionNewton:
+    linear = "thomas" if s.linear_solver == "thomas" else "cyclic"
+    return _from_settings(
+        MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear
     )
 
 
+def _time_stepping(method: type) -> Callable[[Settings], TimeStepping]:
+    return lambda s: _from_settings(TimeStepping, s, method=method)
+
+
+#: The segment solvers by the schema's ``numerics.solver`` name: each builds its solver object
+#: from the :class:`Settings`. Every object has ``segment(model, layout, y0, t0, t1, dt0, args,
+#: rtol, atol, rate) -> SegmentOutput``.
+SOLVERS: dict[str, Callable[[Settings], eqx.Module]] = {
+    "load_step": _motion_newton,
+    "load_step_full": lambda s: _from_settings(FullStateLoadStep, s),
+    "kvaerno5": _time_stepping(diffrax.Kvaerno5),
+    "kvaerno4": _time_stepping(diffrax.Kvaerno4),
+    "kvaerno3": _time_stepping(diffrax.Kvaerno3),
+    "implicit_euler": _time_stepping(diffrax.ImplicitEuler),
+}
+
+
+def solver_for(settings: Settings):
+    """The segment solver object of ``settings.solver``: the object itself, or the one
+    :data:`SOLVERS` builds for its name (``load_step``, the default,
+    :class:`dynslip.physics.newton.MotionNewton`; ``load_step_full``, the full-state Newton
+    baseline :class:`dynslip.physics.loadstep.FullStateLoadStep`; a diffrax solver,
+    :class:`TimeStepping`)."""
+    if not isinstance(settings.solver, str):
+        return settings.solver
+    try:
+        make = SOLVERS[settings.solver]
+    except KeyError:
+        raise ValueError(
+            f"Settings.solver = {settings.solver!r}: allowed: {', '.join(SOLVERS)} or a solver "
+            "object"
+        ) from None
+    return make(settings)
+
+
+def _counts_newton(solver) -> bool:
+    """Whether the solver's ``newton_iterations`` count anything (load stepping)."""
+    return not isinstance(solver, TimeStepping)
+
+
 _SOLVE_CACHE: dict = {}
-_COMPILED: dict = {}  # ahead-of-time compiled segment solves, keyed by everything static
+_COMPILED: dict = {}  # ahead-of-time compiled segment steps, keyed by everything static
 
 
 def segment_solver(settings: Settings):
-    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol) -> SegmentOutput`` of
-    the solver object of ``settings`` (:func:`solver_for`); shared by every run (compiled once
-    per mesh size and material class)."""
+    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) ->
+    SegmentOutput`` of the solver object of ``settings`` (:func:`solver_for`); shared by every
+    caller (compiled once per mesh size and material class)."""
     solver = solver_for(settings)
-    if solver in _SOLVE_CACHE:
-        return _SOLVE_CACHE[solver]
-
-    @eqx.filter_jit
-    def solve(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None):
-        return solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
-
-    _SOLVE_CACHE[solver] = solve
-    return solve
+    if solver not in _SOLVE_CACHE:
+        _SOLVE_CACHE[solver] = eqx.filter_jit(solver.segment)
+    return _SOLVE_CACHE[solver]
 
 
 @eqx.filter_jit
@@ -445,27 +428,20 @@ def _to_numpy(rec):
 
 
 def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
-    """Everything a compiled segment solve is specialised on: the solver's settings other than
-    the tolerances, the mesh size and the non-array parts of the model and stage loads."""
+    """Everything a compiled segment step is specialised on: the solver object (its static
+    settings; the tolerances are arrays), the mesh size and the non-array parts of the model
+    and stage loads."""
     return (
         repr(solver_for(settings)),
-        settings.solver,
-        settings.max_steps,
-        settings.linear_solver,
         layout.n,
-        settings.newton_max_iter,
-        settings.newton_backtrack,
-        settings.max_increment,
-        settings.max_increment_free,
-        settings.heal_rate,
         repr(eqx.filter((model, args), eqx.is_array, inverse=True)),
     )
 
 
 @dataclasses.dataclass
 class Segment:
-    """One save segment a member asks for: ``solve(model, layout, y, t0, t1, dt0, args, rtol,
-    atol)``."""
+    """One save segment a member asks for (the inputs of :func:`segment_step` but the model,
+    layout, tolerances and contact threshold)."""
 
     y: jax.Array
     t0: float
@@ -478,11 +454,11 @@ class Segment:
 class MemberRun:
     """One member's run through its protocol, on the host: the state between save segments.
 
-    The driver (:func:`simulate` for one member, :func:`dynslip.physics.batch.simulate_batch`
-    for many in lockstep) asks :meth:`segment` for the next save segment, solves it (alone
-    or vmapped with the others), hands the output to :meth:`advance`, and records the
-    frame with :meth:`record` (:func:`frame_record` evaluated by the driver), which checks
-    the stage's stop rule and sets up the next stage. Split by concern: stage set-up
+    The driver (:func:`drive`: one member, or many in lockstep) asks :meth:`segment` for the
+    next save segment, solves it (:func:`segment_step`, alone or vmapped with the others),
+    hands the output to :meth:`advance`, and records the frame computed with it with
+    :meth:`record`, which checks the stage's stop rule and sets up the next stage. The keyword
+    arguments are those of :func:`simulate`. Split by concern: stage set-up
     (:meth:`_begin_stage`), one segment (:meth:`segment`, :meth:`advance`), recording and
     the stop check (:meth:`record`, :meth:`_end_stage`).
     """
@@ -520,6 +496,7 @@ class MemberRun:
             support_k=support_stiffness,
         )
         self.layout = Layout(model.mesh.n, friction.n_internal())
+        self.solver = solver_for(settings)
         if start is None:
             self.y = initial_state(model, self.layout, pre_stretch, z_sheet, protocol.ball_z0)
         else:
@@ -535,8 +512,10 @@ class MemberRun:
             "compile_s": 0.0,
             "run_s": 0.0,
             "segments": 0,
-            "method": settings.solver,
-            "newton_iterations": 0 if settings.solver in LOAD_STEPPING else None,
+            "method": settings.solver
+            if isinstance(settings.solver, str)
+            else type(settings.solver).__name__,
+            "newton_iterations": 0 if _counts_newton(self.solver) else None,
         }
         self.dt_guess = 1e-3 * settings.save_interval
         self.reaction = 0.0
@@ -548,6 +527,7 @@ class MemberRun:
         self.si = -1
         self.done = False
         self._begin_stage(0)
+        self.key = static_key(settings, self.layout, model, self.args)
 
     # -- stage set-up
     def _begin_stage(self, si: int) -> None:
@@ -570,15 +550,11 @@ class MemberRun:
         self.met = stage.stop.met_at_duration
         self.stop_state = stage.stop.init()
 
-    @property
-    def needs_first_frame(self) -> bool:
-        return not self.frames
-
     # -- one segment
     def segment(self) -> Segment:
-        """The next save segment; a finished run asks for a zero-length one (masked by the
-        batch)."""
-        if self.done:
+        """The next save segment; before the first frame, and for a finished run (masked by
+        the batch), a zero-length one."""
+        if self.done or not self.frames:
             return Segment(self.y, self.t, self.t, self.dt_guess, self.args, self.rate)
         t1 = float(self.seg_ts[self.seg])
         return Segment(
@@ -589,7 +565,7 @@ class MemberRun:
         """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
         (and the run done, with ``failed`` set) where the solver did not reach the segment's end."""
         y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
-        if self.settings.solver in LOAD_STEPPING:
+        if _counts_newton(self.solver):
             self.stats["newton_iterations"] += int(out.newton_iterations)
         ok = bool(ok)
         self.stats["run_s"] += run_s
@@ -621,12 +597,6 @@ class MemberRun:
     @property
     def stage(self):
         return self.protocol.stages[self.si]
-
-    @property
-    def heals_between_segments(self) -> bool:
-        """Time-stepped solvers reset the friction law's state at segment ends (load stepping
-        heals inside every increment)."""
-        return bool(self.layout.n_int) and self.settings.solver not in LOAD_STEPPING
 
     # -- recording and the stop check
     def record(self, rec: dict) -> None:
@@ -721,7 +691,7 @@ class MemberRun:
 
 
 def _compiled(key, compile_fn, stats_list):
-    """The ahead-of-time compiled solve of ``key`` (compiled now, its time added to each stats'
+    """The ahead-of-time compiled step of ``key`` (compiled now, its time added to each stats'
     compile_s)."""
     if key not in _COMPILED:
         c0 = _time.perf_counter()
@@ -731,73 +701,126 @@ def _compiled(key, compile_fn, stats_list):
     return _COMPILED[key]
 
 
-def simulate(
-    model: SheetModel,
-    protocol: Protocol,
-    *,
-    friction: AbstractFriction,
-    eps: float,
-    drag: float,
-    ball_drag: float,
-    pre_stretch: float,
-    z_sheet: float,
-    weight: float = 0.0,
-    settings: Settings = Settings(),
-    on_frame: Callable[[dict], None] | None = None,
-    start: dict | None = None,
-    support_stiffness: float = 1e3,
-) -> Result:
+_STEPS: dict = {}
+
+
+def segment_step(solver, batched: bool = False):
+    """Jitted ``step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold)
+    -> (SegmentOutput, frame)``: one save segment of ``solver`` and the frame of its end state
+    (:func:`frame_record` at ``t1``), in one program, so a segment costs one call and one
+    transfer. ``batched``: vmapped over a leading member axis of every input but the layout
+    (a model's float constants, such as Gent's J_m, broadcast)."""
+    key = (solver, batched)
+    if key not in _STEPS:
+
+        def step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold):
+            out = solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
+            return out, frame_record(model, layout, t1, out.y, args, contact_threshold)
+
+        if batched:
+            a = eqx.if_array(0)
+            step = eqx.filter_vmap(step, in_axes=(a, None, a, a, a, a, a, a, a, a, a))
+        _STEPS[key] = eqx.filter_jit(step)
+    return _STEPS[key]
+
+
+def stack(trees):
+    """One pytree with the array leaves of ``trees`` stacked along a new first axis; the
+    non-array parts must be equal (they are the compiled function's constants)."""
+    dyn, static = zip(*(eqx.partition(t, eqx.is_array) for t in trees), strict=True)
+    if any(repr(s) != repr(static[0]) for s in static[1:]):
+        raise ValueError(
+            "simulate_batch: members differ in a non-array part (an int, a string, a class): "
+            f"{static[0]!r} vs {next(s for s in static[1:] if repr(s) != repr(static[0]))!r}"
+        )
+    stacked = jax.tree_util.tree_map(lambda *xs: np.stack([np.asarray(x) for x in xs]), *dyn)
+    return eqx.combine(stacked, static[0])
+
+
+def drive(runs: list[MemberRun]) -> list[Result]:
+    """The host loop of one run (``len(runs) == 1``: :func:`segment_step` as compiled) or of
+    B members in lockstep (the step vmapped over them, one call per save segment for all:
+    :mod:`dynslip.physics.batch`). Each tick asks every member for its next segment, solves
+    them together, and hands each active member its output and frame
+    (:meth:`MemberRun.advance`, :meth:`MemberRun.record`); the first tick is a zero-length
+    segment per member, whose frame is the initial one. Raises ``ValueError`` when the
+    members need different compiled steps (:func:`static_key`)."""
+    first = runs[0]
+    if any(r.key != first.key for r in runs[1:]):
+        raise ValueError(
+            "simulate_batch: the members need different compiled solves (solver settings, mesh "
+            "size or a non-array part of the model); run them in separate batches"
+        )
+    batched = len(runs) > 1
+    step = segment_step(first.solver, batched)
+    layout = first.layout
+    key = ("batch", len(runs), *first.key) if batched else first.key
+    if batched:
+        model = stack([r.model for r in runs])
+        tol = (np.asarray([float(r.rtol) for r in runs]), np.asarray([float(r.atol) for r in runs]))
+        thr = np.asarray([float(r.settings.contact_threshold) for r in runs])
+    else:
+        model, tol, thr = (
+            first.model,
+            (first.rtol, first.atol),
+            _f(first.settings.contact_threshold),
+        )
+    while not all(r.done for r in runs):
+        segs = [r.segment() for r in runs]
+        if batched:
+            seg = (
+                np.stack([np.asarray(s.y) for s in segs]),
+                np.asarray([s.t0 for s in segs]),
+                np.asarray([s.t1 for s in segs]),
+                np.asarray([s.dt0 for s in segs]),
+                stack([s.args for s in segs]),
+            )
+            rate = jax.tree_util.tree_map(
+                lambda *r: np.stack([np.asarray(x) for x in r]), *[s.rate for s in segs]
+            )
+        else:
+            s = segs[0]
+            seg, rate = (s.y, _f(s.t0), _f(s.t1), _f(s.dt0), s.args), s.rate
+        inputs = (model, layout, *seg, *tol, rate, thr)
+        active = [b for b, r in enumerate(runs) if not r.done]
+        compiled = _compiled(
+            key,
+            lambda inputs=inputs: step.lower(*inputs).compile(),
+            [runs[b].stats for b in active],
+        )
+        r0 = _time.perf_counter()
+        out, frames = jax.device_get(compiled(*inputs))
+        # the tick's time, shared by its active members
+        run_s = (_time.perf_counter() - r0) / len(active)
+        lockstep = int(np.max(out.steps))  # the tick's cost: the batch's largest increment count
+        for b in active:
+            r = runs[b]
+            ob, fb = (
+                (out, frames)
+                if not batched
+                else jax.tree_util.tree_map(lambda o, b=b: o[b], (out, frames))
+            )
+            if not r.frames:
+                r.record(fb)
+                continue
+            if batched:
+                r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + lockstep
+            if r.advance(segs[b], ob, run_s):
+                r.record(fb)
+    return [r.result() for r in runs]
+
+
+def simulate(model: SheetModel, protocol: Protocol, **kwargs) -> Result:
     """Run ``protocol`` from a flat pre-stretched sheet (or from ``start``, a saved end
     state, see :func:`state_from`); return the saved frames.
+
+    Keyword arguments: ``friction`` (an :class:`~dynslip.physics.friction.AbstractFriction`),
+    ``eps``, ``drag``, ``ball_drag``, ``pre_stretch``, ``z_sheet``, and optionally ``weight``,
+    ``settings`` (:class:`Settings`), ``on_frame`` (called with every frame), ``start`` and
+    ``support_stiffness`` (:class:`MemberRun`).
 
     Raises nothing on solver failure: the result's ``failed`` holds the message and
     ``frames`` what was computed before it (the runner turns it into exit 3). Many members
     of the same shape run in lockstep with :func:`dynslip.physics.batch.simulate_batch`.
     """
-    run = MemberRun(
-        model,
-        protocol,
-        friction=friction,
-        eps=eps,
-        drag=drag,
-        ball_drag=ball_drag,
-        pre_stretch=pre_stretch,
-        z_sheet=z_sheet,
-        weight=weight,
-        settings=settings,
-        on_frame=on_frame,
-        start=start,
-        support_stiffness=support_stiffness,
-    )
-    solve = segment_solver(settings)
-    layout, thr = run.layout, settings.contact_threshold
-    run.record(frame_record(model, layout, _f(run.t), run.y, run.args, thr))
-    while not run.done:
-        seg = run.segment()
-        inputs = (
-            model,
-            layout,
-            seg.y,
-            _f(seg.t0),
-            _f(seg.t1),
-            _f(seg.dt0),
-            seg.args,
-            run.rtol,
-            run.atol,
-            seg.rate,
-        )
-        compiled = _compiled(
-            static_key(settings, layout, model, seg.args),
-            lambda inputs=inputs: solve.lower(*inputs).compile(),
-            [run.stats],
-        )
-        r0 = _time.perf_counter()
-        out = compiled(*inputs)
-        out = jax.block_until_ready(out)
-        run_s = _time.perf_counter() - r0
-        if not run.advance(seg, out, run_s):
-            break
-        if run.heals_between_segments:
-            run.y = reset_internal(model, layout, run.y, seg.args, _f(settings.heal_rate))
-        run.record(frame_record(model, layout, _f(run.t), run.y, seg.args, thr))
-    return run.result()
+    return drive([MemberRun(model, protocol, **kwargs)])[0]
