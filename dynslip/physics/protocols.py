@@ -225,9 +225,10 @@ class Rest(AbstractStop):
 
 
 class BallReactionBelow(AbstractStop):
-    """Ends when the magnitude of the hold's force on the ball falls below ``force`` (G h0 R):
-    for a held ball standing in for one resting on a support (the tube's frame, where the
-    bottle moves with the ball), the moment the support would stop carrying it."""
+    """Ends when the hold's force on the ball (+ up) falls below ``force`` (G h0 R), signed: a
+    held ball standing in for one resting on a support (the tube's frame, where the bottle
+    moves with the ball) ends the stage where the support would stop carrying it, also when a
+    save interval steps past zero into a pull the support cannot give."""
 
     duration: float
 
@@ -244,7 +245,7 @@ class BallReactionBelow(AbstractStop):
         return None
 
     def check(self, frame, t, state):
-        return bool(abs(float(frame["ball_reaction"])) < self.force), state
+        return bool(float(frame["ball_reaction"]) < self.force), state
 
     def scaled(self, factor):
         return BallReactionBelow(force=self.force, duration=self.duration * factor)
