@@ -232,11 +232,8 @@ class SheetModel(eqx.Module):
         $S(F_z, g\,2\pi\rho_c)$ of the sheet's pull along the wall $F_z$ against the grip
         ``band_grip`` $g$ (force per length of the band's circle, units G h0), smoothed as the
         friction law (``eps_density`` times the edge's reference area)."""
-        return soft_threshold(
-            pull,
-            self.band_grip * 2 * jnp.pi * jnp.abs(rho_edge),
-            eps_density * self.mesh.area[-1],
-        )
+        thr = self.band_grip * 2 * jnp.pi * jnp.abs(rho_edge)
+        return soft_threshold(pull, thr, eps_density * self.mesh.area[-1])
 
     def elastic_energy(self, rho, z):
         """Relaxed elastic energy (G h0 R^2); NaN/inf outside the material's range."""
@@ -249,14 +246,10 @@ class SheetModel(eqx.Module):
 
     def held_penalty_energy(self, rho, z):
         """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any)."""
-        x = jnp.stack([rho, z], axis=-1)
-        return sum(
-            (
-                jnp.sum(self.mesh.area * penalty_energy(self.penalty, -e.body.distance(x)))
-                for e in _held_entries(self.bodies)
-            ),
-            jnp.zeros(()),
-        )
+        x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
+        parts = (jnp.sum(a * penalty_energy(pen, -e.body.distance(x))) for e in _held_entries(
+            self.bodies))  # fmt: skip
+        return sum(parts, jnp.zeros(()))
 
     def held_load(self, rho, z):
         """Axial force of the sheet on the held bodies by contact pressure,
@@ -273,18 +266,12 @@ class SheetModel(eqx.Module):
         node (no tangential motion) nor the clamped edge."""
         from dynslip.physics.bodies.held import held_frame
 
-        n = rho.shape[0]
-        idx = jnp.arange(n)
-        return held_frame(
-            self.bodies,
-            jnp.stack([rho, z], axis=-1),
-            f.T,
-            lambda d: penalty_pressure(self.penalty, -d),
-            self.mesh.area,
-            drag,
-            eps_density,
-            (idx > 0) & (idx < n - 1),
-        )
+        idx = jnp.arange(rho.shape[0])
+        live = (idx > 0) & (idx < rho.shape[0] - 1)
+        x, area = jnp.stack([rho, z], axis=-1), self.mesh.area
+        pen = self.penalty
+        return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
+                          eps_density, live)  # fmt: skip
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)
