@@ -6,7 +6,11 @@ cyclic solve, :mod:`dynslip.physics.newton`) at the end state of the frozen let-
 - ``inline``: today's closed form before the change, ``1 - |q|`` and ``q/|q|`` (a body whose
   ``project`` is exactly that arithmetic: the baseline);
 - ``sphere``: the ball as :class:`dynslip.physics.bodies.Sphere` (the default);
-- ``sphere_torus``: the sphere and one held body, a torus rim the sheet lies on.
+- ``sphere_torus``: the sphere and one held body, a torus rim the sheet lies on (frictionless);
+- ``sphere_torus_friction``: the same rim with its own Coulomb friction (mu 0.5,
+  :class:`dynslip.physics.bodies.held.Held`), the ball held (the stage's);
+- ``sphere_torus_friction_free``: the same with the ball under force (its velocity then solves
+  the held friction's scalar equation, and Newton's matrix carries the coupling).
 
 ``python benchmarks/run.py bodies`` (``DYNSLIP_BENCH_BODIES_NODES`` picks sizes, default
 50,200). Times in ms per call, dispatch included; the ratios are the targets' measure (sphere
@@ -68,6 +72,8 @@ def _one(nodes: int) -> dict:
     from dynslip.app.forming import build_core
     from dynslip.physics import newton as nw
     from dynslip.physics.bodies import Sphere, Torus
+    from dynslip.physics.bodies.held import Held
+    from dynslip.physics.friction import Coulomb
     from dynslip.physics.linalg import bordered_solve
     from dynslip.physics.simulate import MemberRun, simulate
     from dynslip.schema.base import load
@@ -102,22 +108,37 @@ def _one(nodes: int) -> dict:
     # the edge
     k = int(0.6 * (nodes - 1))
     rim = Torus(ring_radius=float(rho[k]), minor_radius=0.2, centre_z=float(z[k]) - 0.19)
+    held = Held(rim, Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3)))
     models = {
-        "inline": dataclasses.replace(model, ball=_inline_ball()),
-        "sphere": dataclasses.replace(model, ball=Sphere()),
-        "sphere_torus": dataclasses.replace(model, ball=Sphere(), bodies=(rim,)),
+        "inline": (dataclasses.replace(model, ball=_inline_ball()), inc),
+        "sphere": (dataclasses.replace(model, ball=Sphere()), inc),
+        "sphere_torus": (dataclasses.replace(model, ball=Sphere(), bodies=(rim,)), inc),
+        "sphere_torus_friction": (
+            dataclasses.replace(model, ball=Sphere(), bodies=(held,)),
+            dataclasses.replace(inc, args=dataclasses.replace(args, ball_mode=jnp.asarray(0))),
+        ),
+        "sphere_torus_friction_free": (
+            dataclasses.replace(model, ball=Sphere(), bodies=(held,)),
+            dataclasses.replace(inc, args=dataclasses.replace(args, ball_mode=jnp.asarray(1))),
+        ),
     }
     out = {}
-    for name, m in models.items():
+    for name, (m, inc_m) in models.items():
 
         def iteration(inc, q, zb, m=m):
             r = nw.residual(m, fr, inc, q, zb)
             b = nw.newton_blocks(m, fr, inc, q, zb)
             return bordered_solve(*b, *r, "cyclic")
 
-        out[f"{name}_iteration_ms"] = _ms(jax.jit(iteration), inc, q, zb)
+        out[f"{name}_iteration_ms"] = _ms(jax.jit(iteration), inc_m, q, zb)
     out["ratio_sphere_vs_inline"] = out["sphere_iteration_ms"] / out["inline_iteration_ms"]
     out["ratio_one_body_vs_sphere"] = out["sphere_torus_iteration_ms"] / out["sphere_iteration_ms"]
+    out["ratio_frictional_body_vs_sphere"] = (
+        out["sphere_torus_friction_iteration_ms"] / out["sphere_iteration_ms"]
+    )
+    out["ratio_frictional_body_free_ball_vs_sphere"] = (
+        out["sphere_torus_friction_free_iteration_ms"] / out["sphere_iteration_ms"]
+    )
     return out
 
 

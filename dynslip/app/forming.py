@@ -37,8 +37,28 @@ def build_core(sc):
     material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
+    bodies = ()
+    if p.tube is not None:
+        from dynslip.physics.bodies.apparatus import tube_wall
+        from dynslip.physics.bodies.held import Held
+        from dynslip.physics.friction import Coulomb
+
+        wall = tube_wall(
+            r,
+            od_mm=2 * p.rim_radius_mm,
+            wall_mm=p.tube.wall_mm,
+            height_mm=p.tube.height_mm,
+            rim_z=(r + p.sheet_gap_mm + p.tube.rim_gap_mm) / r,
+        )
+        law = Coulomb(mu=jnp.asarray(p.tube.mu), eps=jnp.asarray(nu.friction_smoothing))
+        bodies = (Held(wall, law),)
+    g_h0 = p.force_scale_N / r  # N/mm
     model = SheetModel(
-        mesh, material, Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width))
+        mesh,
+        material,
+        Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width)),
+        bodies=bodies,
+        band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
     )
     protocol = build_protocol(sc)
     weight = -(p.ball_mass_g * 1e-3 * 9.81) / p.force_scale_N if p.gravity else 0.0

@@ -14,9 +14,10 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
+from dynslip.physics.bodies.held import free_ball_velocity
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import Structure
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 
 EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see sheet_structure)
@@ -90,7 +91,7 @@ class StageArgs(eqx.Module):
     """Everything the vector field needs besides the state: all arrays (one compile)."""
 
     t0: jnp.ndarray
-    clamp_mode: jnp.ndarray  # CLAMP_POSITION or CLAMP_FORCE
+    clamp_mode: jnp.ndarray  # CLAMP_POSITION, CLAMP_FORCE or CLAMP_BAND
     vzc: jnp.ndarray
     vrhoc: jnp.ndarray
     fc0: jnp.ndarray  # (2,) clamp force on the sheet (rho, z) at the ramp's start (force mode)
@@ -140,29 +141,49 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     eta_a = k["eta_a"]
     u = k["u"]
     pinned = args.clamp_mode == CLAMP_POSITION
+    band = args.clamp_mode == CLAMP_BAND
     # Clamp: prescribed velocity (its force on the sheet is dE/dx_c), or a ramped force
-    # with the edge node moving like any free node (drag relative to the ball).
+    # with the edge node moving like any free node (drag relative to the ball), or the band:
+    # carried radially, sliding along the wall at w = S(F_z, grip)/(eta A) relative to the band
+    # (drag relative to the band; the band's force on the sheet is still dE/dx_c).
     f_app = args.clamp_force(t)
     u_c_free = (f_app - jnp.stack([g_rho[-1], g_z[-1]])) / eta_a[-1]
-    crho = jnp.where(pinned, g_rho[-1], f_app[0])
-    cz = jnp.where(pinned, g_z[-1], f_app[1])
+    s_band = model.band_slip(-g_z[-1], rho[-1], args.eps)
+    w_band = jnp.where(band, s_band / eta_a[-1], 0.0)
+    held_edge = pinned | band
+    crho = jnp.where(held_edge, g_rho[-1], f_app[0])
+    cz = jnp.where(held_edge, g_z[-1], f_app[1])
     held = args.ball_mode == BALL_HOLD
     fb = args.ball_force(t) + args.support_force(zb)
-    c_ball = cz - model.held_load(
-        rho, z
-    )  # the sheet's pull on the ball: the held bodies carry the rest
-    vb = jnp.where(held, args.vzb, (fb + c_ball + args.weight) / args.ball_drag)
+    # the sheet's pull on the ball: the held bodies carry the rest, by pressure (held_load) and
+    # by friction (its axial part, which depends on the ball's velocity: bodies.held)
+    c_pen = cz - model.held_load(rho, z)
+    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps)
+    if hf is None:
+        vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
+        c_ball = c_pen
+    else:
+        vb_free = free_ball_velocity(hf, fb + c_pen + args.weight, args.ball_drag)
+        vb = jnp.where(held, args.vzb, vb_free)
+        c_ball = c_pen + hf.axial(vb)
+        u = u + hf.force(vb).T / eta_a
     f_hold = jnp.where(held, args.ball_drag * vb - c_ball - args.weight, fb)
-    u_c = jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), u_c_free)
+    u_c = jnp.where(held_edge, jnp.stack([args.vrhoc, args.vzc - vb + w_band]), u_c_free)
     u = u.at[:, -1].set(u_c)
     v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
-    moving = (jnp.arange(layout.n) < layout.n - 1) | ~pinned  # nodes with constitutive drag
+    moving = (jnp.arange(layout.n) < layout.n - 1) | ~held_edge  # nodes with constitutive drag
     d_drag = (
         jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
     )
     last = jnp.arange(layout.n) == layout.n - 1
     d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
-    w_clamp = cz * v[1, -1] + crho * v[0, -1]
+    if hf is not None:
+        d_fric = d_fric + jnp.sum(hf.dissipation(vb))  # friction on the held bodies
+    # the band: its slip's drag and friction (together F_z w); the clamp's work is the band's
+    # carrier's, at the clamp's velocity
+    d_drag = d_drag + eta_a[-1] * w_band**2
+    d_fric = d_fric + jnp.where(band, (-g_z[-1] - s_band) * w_band, 0.0)
+    w_clamp = cz * (v[1, -1] - w_band) + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
     dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
     dint = None

@@ -40,7 +40,8 @@ block Thomas, with the one-unknown border by a Schur complement).
 
 **Bodies.** The contact geometry is asked of the model's bodies through :func:`contact_gap`
 (the ball, :attr:`SheetModel.ball`, at the relative position $q$; the held bodies,
-:attr:`SheetModel.bodies`, at $q + z_b e_z$, frictionless, docs/bodies.md).
+:attr:`SheetModel.bodies`, at $q + z_b e_z$, each with its own friction law or none:
+:mod:`dynslip.physics.bodies.held`, docs/bodies.md).
 
 Longer than 400 lines: the increment's residual, its Newton matrix and the solver object
 share the node and element terms at the top, and the matrix is checked block by block
@@ -54,11 +55,17 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from dynslip.physics.bodies.held import (
+    free_ball_velocity,
+    frictional,
+    held_entries,
+    held_frame,
+)
 from dynslip.physics.field import Layout, StageArgs, evaluate, heal
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import bordered_solve
 from dynslip.physics.materials import relaxed_energy
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
 __all__ = [
@@ -130,7 +137,10 @@ def _node_penalty(pen, ball, area, q):
 def _held_penalty(model: SheetModel, area, x):
     """Penalty energy of one node at absolute position ``x`` against every held body."""
     return sum(
-        (area * penalty_energy(model.penalty, contact_gap(b, x)[0]) for b in model.bodies),
+        (
+            area * penalty_energy(model.penalty, contact_gap(e.body, x)[0])
+            for e in held_entries(model.bodies)
+        ),
         jnp.zeros(()),
     )
 
@@ -246,9 +256,11 @@ class Increment(eqx.Module):
     args: StageArgs
 
 
-def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
+def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
-    gradient ``g``, and its slip distance at the increment's end (None: memoryless law)."""
+    gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
+    ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
+    (:mod:`dynslip.physics.bodies.held`), needed only when one has friction."""
     args = inc.args
     f = -g
     d, n, t = contact_gap(model.ball, q)
@@ -264,15 +276,50 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
         delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
     s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
     u = (fn * n + s * t) / eta_a
+    if frictional(model.bodies):
+        live = (i > 0) & (i < model.mesh.n - 1)
+        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live)
+        u = u + hf.force(vb) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1
+
+
+def _held_frame(model: SheetModel, x, f, area, args, live):
+    """The held bodies' friction frame at absolute node positions ``x`` (one node or all)."""
+    return held_frame(
+        model.bodies,
+        x,
+        f,
+        lambda d: penalty_pressure(model.penalty, -d),
+        area,
+        args.drag,
+        args.eps,
+        live,
+    )
+
+
+def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
+    """The ball's velocity: :func:`ball_rate`, with the held bodies' friction (its axial part
+    depends on the velocity itself: :func:`dynslip.physics.bodies.held.free_ball_velocity`)."""
+    if not frictional(model.bodies):
+        return ball_rate(inc, g[-1], zb, load)
+    args = inc.args
+    n = q.shape[0]
+    idx = jnp.arange(n)
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    hf = _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1))
+    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
+    cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
+    fb = args.ball_force(inc.t1) + args.support_force(zb)
+    free = free_ball_velocity(hf, fb + (cz - load) + args.weight, args.ball_drag)
+    return jnp.where(args.ball_mode == BALL_HOLD, args.vzb, free)
 
 
 def ball_rate(inc: Increment, g_edge, zb, load):
     """The ball's velocity from the clamp's force on the sheet $C_z$ less the held bodies'
     ``load`` (held: prescribed; force-controlled: $(F_h + F_s(z_b) + C_z - L + F_g)/\\eta_b$)."""
     args = inc.args
-    pinned = args.clamp_mode == CLAMP_POSITION
+    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
     cz = jnp.where(pinned, g_edge[1], args.clamp_force(inc.t1)[1])
     fb = args.ball_force(inc.t1) + args.support_force(zb)
     return jnp.where(
@@ -280,15 +327,20 @@ def ball_rate(inc: Increment, g_edge, zb, load):
     )
 
 
-def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load):
-    """Rate relative to the ball of the clamped edge: prescribed (pinned clamp) or drag under
-    the ramped clamp force."""
+def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load, vb=None, rho_edge=0.0):
+    """Rate relative to the ball of the clamped edge: prescribed (pinned clamp), drag under
+    the ramped clamp force, or the band's (prescribed radially, sliding along the wall past
+    the grip, :meth:`SheetModel.band_slip`, at the edge's radius ``rho_edge``); ``vb`` the
+    ball's velocity (None: :func:`ball_rate`'s)."""
     args = inc.args
     pinned = args.clamp_mode == CLAMP_POSITION
-    vb = ball_rate(inc, g_edge, zb, load)
+    band = args.clamp_mode == CLAMP_BAND
+    if vb is None:
+        vb = ball_rate(inc, g_edge, zb, load)
     eta_a = args.drag * model.mesh.area[-1]
     free = (args.clamp_force(inc.t1) - g_edge) / eta_a
-    return jnp.where(pinned, jnp.stack([args.vrhoc, args.vzc - vb]), free)
+    w = jnp.where(band, model.band_slip(-g_edge[1], rho_edge, args.eps) / eta_a, 0.0)
+    return jnp.where(pinned | band, jnp.stack([args.vrhoc, args.vzc - vb + w]), free)
 
 
 def increment_rates(model, friction, inc: Increment, q, zb, g, load):
@@ -296,18 +348,19 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load):
     distances at the increment's end, from the relative positions and energy gradient."""
     idx = jnp.arange(q.shape[0])
     d0 = inc.delta0
+    vb = ball_velocity(model, inc, q, zb, g, load)
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None))(
+        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None, zb, vb))(
             idx, q, g
         )
         delta1 = None
     else:
-        u, delta1 = jax.vmap(lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di))(
-            idx, q, g, d0
-        )
+        u, delta1 = jax.vmap(
+            lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di, zb, vb)
+        )(idx, q, g, d0)
         delta1 = delta1.at[-1].set(d0[-1])
-    u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load))
-    return u, ball_rate(inc, g[-1], zb, load), delta1
+    u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load, vb, q[-1, 0]))
+    return u, vb, delta1
 
 
 def residual(model, friction, inc: Increment, q, zb):
@@ -321,6 +374,8 @@ def residual(model, friction, inc: Increment, q, zb):
 def newton_blocks(model, friction, inc: Increment, q, zb):
     """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
     (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives."""
+    if frictional(model.bodies):
+        return _blocks_with_held_friction(model, friction, inc, q, zb)
     n = q.shape[0]
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
     idx = jnp.arange(n)
@@ -332,13 +387,13 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
 
     lq, lg = jax.vmap(jax.jacfwd(local, argnums=(1, 2)))(idx, q, g, d0)  # (n, 2, 2) each
     # the clamped edge: rate from its force and the ball height only
-    eg, ez, el = jax.jacfwd(lambda ge, z, ld: edge_rate(model, inc, ge, z, ld), argnums=(0, 1, 2))(
-        g[-1], zb, load
-    )
+    eg, ez, el, er = jax.jacfwd(
+        lambda ge, z, ld, r: edge_rate(model, inc, ge, z, ld, None, r), argnums=(0, 1, 2, 3)
+    )(g[-1], zb, load, q[-1, 0])
     bg, bz, bl = jax.jacfwd(lambda ge, z, ld: ball_rate(inc, ge, z, ld), argnums=(0, 1, 2))(
         g[-1], zb, load
     )
-    lq = lq.at[-1].set(0.0)
+    lq = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er))  # the band's grip reads rho_edge
     lg = lg.at[-1].set(eg)
     h_low = jnp.swapaxes(h_up, 1, 2)  # d2E/dx_{i+1} dx_i
     h = inc.h
@@ -365,6 +420,60 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
         # is left out: an inexact Newton matrix, the residual exact; exact for a held ball)
         diag = diag.at[-1].add(-h * jnp.outer(el, dl_dq[-1]))
         lower = lower.at[-1].add(-h * jnp.outer(el, dl_dq[-2]))
+    return lower, diag, upper, B, C, D
+
+
+def _blocks_with_held_friction(model, friction, inc: Increment, q, zb):
+    r""":func:`newton_blocks` with friction on the held bodies. The node rates depend on the
+    ball's velocity $v_b$ (:func:`ball_velocity`), which reads every node in contact with a
+    frictional body: with $V_j = dv_b/dq_j$ and $V_z = dv_b/dz_b$ (by reverse-mode autodiff
+    of :func:`ball_velocity` and the chain rule through the energy's Hessian), the border row
+    is $-h V$, the column $-h(\ell^g_i\,\partial g_i/\partial z_b + \ell^z_i + \ell^v_i V_z)$,
+    and the rank-one coupling $\ell^v_i V_j$ of the node rates is kept where $|i - j| \le 1$
+    (the rest is not block tridiagonal and is left out: an inexact Newton matrix, the residual
+    exact; with the ball held $V = 0$ and the matrix is exact)."""
+    n = q.shape[0]
+    g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
+    vb = ball_velocity(model, inc, q, zb, g, load)
+    vq, vz, vg, vl = jax.grad(
+        lambda q, zb, g, ld: ball_velocity(model, inc, q, zb, g, ld), argnums=(0, 1, 2, 3)
+    )(q, zb, g, load)
+    idx = jnp.arange(n)
+    mem = inc.delta0 is not None
+    d0 = inc.delta0 if mem else jnp.zeros(n)
+
+    def local(i, qi, gi, di, z, v):
+        return node_rate(model, friction, inc, i, qi, gi, di if mem else None, z, v)[0]
+
+    lq, lg, lz, lv = jax.vmap(
+        jax.jacfwd(local, argnums=(1, 2, 4, 5)), in_axes=(0, 0, 0, 0, None, None)
+    )(idx, q, g, d0, zb, vb)
+    eg, ev, er = jax.jacfwd(
+        lambda ge, v, r: edge_rate(model, inc, ge, zb, load, v, r), argnums=(0, 1, 2)
+    )(g[-1], vb, q[-1, 0])
+    lq, lz = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er)), lz.at[-1].set(0.0)
+    lg, lv = lg.at[-1].set(eg), lv.at[-1].set(ev)
+    h_low = jnp.swapaxes(h_up, 1, 2)  # h_low[j] = d2E/dx_{j+1} dx_j
+    dg_dz = hh[:, :, 1]  # (n, 2): the held bodies see q + zb
+    dl_dq = hh[:, 1, :]
+    dl_dz = jnp.sum(hh[:, 1, 1])
+    # dv_b/dq_j through the forces: sum_i (dv_b/dg_i) H_ij, H tridiagonal
+    big_v = vq + jnp.einsum("ni,nij->nj", vg, h_diag) + vl * dl_dq
+    big_v = big_v.at[1:].add(jnp.einsum("ni,nij->nj", vg[:-1], h_up))
+    big_v = big_v.at[:-1].add(jnp.einsum("ni,nij->nj", vg[1:], h_low))
+    v_z = vz + jnp.sum(vg * dg_dz) + vl * dl_dz
+    h = inc.h
+    eye = jnp.eye(2)
+    rank1 = jnp.einsum("ni,nj->nij", lv, big_v)
+    diag = eye - h * (lq + lg @ h_diag + rank1)
+    upper = -h * (lg[:-1] @ h_up + jnp.einsum("ni,nj->nij", lv[:-1], big_v[1:]))
+    lower = -h * (lg[1:] @ h_low + jnp.einsum("ni,nj->nij", lv[1:], big_v[:-1]))
+    upper = jnp.concatenate([upper, jnp.zeros((1, 2, 2))])
+    lower = jnp.concatenate([jnp.zeros((1, 2, 2)), lower])
+    col = jnp.einsum("nij,nj->ni", lg, dg_dz) + lz + lv * v_z
+    B = -h * col[:, :, None]
+    C = -h * big_v[None]
+    D = jnp.reshape(1.0 - h * v_z, (1, 1))
     return lower, diag, upper, B, C, D
 
 

@@ -44,12 +44,18 @@ __all__ = [
     "BALL_FORCE",
     "CLAMP_POSITION",
     "CLAMP_FORCE",
+    "CLAMP_BAND",
+    "BallReactionBelow",
 ]
 
 BALL_HOLD = 0
 BALL_FORCE = 1
 CLAMP_POSITION = 0
 CLAMP_FORCE = 1
+#: the edge held by a band on the tube's wall: carried radially with the clamp, it holds along
+#: the wall while the sheet's pull there is below the band's grip and slides beyond it
+#: (:attr:`dynslip.physics.sheet.SheetModel.band_grip`, :func:`dynslip.physics.field.evaluate`)
+CLAMP_BAND = 2
 
 
 class AbstractStop(eqx.Module):
@@ -218,8 +224,36 @@ class Rest(AbstractStop):
         )
 
 
+class BallReactionBelow(AbstractStop):
+    """Ends when the hold's force on the ball (+ up) falls below ``force`` (G h0 R), signed: a
+    held ball standing in for one resting on a support (the tube's frame, where the bottle
+    moves with the ball) ends the stage where the support would stop carrying it, also when a
+    save interval steps past zero into a pull the support cannot give."""
+
+    duration: float
+
+    force: float
+    kind: ClassVar[str] = "ball_reaction_below"
+    met_at_duration: ClassVar[bool] = False
+
+    def __check_init__(self):
+        _positive_duration(self.duration)
+        if not self.force > 0:
+            raise ValueError("stop rule ball_reaction_below: the threshold must be > 0")
+
+    def init(self):
+        return None
+
+    def check(self, frame, t, state):
+        return bool(float(frame["ball_reaction"]) < self.force), state
+
+    def scaled(self, factor):
+        return BallReactionBelow(force=self.force, duration=self.duration * factor)
+
+
 STOPS: dict[str, type[AbstractStop]] = {
-    c.kind: c for c in (Duration, ClampForceBelow, ThetaMaxBelow, BallSpeedAbove, Rest)
+    c.kind: c
+    for c in (Duration, ClampForceBelow, ThetaMaxBelow, BallSpeedAbove, Rest, BallReactionBelow)
 }
 
 
@@ -246,6 +280,8 @@ def StopRule(
         return BallSpeedAbove(rate=rate, duration=duration)
     if kind == "rest":
         return Rest(rate=rate, hold=hold, duration=duration)
+    if kind == "ball_reaction_below":
+        return BallReactionBelow(force=force, duration=duration)
     raise ValueError(f"stop rule: unknown kind {kind!r}; allowed: {', '.join(STOPS)}")
 
 
@@ -256,7 +292,10 @@ class Stage:
     ``clamp_mode``: ``CLAMP_POSITION`` (the clamp moves at ``clamp_vz``, ``clamp_vrho``,
     R/s) or ``CLAMP_FORCE`` (the clamp lets go gradually: its force on the sheet,
     (rho, z) components, ramps from its value at the stage start, or
-    ``clamp_force_start``, to ``clamp_force_end``; the edge then moves with drag).
+    ``clamp_force_start``, to ``clamp_force_end``; the edge then moves with drag) or
+    ``CLAMP_BAND`` (the band: the clamp moves as in ``CLAMP_POSITION`` and carries the edge
+    radially; along the wall the edge holds while the sheet's pull is below the band's grip
+    and slides beyond it).
     ``ball_mode``: ``BALL_HOLD``
     (ball centre moves at ``ball_vz``) or ``BALL_FORCE`` (hold reaction ramps from the
     value at the stage start, or ``ball_force_start`` if given, to ``ball_force_end``
@@ -324,7 +363,7 @@ class Protocol:
         t, rho, z = 0.0, self.clamp_rho0, self.clamp_z0
         out = [(t, rho, z)]
         for s in self.stages:
-            if s.clamp_mode != CLAMP_POSITION:
+            if s.clamp_mode == CLAMP_FORCE:
                 break  # a clamp under force control goes where the sheet takes it
             t += s.max_duration
             rho += s.clamp_vrho * s.max_duration

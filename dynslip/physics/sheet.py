@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.friction import AbstractFriction, soft_threshold
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
 
 if TYPE_CHECKING:
@@ -191,6 +191,13 @@ def node_stretches(mesh: Mesh, rho, z):
     return lt, lp
 
 
+def _held_entries(bodies):
+    # imported here: physics.bodies.contact imports this module's penalty
+    from dynslip.physics.bodies.held import held_entries
+
+    return held_entries(bodies)
+
+
 def _unit_sphere() -> AbstractBody:
     # imported here: physics.bodies.contact imports this module's penalty
     from dynslip.physics.bodies.sphere import Sphere
@@ -206,10 +213,11 @@ class SheetModel(eqx.Module):
 
     ``ball`` is the moving body (an :class:`~dynslip.physics.bodies.base.AbstractBody` in its
     reference placement, displaced by ``zb``; the unit sphere by default: today's results);
-    ``bodies`` the held obstacles (a tuple, at their reference placements). A node feels every
-    body it penetrates with the same penalty; the held bodies are frictionless (their force
-    enters through the energy only) and the friction law acts on the ball's tangent
-    (docs/bodies.md).
+    ``bodies`` the held obstacles (a tuple, at their reference placements): a bare body
+    (frictionless) or a :class:`~dynslip.physics.bodies.held.Held` carrying its own friction
+    law. A node feels every body it penetrates with the same penalty; the run's friction law
+    acts on the ball's tangent, each held body's on its own (:meth:`held_friction`,
+    docs/bodies.md).
     """
 
     mesh: Mesh
@@ -217,6 +225,15 @@ class SheetModel(eqx.Module):
     penalty: Penalty
     ball: AbstractBody = eqx.field(default_factory=_unit_sphere)
     bodies: tuple = ()
+    band_grip: float | jnp.ndarray = 0.0
+
+    def band_slip(self, pull, rho_edge, eps_density=0.0):
+        r"""The band's slip force on the edge (clamp mode ``CLAMP_BAND``): the soft threshold
+        $S(F_z, g\,2\pi\rho_c)$ of the sheet's pull along the wall $F_z$ against the grip
+        ``band_grip`` $g$ (force per length of the band's circle, units G h0), smoothed as the
+        friction law (``eps_density`` times the edge's reference area)."""
+        thr = self.band_grip * 2 * jnp.pi * jnp.abs(rho_edge)
+        return soft_threshold(pull, thr, eps_density * self.mesh.area[-1])
 
     def elastic_energy(self, rho, z):
         """Relaxed elastic energy (G h0 R^2); NaN/inf outside the material's range."""
@@ -229,21 +246,32 @@ class SheetModel(eqx.Module):
 
     def held_penalty_energy(self, rho, z):
         """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any)."""
-        x = jnp.stack([rho, z], axis=-1)
-        return sum(
-            (
-                jnp.sum(self.mesh.area * penalty_energy(self.penalty, -b.distance(x)))
-                for b in self.bodies
-            ),
-            jnp.zeros(()),
-        )
+        x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
+        parts = (jnp.sum(a * penalty_energy(pen, -e.body.distance(x))) for e in _held_entries(
+            self.bodies))  # fmt: skip
+        return sum(parts, jnp.zeros(()))
 
     def held_load(self, rho, z):
-        """Axial force of the sheet on the held bodies, $\\sum_i \\partial E_h/\\partial z_i$
-        (G h0 R, + upward): the part of the clamp's pull they carry instead of the ball."""
+        """Axial force of the sheet on the held bodies by contact pressure,
+        $\\sum_i \\partial E_h/\\partial z_i$ (G h0 R, + upward): the part of the clamp's pull they
+        carry instead of the ball (their friction's share: :meth:`held_friction`)."""
         if not self.bodies:
             return jnp.zeros(())
         return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z))
+
+    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0):
+        """The friction of the held bodies at the nodes (:mod:`dynslip.physics.bodies.held`): a
+        :class:`~dynslip.physics.bodies.held.HeldFrame` for node positions ``rho, z`` (N,) and
+        driving forces ``f`` (2, N), or None when no held body has friction. Not on the pole
+        node (no tangential motion) nor the clamped edge."""
+        from dynslip.physics.bodies.held import held_frame
+
+        idx = jnp.arange(rho.shape[0])
+        live = (idx > 0) & (idx < rho.shape[0] - 1)
+        x, area = jnp.stack([rho, z], axis=-1), self.mesh.area
+        pen = self.penalty
+        return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
+                          eps_density, live)  # fmt: skip
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)

@@ -22,7 +22,7 @@ from dynslip.schema.friction import FrictionSpec
 from dynslip.schema.materials import MaterialSpec
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec",
-           "FrictionSpec"]
+           "FrictionSpec", "TubeSpec"]
 
 #: bounds of the loading path: the longest time of a stage (s), the most stages, the most saved
 #: frames
@@ -50,14 +50,16 @@ class StageSpec(Strict):
                                  description="stage duration, in (0, 1e6] s; for condition stages "
                                              "the longest it may run")
     until: Literal[
-        "duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above"
+        "duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above",
+        "ball_reaction_below",
     ] = F(
         "duration",
         description="stop rule: the duration, the clamp's axial force below a "
         "threshold, rest, "
         "the contact edge's polar angle below theta_stop_rad, or the ball's speed above "
         "ball_speed_mm_s (a pull "
-        "has torn the ball out)",
+        "has torn the ball out), or the hold's force on the ball below force_threshold_N (a held "
+        "ball standing in for one on its support: the support would stop carrying it)",
     )
     ball_speed_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e3,
                                       description="until: ball_speed_above: the ball-speed "
@@ -84,10 +86,13 @@ class StageSpec(Strict):
                                      "in (0, 1e4] mm/s")
     rest_hold_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
                                   description="until: rest: for this long, in (0, 1e6] s")
-    clamp: Literal["move", "let_go", "free"] = F(
+    clamp: Literal["move", "let_go", "free", "band"] = F(
         "move", description="move: the clamp holds the edge and moves as given; let_go: its force "
                             "on the sheet is "
-        "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held")
+        "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held; "
+        "band: the band on the tube's wall (moving as given) holds the edge while the sheet's "
+        "pull along the wall is below physics.band_grip_N_per_mm times the band's circumference, "
+        "and lets it slide beyond")
     ball: Literal["hold", "release", "free", "support", "pull"] = F(
         "hold", description="hold: ball held in place; release: the hold's reaction ramped to zero "
                             "over the "
@@ -99,7 +104,7 @@ class StageSpec(Strict):
 
     @model_validator(mode="after")
     def _consistent(self):
-        if self.clamp != "move" and (
+        if self.clamp not in ("move", "band") and (
             self.clamp_to_z_mm is not None or self.clamp_velocity_mm_s != 0.0
         ):
             raise ValueError(f"clamp: {self.clamp} prescribes no clamp motion; drop clamp_to_z_mm "
@@ -124,9 +129,9 @@ class StageSpec(Strict):
         if self.until == "clamp_force_below":
             if self.force_threshold_N is None:
                 raise ValueError("until: clamp_force_below needs force_threshold_N")
-            if self.clamp != "move":
+            if self.clamp not in ("move", "band"):
                 raise ValueError("until: clamp_force_below needs a clamp that holds the edge "
-                                 "(clamp: move)")
+                                 "(clamp: move or band)")
             if (
                 self.clamp_velocity_mm_s == 0.0
                 and self.ball == "hold"
@@ -135,6 +140,12 @@ class StageSpec(Strict):
                 raise ValueError("until: clamp_force_below with a clamp and ball at rest can never "
                                  "hold "
                                  "(nothing unloads the sheet)")
+        if self.until == "ball_reaction_below":
+            if self.force_threshold_N is None:
+                raise ValueError("until: ball_reaction_below needs force_threshold_N")
+            if self.ball != "hold":
+                raise ValueError("until: ball_reaction_below reads a held ball's reaction: it "
+                                 "needs ball: hold")
         if self.until == "ball_speed_above" and self.ball_speed_mm_s is None:
             raise ValueError("until: ball_speed_above needs ball_speed_mm_s")
         if (self.ball == "pull") != (self.ball_force_N is not None):
@@ -172,6 +183,25 @@ def _default_stages() -> list[StageSpec]:
     ]
 
 
+class TubeSpec(Strict):
+    """The tube's wall as a held body, in the tube's frame (scenarios/method2_band.yaml): its
+    outer wall at rim_radius_mm, its end fully rounded (a torus of radius wall_mm / 2), the
+    rim's lowest point rim_gap_mm above the flat sheet, the wall up to height_mm above it;
+    Coulomb friction of the sheet on it."""
+
+    wall_mm: float = F(3.0, unit="mm", gt=0, le=1e3,
+                       description="wall thickness (its end a half torus of radius wall_mm / 2), "
+                                   "in (0, 1e3] mm, below the rim's radius")
+    height_mm: float = F(101.6, unit="mm", gt=0, le=1e4,
+                         description="tube height above the rim, in (0, 1e4] mm")
+    rim_gap_mm: float = F(0.2, unit="mm", gt=0, le=1e3,
+                          description="the rim's lowest point above the flat sheet's initial "
+                                      "height, in (0, 1e3] mm")
+    mu: float = F(0.5, ge=0, le=10,
+                  description="Coulomb coefficient of the sheet on the tube (latex on PVC: "
+                              "0.3-1.0 assumed, docs/bodies.md), in [0, 10]")
+
+
 class FormingPhysics(Strict):
     """Geometry, material, friction and the loading path (physical units)."""
 
@@ -205,6 +235,13 @@ class FormingPhysics(Strict):
     gravity: bool = F(False, description="ball weight on (off by default: a downward-opening "
                                          "membrane pocket "
                       "cannot carry it; physics.md Section 4)")
+    tube: TubeSpec | None = F(None, description="the tube's wall as a held body (the tube's "
+                              "frame: the tube at rest, the ball moved); none by default")
+    band_grip_N_per_mm: float = F(0.0, unit="N/mm", ge=0, le=1e3,
+                                  description="clamp: band: the band's grip, the largest pull "
+                                              "along the wall per length of its circumference "
+                                              "before "
+                                              "the sheet slides under it, in [0, 1e3] N/mm")
     stages: list[StageSpec] = F(default_factory=_default_stages, max_length=MAX_STAGES,
                                 description="the loading path, in order (at most 100 stages)")
 
@@ -219,6 +256,12 @@ class FormingPhysics(Strict):
         if self.rim_radius_mm <= self.ball_radius_mm:
             raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the ball "
                              f"(radius {self.ball_radius_mm} mm)")
+        if self.tube is not None and not self.tube.wall_mm < self.rim_radius_mm:
+            raise ValueError(f"tube.wall_mm = {self.tube.wall_mm}: the rim is thicker than the "
+                             f"tube (allowed: below rim_radius_mm = {self.rim_radius_mm})")
+        if any(s.clamp == "band" for s in self.stages) and self.tube is None:
+            raise ValueError("stages: clamp: band holds the edge on the tube's wall: it needs "
+                             "physics.tube")
         z = self.ball_radius_mm + self.sheet_gap_mm
         known = True
         let_go = False
@@ -226,7 +269,10 @@ class FormingPhysics(Strict):
             if let_go and s.clamp == "move":
                 raise ValueError(f"stages.{s.name}: the clamp cannot hold the edge again once it "
                                  f"has let go")
-            let_go = let_go or s.clamp != "move"
+            if let_go and s.clamp == "band":
+                raise ValueError(f"stages.{s.name}: the band cannot hold the edge again once the "
+                                 f"clamp has let go")
+            let_go = let_go or s.clamp not in ("move", "band")
             if s.clamp_to_z_mm is not None:
                 if not known:
                     raise ValueError(f"stages.{s.name}: clamp_to_z_mm after a condition stage "
@@ -399,6 +445,7 @@ def _stop_rule(s, duration: float, r: float, fs: float):
     params = {
         "duration": lambda: {},
         "clamp_force_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
+        "ball_reaction_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
         "theta_max_below": lambda: {"angle": s.theta_stop_rad or 0.0},
         "ball_speed_above": lambda: {"rate": (s.ball_speed_mm_s or 0.0) / r},
         "rest": lambda: {"rate": (s.rest_rate_mm_s or 0.0) / r, "hold": s.rest_hold_s or 0.0},
@@ -408,7 +455,14 @@ def _stop_rule(s, duration: float, r: float, fs: float):
 
 def build_protocol(sc: FormingScenario):
     """The core :class:`dynslip.physics.protocols.Protocol` (nondimensional) of a scenario."""
-    from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_FORCE, Protocol, Stage
+    from dynslip.physics.protocols import (
+        BALL_FORCE,
+        BALL_HOLD,
+        CLAMP_BAND,
+        CLAMP_FORCE,
+        Protocol,
+        Stage,
+    )
 
     p = sc.physics
     r = p.ball_radius_mm
@@ -431,6 +485,8 @@ def build_protocol(sc: FormingScenario):
             ckw = {"clamp_mode": CLAMP_FORCE}
         elif s.clamp == "free":
             ckw = {"clamp_mode": CLAMP_FORCE, "clamp_force_start": (0.0, 0.0)}
+        elif s.clamp == "band":
+            ckw = {"clamp_vz": vz, "clamp_mode": CLAMP_BAND}
         if s.ball == "hold":
             stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD,
                                 ball_vz=s.ball_velocity_mm_s / r, **ckw))

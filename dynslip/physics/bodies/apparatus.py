@@ -75,15 +75,20 @@ def bottle(
 
 
 def tube_wall(
-    ball_radius_mm: float, od_mm: float = 101.6, wall_mm: float = 3.0, height_mm: float = 101.6
+    ball_radius_mm: float,
+    od_mm: float = 101.6,
+    wall_mm: float = 3.0,
+    height_mm: float = 101.6,
+    rim_z: float = 0.0,
 ) -> Cylinder:
-    """The tube's wall with a fully rounded end, its rim (lowest point) at z = 0: displace it
-    by the clamp's height. Units of R."""
+    """The tube's wall with a fully rounded end (a half torus of radius ``wall_mm / 2``, the
+    outer wall a cylinder of radius ``od_mm / 2``), its rim (lowest point) at ``rim_z`` (units
+    of R; 0: displace it by the clamp's height). Units of R."""
     R = float(ball_radius_mm)
     ro, w = od_mm / 2 / R, wall_mm / R
     if not 0 < w < ro:
         raise BodyGeometryError(f"tube wall {wall_mm:g} mm, must be in (0, tube radius)")
-    return Cylinder(ro, 0.0, height_mm / R, inner_radius=ro - w, edge_radius=w / 2)
+    return Cylinder(ro, rim_z, rim_z + height_mm / R, inner_radius=ro - w, edge_radius=w / 2)
 
 
 def deepest_rim(ball_radius_mm: float, height_mm: float = 101.6) -> float:

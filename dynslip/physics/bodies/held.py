@@ -1,0 +1,203 @@
+r"""Friction on the held bodies (issue 21 item 3): each held body carries its own law.
+
+A held body is an entry of :attr:`dynslip.physics.sheet.SheetModel.bodies`: a bare
+:class:`~.base.AbstractBody` (frictionless, the default) or a :class:`Held` pairing the body
+with a friction law (:mod:`dynslip.physics.friction`, memoryless: Coulomb, or any law with the
+interface ``threshold(fn, internal=None, area=None)``, e.g. a pressure-dependent one).
+
+**The law.** Node $i$ touching held body $k$ (penalty normal force $N_{ik} > 0$, the body's
+tangent $t_k$ at the node) slips *relative to that body*, which is at rest. The sheet's drag
+stays relative to the ball, $\eta A(\dot x - v_b e_z) = F + f$ (one drag frame for every
+node, so the rates are continuous where a node comes into or leaves contact), and the friction
+force $f_{ik} = f_{ik} t_k$ is the return map of the slip relative to the body,
+$w = \dot x\cdot t_k$:
+
+$$G_{ik} = F_i\cdot t_k + \eta A_i v_b t_{k,z},\qquad
+  \eta A_i\, w = S(G_{ik}, \mu_k N_{ik}),\qquad f_{ik} = S - G_{ik},$$
+
+$G$ the tangential force that would keep the node at rest on the body (the driving force plus
+the drag the ball's motion drags it with). Stuck ($|G| \le \mu N$): $w = 0$ exactly; slipping:
+$|f| = \mu N$. With the ball at rest (held, or on its support) this is the ball's law on the
+body's tangent. Its power $-f w = (G - S)S/(\eta A) \ge 0$ is the friction dissipation; the
+friction's reaction acts on the body, so the axial load the held bodies carry is the penalty's
+$L = \sum_i \partial E_h/\partial z_i$ less $\sum_{ik} f_{ik} t_{k,z}$, and the ball does not
+feel it. The pole node (no tangential motion) and the clamped edge carry no held friction.
+
+A node touching several bodies gets the sum of each body's friction, each from the node's own
+driving force (not coupled: exact for one body at a time, which is the case away from corners
+where two bodies meet).
+
+**The ball's velocity.** A force-controlled ball moves at
+$v_b = (F_h + F_s + C_z - L(v_b) + F_g)/\eta_b$, and $L$ depends on $v_b$ through $G$: a
+scalar equation $g(v_b) = \eta_b v_b - A_0 - \sum f_{ik}t_{k,z} = 0$, strictly increasing
+($g' = \eta_b + \sum_{ik}(1 - S')\eta A_i t_{k,z}^2 \ge \eta_b$) with its root in
+$[(A_0 - B)/\eta_b, (A_0 + B)/\eta_b]$, $B = \sum \mu N|t_z|$. Solved by safeguarded Newton
+(:func:`free_ball_velocity`), differentiated by the implicit function theorem (one Newton step
+from the stopped root).
+
+Example::
+
+    >>> import jax.numpy as jnp
+    >>> from dynslip.physics.bodies.torus import Torus
+    >>> from dynslip.physics.friction import Coulomb
+    >>> entries = held_entries((Torus(2.0, 0.2), Held(Torus(3.0, 0.2), Coulomb(mu=0.5))))
+    >>> [e.friction is None for e in entries]
+    [True, False]
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from dynslip.physics.bodies.base import AbstractBody
+from dynslip.physics.friction import AbstractFriction
+
+__all__ = ["Held", "HeldFrame", "free_ball_velocity", "held_entries", "held_frame"]
+
+#: safeguarded Newton iterations of the free ball's velocity (piecewise smooth and monotone: a
+#: few steps land on the linear piece of the root; each iteration halves the bracket at worst)
+BALL_ITERATIONS = 24
+
+
+class Held(eqx.Module):
+    """A held body and its friction law against the sheet (None: frictionless)."""
+
+    body: AbstractBody
+    friction: AbstractFriction | None = None
+
+    def __check_init__(self):
+        if self.friction is not None and self.friction.n_internal() != 0:
+            raise ValueError(
+                "a held body's friction law must be memoryless (Coulomb, or a law of the "
+                f"contact pressure); {type(self.friction).__name__} carries a per-node state"
+            )
+
+
+def held_entries(bodies) -> tuple:
+    """The model's held bodies as :class:`Held` entries (a bare body: frictionless)."""
+    return tuple(b if isinstance(b, Held) else Held(b) for b in bodies)
+
+
+def frictional(bodies) -> bool:
+    """Whether any held body carries a friction law (static)."""
+    return any(e.friction is not None for e in held_entries(bodies))
+
+
+class HeldFrame(eqx.Module):
+    """Per frictional held body k and node (trailing shape ``...``): the tangent ``t`` (K, ..., 2),
+    the normal force ``normal`` (K, ...), the driving force along the tangent ``ft`` (K, ...),
+    and the drag coefficient ``eta_a`` (...). ``laws`` the K friction laws, ``eps`` the
+    smoothing per node, ``area`` the reference areas, ``live`` where held friction acts."""
+
+    t: jnp.ndarray
+    normal: jnp.ndarray
+    ft: jnp.ndarray
+    eta_a: jnp.ndarray
+    eps: jnp.ndarray
+    area: jnp.ndarray
+    live: jnp.ndarray
+    laws: tuple
+
+    def slip(self, vb):
+        """``(G, S)`` per body and node (K, ...) at the ball's velocity ``vb``."""
+        g = jnp.stack(
+            [self.ft[k] + self.eta_a * vb * self.t[k][..., 1] for k in range(len(self.laws))]
+        )
+        s = jnp.stack(
+            [
+                law.slip_force(g[k], self.normal[k], None, eps=self.eps, area=self.area)
+                for k, law in enumerate(self.laws)
+            ]
+        )
+        return g, s
+
+    def force(self, vb):
+        """The held friction force on each node (..., 2), summed over the bodies."""
+        g, s = self.slip(vb)
+        f = jnp.where(self.live, s - g, 0.0)
+        return jnp.sum(f[..., None] * self.t, axis=0)
+
+    def dissipation(self, vb):
+        """Friction power on the held bodies per node (...), $(G - S)S/(\\eta A) \\ge 0$."""
+        g, s = self.slip(vb)
+        return jnp.sum(jnp.where(self.live, (g - s) * s / self.eta_a, 0.0), axis=0)
+
+    def axial(self, vb):
+        """$\\sum_{ik} f_{ik} t_{k,z}$: the axial friction force on the sheet (its reaction on the
+        bodies)."""
+        return jnp.sum(self.force(vb)[..., 1])
+
+    def bound(self):
+        """$B = \\sum \\mu N |t_z|$, the largest the axial friction can be."""
+        thr = jnp.stack(
+            [law.threshold(self.normal[k], None, self.area) for k, law in enumerate(self.laws)]
+        )
+        return jnp.sum(jnp.where(self.live, thr * jnp.abs(self.t[..., 1]), 0.0))
+
+
+def held_frame(bodies, x, f, normal_of, area, drag, eps, live) -> HeldFrame | None:
+    """The :class:`HeldFrame` of the frictional held bodies at node positions ``x`` (..., 2)
+    (absolute), driving forces ``f`` (..., 2), reference areas ``area`` (...); ``normal_of(d)``
+    the penalty's normal force per reference area of a signed distance; ``live`` where held
+    friction acts (not the pole, not the clamped edge). None when no held body has friction."""
+    laws, ts, ns, fts = [], [], [], []
+    for e in held_entries(bodies):
+        if e.friction is None:
+            continue
+        p = e.body.project(x)
+        laws.append(e.friction)
+        ts.append(p.tangent)
+        ns.append(area * normal_of(p.distance))
+        fts.append(jnp.sum(f * p.tangent, axis=-1))
+    if not laws:
+        return None
+    return HeldFrame(
+        t=jnp.stack(ts),
+        normal=jnp.stack(ns),
+        ft=jnp.stack(fts),
+        eta_a=drag * area,
+        eps=eps * area,
+        area=area,
+        live=live,
+        laws=tuple(laws),
+    )
+
+
+def free_ball_velocity(frame: HeldFrame | None, a0, ball_drag):
+    r"""The force-controlled ball's velocity: the root of $\eta_b v - A_0 - \sum f t_z(v) = 0$
+    (module docstring), ``a0`` $= F_h + F_s + C_z - L_{pen} + F_g$. Without frictional held
+    bodies, $A_0/\eta_b$."""
+    if frame is None:
+        return a0 / ball_drag
+
+    def g(v):
+        return ball_drag * v - a0 - frame.axial(v)
+
+    # the root search runs on stopped values (its derivative is the last line's)
+    fs = jax.tree_util.tree_map(lambda a: jax.lax.stop_gradient(a) if eqx.is_array(a) else a, frame)
+    a0s = jax.lax.stop_gradient(a0)
+
+    def gs(v):
+        return ball_drag * v - a0s - fs.axial(v)
+
+    b = fs.bound()
+    lo0, hi0 = (a0s - b) / ball_drag, (a0s + b) / ball_drag
+
+    def step(_, c):
+        v, lo, hi = c
+        gv, dg = jax.jvp(gs, (v,), (jnp.ones_like(v),))
+        lo = jnp.where(gv < 0, v, lo)
+        hi = jnp.where(gv > 0, v, hi)
+        vn = v - gv / jnp.where(dg > 0, dg, 1.0)
+        inside = (vn > lo) & (vn < hi)
+        vn = jnp.where(gv == 0, v, jnp.where(inside, vn, 0.5 * (lo + hi)))
+        return vn, lo, hi
+
+    v0 = jnp.clip(a0s / ball_drag, lo0, hi0)
+    root = jax.lax.stop_gradient(jax.lax.fori_loop(0, BALL_ITERATIONS, step, (v0, lo0, hi0))[0])
+    # one Newton step from the stopped root: its value is the root, its derivative the implicit
+    # function theorem's -g_x / g_v
+    gv, dg = jax.jvp(g, (root,), (jnp.ones_like(root),))
+    return root - gv / dg
