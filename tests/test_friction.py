@@ -35,13 +35,14 @@ def test_the_schema_builds_the_physics_from_the_one_registry_of_each_kind():
     from dynslip.schema.forming import FrictionSpec, StageSpec, _stop_rule
     from dynslip.schema.materials import MaterialSpec
 
-    r, eps = 20.0, 1e-3
+    r, eps, p_scale = 20.0, 1e-3, 5.0
     for law in FRICTION_LAWS:
         spec = FrictionSpec(law=law)
-        built = spec.core(r, eps)
+        built = spec.core(r, eps, pressure_scale_kPa=p_scale)
         assert type(built) is FRICTION_LAWS[law]
         same = make_friction(law, mu=spec.mu, mu_s=spec.mu_s, mu_k=spec.mu_k, d_c=spec.d_c_mm / r,
-                             eps=eps)
+                             eps=eps, mu_ref=spec.mu_ref, p_ref=spec.p_ref_kPa / p_scale,
+                             a=spec.exponent, mu_max=spec.mu_max)
         assert eqx.tree_equal(built, same)
     for model in MATERIALS:
         spec = MaterialSpec(model=model, jm=40.0, c1=0.3)

@@ -80,7 +80,7 @@ def build_core(sc):
         max_chord_depth=nu.max_chord_depth,
     )
     kwargs = dict(
-        friction=p.friction.core(r, nu.friction_smoothing),
+        friction=p.friction.core(r, nu.friction_smoothing, 1e3 * p.force_scale_N / r**2),
         eps=nu.friction_smoothing,
         drag=nu.drag_time_s,
         ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),

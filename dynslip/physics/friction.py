@@ -34,11 +34,28 @@ save segment, :func:`dynslip.physics.simulate.simulate`), so its time resolution
 save interval.
 Slip-distance weakening is rate independent (no time scale enters $\mu$) and well
 posed for $d_c > 0$; velocity weakening is neither and is not offered.
+
+:class:`PressureDependent` (physics.md Section 4, "The experiment's world": rubber on a smooth
+hard surface) makes the coefficient fall as the contact pressure $p = N/A$ rises, the power law
+of Schallamach (1952),
+
+$$\mu(p) = \min\bigl(\mu_\mathrm{ref}\,(p/p_\mathrm{ref})^{-a},\ \mu_\mathrm{max}\bigr),
+  \qquad 0 \le a < 1,$$
+
+the minimum rounded to $C^1$ in $\ln\mu$ over a band of relative width $e^{\pm w}$ below
+$\mu_\mathrm{max}$ (:func:`capped_log`), so that the threshold $\mu(p) N$ is $C^1$ in $N$
+and its derivative, which the return map differentiates, stays between $(1-a)\mu$ and
+$\mu_\mathrm{max}$. The power law alone makes $\mu \to \infty$ as $p \to 0$ (its
+derivative $d(\mu N)/dN = (1-a)\mu$ too); the bound $\mu_\mathrm{max}$ is where the
+power law is no longer rubber's friction. At $a = 0$ the law is :class:`Coulomb` exactly.
+:func:`capstan_reference_tension` is the tension at which a strip test measures
+$\mu_\mathrm{ref}$ when the strip's friction follows this law.
 """
 
 from __future__ import annotations
 
 import abc
+import math
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -48,6 +65,9 @@ __all__ = [
     "FRICTION_LAWS",
     "Coulomb",
     "SlipWeakening",
+    "PressureDependent",
+    "capped_log",
+    "capstan_reference_tension",
     "soft_threshold",
     "make_friction",
     "heals",
@@ -182,13 +202,98 @@ class SlipWeakening(AbstractFriction):
         return jnp.where(heals(slip_speed, normal, heal_rate), 0.0, internal)
 
 
+#: width $w$ of the $C^1$ rounding of the cap, in $\ln\mu$: the power law holds exactly where
+#: $\mu \le \mu_\mathrm{max} e^{-w}$ (5% below the cap), the cap where it would exceed
+#: $\mu_\mathrm{max} e^{w}$
+CAP_BLEND = 0.05
+
+#: the smallest pressure the law evaluates its power at, relative to $p_\mathrm{ref}$ (below it,
+#: and below the cap's pressure, $\mu$ is the cap); keeps $p^{-a}$ and its derivative finite
+_P_FLOOR = 1e-200
+
+
+def capped_log(x, w):
+    r"""$C^1$ rounding of $\min(x, 0)$ on $|x| < w$: $x$ for $x \le -w$,
+    $x - (x + w)^2/(4w)$ between, $0$ at $x = w$ and beyond (the callers clip $x \le w$)."""
+    return jnp.where(x <= -w, x, x - (x + w) ** 2 / (4.0 * w))
+
+
+class PressureDependent(AbstractFriction):
+    r"""Friction falling with the contact pressure (Schallamach), bounded at low pressure
+    (module docstring).
+
+    ``mu_ref``: the coefficient at the reference pressure ``p_ref`` ($G h_0/R$, $> 0$);
+    ``a``: the exponent, $0 \le a < 1$ ($a \ge 1$: a friction force that does not rise with
+    the load); ``mu_max``: the bound, at least $\mu_\mathrm{ref} e^{w}$ so that the law
+    passes through $(p_\mathrm{ref}, \mu_\mathrm{ref})$ exactly; ``blend``: $w$. The pressure
+    is $p = N/A$ with ``area`` $A$ as the solver passes it (the node's reference area:
+    force per reference area). Memoryless.
+    """
+
+    mu_ref: float | jnp.ndarray = 0.99
+    p_ref: float | jnp.ndarray = 0.2
+    a: float | jnp.ndarray = 1.0 / 3.0
+    mu_max: float | jnp.ndarray = 2.18
+    blend: float | jnp.ndarray = CAP_BLEND
+    eps: float | jnp.ndarray = 0.0
+
+    def mu(self, p):
+        r"""$\mu(p)$ per node, $p \ge 0$ in the units of ``p_ref``."""
+        a = jnp.asarray(self.a, dtype=float)
+        w = self.blend
+        # the pressure above which the power law is below the top of the blend band, mu_max e^w
+        a_safe = jnp.where(a > 0, a, 1.0)
+        ratio = self.mu_ref / (self.mu_max * jnp.exp(w))
+        p_cap = jnp.where(a > 0, self.p_ref * ratio ** (1.0 / a_safe), 0.0)
+        pc = jnp.maximum(jnp.maximum(p, p_cap), _P_FLOOR * self.p_ref)
+        mu_pow = self.mu_ref * (pc / self.p_ref) ** (-a)
+        x = jnp.log(mu_pow / self.mu_max)
+        capped = self.mu_max * jnp.exp(capped_log(x, w))
+        return jnp.where(x <= -w, mu_pow, capped)
+
+    def threshold(self, fn, internal=None, area=None):
+        if area is None:
+            raise ValueError("PressureDependent friction needs the node's area (p = N / A)")
+        n = jnp.maximum(fn, 0.0)
+        return self.mu(n / area) * n
+
+    def coefficient(self, internal, n: int, fn=None, area=None):
+        r"""$\mu(N/A)$ per node given the normal force and area; NaN without them (the law's
+        coefficient is a function of the pressure, not of a state)."""
+        if fn is None or area is None:
+            return jnp.full(n, jnp.nan, dtype=float)
+        return self.mu(jnp.maximum(fn, 0.0) / area)
+
+
+def capstan_reference_tension(t_hold, t_load, a):
+    r"""The tension $T_\mathrm{ref}$ at which a capstan strip test, read with the belt formula
+    $\mu = \ln(T_\mathrm{load}/T_\mathrm{hold})/\theta$, measures $\mu_\mathrm{ref} = \mu$
+    of a strip whose friction follows $\mu = \mu_\mathrm{ref}(T/T_\mathrm{ref})^{-a}$
+    (pressure $T/(R w)$ proportional to the tension, below the cap).
+
+    $dT/d\theta = \mu_\mathrm{ref} (T/T_\mathrm{ref})^{-a} T$ integrates to
+    $T_\mathrm{load}^a - T_\mathrm{hold}^a = a\,\mu_\mathrm{ref} T_\mathrm{ref}^a\,\theta$;
+    with $\mu_\mathrm{ref}\theta = \ln(T_\mathrm{load}/T_\mathrm{hold})$,
+    $T_\mathrm{ref} = [(T_\mathrm{load}^a - T_\mathrm{hold}^a)/(a \ln(T_\mathrm{load}/
+    T_\mathrm{hold}))]^{1/a}$, a mean of the two tensions (their logarithmic mean's
+    generalisation; $\sqrt{T_\mathrm{hold} T_\mathrm{load}}$ as $a \to 0$). Plain floats.
+    """
+
+    lr = math.log(t_load / t_hold)
+    if a == 0:
+        return math.sqrt(t_hold * t_load)
+    return ((t_load**a - t_hold**a) / (a * lr)) ** (1.0 / a)
+
+
 #: the one registry of friction laws: a law's name (the schema's ``law``) -> its class; the
 #: schema builds them (:meth:`dynslip.schema.friction.FrictionSpec.core`)
 FRICTION_LAWS: dict[str, type[AbstractFriction]] = {"coulomb": Coulomb,
-                                                     "slip_weakening": SlipWeakening}
+                                                     "slip_weakening": SlipWeakening,
+                                                     "pressure": PressureDependent}
 
 
-def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0) -> AbstractFriction:
+def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0, mu_ref=0.99,
+                  p_ref=0.2, a=1.0 / 3.0, mu_max=2.18) -> AbstractFriction:
     """A friction law by name (:data:`FRICTION_LAWS`), parameters as jnp scalars, for code that
     holds no schema (the benchmarks, and tests of the physics alone)."""
     f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
@@ -202,4 +307,14 @@ def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0) 
         if not d_c > 0:
             raise ValueError(f"slip_weakening: need d_c > 0, got {d_c}")
         return SlipWeakening(mu_s=f(mu_s), mu_k=f(mu_k), d_c=f(d_c), eps=f(eps))
+    if law == "pressure":
+        if not 0 <= a < 1:
+            raise ValueError(f"pressure: need 0 <= a < 1, got a = {a}")
+        if not p_ref > 0:
+            raise ValueError(f"pressure: need p_ref > 0, got {p_ref}")
+        if not mu_max >= mu_ref * math.exp(CAP_BLEND) or mu_ref < 0:
+            raise ValueError(f"pressure: need 0 <= mu_ref and mu_max >= mu_ref e^{CAP_BLEND:g}, "
+                             f"got mu_ref = {mu_ref}, mu_max = {mu_max}")
+        return PressureDependent(mu_ref=f(mu_ref), p_ref=f(p_ref), a=f(a), mu_max=f(mu_max),
+                                 blend=f(CAP_BLEND), eps=f(eps))
     raise ValueError(f"unknown friction law {law!r}")
