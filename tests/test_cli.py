@@ -63,7 +63,7 @@ def test_parse_override_types():
 def test_schema_lists_units():
     """Every field whose name carries a unit suffix lists that unit in the unit column."""
     text = schema_reference()
-    suffix = {"_mm_s": "mm/s", "_mm": "mm", "_MPa": "MPa", "_N": "N"}
+    suffix = {"_N_per_mm": "N/mm", "_mm_s": "mm/s", "_mm": "mm", "_MPa": "MPa", "_N": "N"}
     checked = 0
     for line in text.splitlines():
         cols = line.split()
