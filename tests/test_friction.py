@@ -53,7 +53,9 @@ def test_the_schema_builds_the_physics_from_the_one_registry_of_each_kind():
               "clamp_force_below": {"force_threshold_N": 0.02, "clamp_velocity_mm_s": 1.0},
               "rest": {"rest_rate_mm_s": 0.002, "rest_hold_s": 2.0},
               "theta_max_below": {"theta_stop_rad": 1.0},
-              "ball_speed_above": {"ball_speed_mm_s": 0.1}}
+              "ball_speed_above": {"ball_speed_mm_s": 0.1},
+              "ball_reaction_below": {"force_threshold_N": 0.02, "ball": "hold",
+                                      "ball_velocity_mm_s": -1.0}}
     assert set(stages) == set(STOPS)
     for until, kw in stages.items():
         stop = _stop_rule(StageSpec(name="s", until=until, duration_s=5.0, **kw), 5.0, r, 2.0)
@@ -65,3 +67,6 @@ def test_the_schema_builds_the_physics_from_the_one_registry_of_each_kind():
     clamp = _stop_rule(StageSpec(name="s", until="clamp_force_below", duration_s=5.0,
                                  **stages["clamp_force_below"]), 5.0, r, 2.0)
     assert clamp.force == pytest.approx(0.02 / 2.0)
+    reaction = _stop_rule(StageSpec(name="s", until="ball_reaction_below", duration_s=5.0,
+                                    **stages["ball_reaction_below"]), 5.0, r, 2.0)
+    assert reaction.force == pytest.approx(0.02 / 2.0)
