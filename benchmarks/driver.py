@@ -1,8 +1,9 @@
 """The host driver's share of a whole run: the frozen let-go path
 (``benchmarks/method2_let_go.yaml``) run twice per N in one process
-(``DYNSLIP_BENCH_DRIVER_NODES=50,200``), the second run warm (no compile): its wall time against ``run_s``,
-the time inside the compiled segment calls, measured in the same run. ``host_s = wall_s - run_s`` is what the driver costs between the calls (stage
-set-up, inputs, transfers, frames, stop rules); per save segment and as a share of the wall."""
+(``DYNSLIP_BENCH_DRIVER_NODES=50,200``), the second run warm (no compile): its wall time against
+``run_s``, the time inside the compiled segment calls, measured in the same run. ``host_s =
+wall_s - run_s`` is what the driver costs between the calls (stage set-up, inputs, transfers,
+frames, stop rules); per save segment and as a share of the wall."""
 
 from __future__ import annotations
 
