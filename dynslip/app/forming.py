@@ -248,7 +248,30 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
     outs.json(summary)
     if outs.writes:
         make_figures(ds, outs.folder, summary.get("outcome"))
+        if model.bodies:
+            _world_figure(sc, ds, model, outs, summary.get("outcome"))
     return summary
+
+
+def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
+    """``world.png``: the meridian with the ball and every held body (the tube's wall, the
+    bottle), at the widest contact of the run and at its end."""
+    import textwrap
+
+    from dynslip.data.files import save_figure
+    from dynslip.physics.bodies.held import held_entries
+    from dynslip.plot.world import plot_world
+
+    entries = held_entries(model.bodies)
+    held = [e.body for e in entries if not getattr(e, "moves_with_ball", False)]
+    with_ball = [e.body for e in entries if getattr(e, "moves_with_ball", False)]
+    theta = ds["theta_max"].values
+    widest = int(np.nanargmax(theta)) if np.isfinite(theta).any() else 0
+    frames = {"widest contact": widest, "end": ds.sizes["time"] - 1}
+    end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
+    fig = plot_world(ds, frames, held=held, with_ball=with_ball, limits=None,
+                     title=f"{sc.name} (N = {ds.sizes['rbar']})\n{end}")
+    save_figure(fig, outs.folder / "world.png", dpi=120)
 
 
 def _print_summary(console, s: dict) -> None:

@@ -13,10 +13,19 @@ __all__ = ["plot_world"]
 
 
 def plot_world(
-    ds: xr.Dataset, frames: dict, held=(), with_clamp=(), out: Path | None = None, title: str = ""
+    ds: xr.Dataset,
+    frames: dict,
+    held=(),
+    with_clamp=(),
+    out: Path | None = None,
+    title: str = "",
+    with_ball=(),
+    limits=((0, 3.2), (-6.5, 2.0)),
 ) -> Figure:
-    """``frames``: label -> time index. ``held``: bodies in the lab frame; ``with_clamp``:
-    bodies displaced by the clamp's height of each frame. Units of R on both axes."""
+    """``frames``: label -> time index. ``held``: bodies in the frame of the run; ``with_clamp``
+    and ``with_ball``: bodies displaced by the clamp's or the ball's height of each frame.
+    ``limits``: the axes' ``((rho0, rho1), (z0, z1))``, or None to fit the frames and bodies.
+    Units of R on both axes."""
     fig = Figure(figsize=(6.0, 8.0), constrained_layout=True)
     ax = fig.add_subplot()
     colours = ["tab:blue", "tab:red", "tab:green", "tab:purple"]
@@ -27,8 +36,10 @@ def plot_world(
         zb = float(ds["ball_z"].values[i])
         th = np.linspace(0, np.pi, 200)
         ax.plot(np.sin(th), zb + np.cos(th), color=col, lw=0.8, ls=":", zorder=2)
-        for body in with_clamp:
-            o = body.outline(float(ds["clamp_z"].values[i]))
+        moving = [(b, float(ds["clamp_z"].values[i])) for b in with_clamp]
+        moving += [(b, zb) for b in with_ball]
+        for body, dz in moving:
+            o = body.outline(dz)
             ax.fill(o[:, 0], o[:, 1], color=col, alpha=0.15, ec=col, lw=0.8, zorder=1)
         t = float(ds["time"].values[i])
         ax.plot(
@@ -42,9 +53,13 @@ def plot_world(
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
-    ax.set_xlim(0, 3.2)
-    ax.set_ylim(-6.5, 2.0)
-    ax.set_title(title + "\nball dotted, tube wall shaded, bottle grey", fontsize=9)
+    if limits is None:
+        ax.set_xlim(0, 1.1 * max(1.0, float(np.nanmax(ds["rho"].values))))
+    else:
+        ax.set_xlim(*limits[0])
+        ax.set_ylim(*limits[1])
+    ax.set_title(title + "\nball dotted, moving bodies shaded per frame, held bodies grey",
+                 fontsize=9)
     ax.legend(loc="upper right", fontsize=7)
     if out is not None:
         fig.savefig(out, dpi=120)
