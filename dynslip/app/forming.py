@@ -52,6 +52,16 @@ def build_core(sc):
         )
         law = Coulomb(mu=jnp.asarray(p.tube.mu), eps=jnp.asarray(nu.friction_smoothing))
         bodies = (Held(wall, law),)
+    if p.bottle is not None:
+        from dynslip.physics.bodies.apparatus import bottle
+        from dynslip.physics.bodies.held import Held
+        from dynslip.physics.friction import Coulomb
+
+        b = p.bottle
+        parts = bottle(r, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm, b.shoulder_height_mm,
+                       b.body_od_mm, b.body_height_mm)  # fmt: skip
+        law = Coulomb(mu=jnp.asarray(b.mu), eps=jnp.asarray(nu.friction_smoothing))
+        bodies = bodies + tuple(Held(part, law, moves_with_ball=True) for part in parts)
     g_h0 = p.force_scale_N / r  # N/mm
     model = SheetModel(
         mesh,

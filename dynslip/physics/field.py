@@ -156,9 +156,10 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     held = args.ball_mode == BALL_HOLD
     fb = args.ball_force(t) + args.support_force(zb)
     # the sheet's pull on the ball: the held bodies carry the rest, by pressure (held_load) and
-    # by friction (its axial part, which depends on the ball's velocity: bodies.held)
-    c_pen = cz - model.held_load(rho, z)
-    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps)
+    # by friction (its axial part, which depends on the ball's velocity: bodies.held); a body
+    # that moves with the ball (the bottle) is displaced by zb, and its load goes to the lab
+    c_pen = cz - model.held_load(rho, z, zb)
+    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb)
     if hf is None:
         vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
         c_ball = c_pen

@@ -134,15 +134,24 @@ def _node_penalty(pen, ball, area, q):
     return area * penalty_energy(pen, contact_gap(ball, q)[0])
 
 
-def _held_penalty(model: SheetModel, area, x):
-    """Penalty energy of one node at absolute position ``x`` against every held body."""
+def _held_penalty(model: SheetModel, area, x, zb=0.0, moving=None):
+    """Penalty energy of one node at absolute position ``x`` against every held body (a body
+    that moves with the ball displaced by ``zb``); ``moving`` True/False: only those that do /
+    do not (None: all)."""
     return sum(
         (
-            area * penalty_energy(model.penalty, contact_gap(e.body, x)[0])
+            area * penalty_energy(model.penalty, contact_gap(e.body, x, e.shift(zb))[0])
+            if e.moves_with_ball
+            else area * penalty_energy(model.penalty, contact_gap(e.body, x)[0])
             for e in held_entries(model.bodies)
+            if moving is None or e.moves_with_ball == moving
         ),
         jnp.zeros(()),
     )
+
+
+def _moves_with_ball(model: SheetModel) -> bool:
+    return any(e.moves_with_ball for e in held_entries(model.bodies))
 
 
 def forces(model: SheetModel, q, zb):
@@ -163,9 +172,9 @@ def forces(model: SheetModel, q, zb):
     load = jnp.zeros(())
     if model.bodies:
         x = q + jnp.stack([jnp.zeros(()), zb])
-        eh, gh = jax.vmap(jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi), argnums=1))(
-            m.area, x
-        )
+        eh, gh = jax.vmap(
+            jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi, zb), argnums=1)
+        )(m.area, x)
         ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ga).at[1:].add(gb)
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
@@ -174,8 +183,10 @@ def forces(model: SheetModel, q, zb):
 
 def forces_and_hessians(model: SheetModel, q, zb):
     """:func:`forces` and the blocks of the energy's Hessian: ``(g, h_diag, h_up, load, h_held)``,
-    ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them), ``h_held[i]`` the
-    held bodies' part of ``h_diag[i]`` (None without held bodies)."""
+    ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them), ``h_held`` the
+    pair ``(hh, hz)``: ``hh[i]`` the held bodies' part of ``h_diag[i]``, ``hz[i]`` its part that
+    moves with ``zb`` at fixed ``q`` (the bodies at rest: a body that moves with the ball sees
+    ``q`` alone) (None without held bodies)."""
     m = model.mesh
     rsum = m.rbar[1:] + m.rbar[:-1]
 
@@ -200,10 +211,16 @@ def forces_and_hessians(model: SheetModel, q, zb):
     load, hh = jnp.zeros(()), None
     if model.bodies:
         x = q + jnp.stack([jnp.zeros(()), zb])
-        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x), x))(
+        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x, zb), x))(
             m.area, x
         )
         ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
+        hz = hh
+        if _moves_with_ball(model):
+            hz = jax.vmap(
+                lambda a, x: second(lambda x: _held_penalty(model, a, x, moving=False), x)[2]
+            )(m.area, x)
+        hh = (hh, hz)
     g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
     h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
     h_up = he[:, :2, 2:]
@@ -278,14 +295,15 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     u = (fn * n + s * t) / eta_a
     if frictional(model.bodies):
         live = (i > 0) & (i < model.mesh.n - 1)
-        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live)
+        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live, zb)
         u = u + hf.force(vb) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1
 
 
-def _held_frame(model: SheetModel, x, f, area, args, live):
-    """The held bodies' friction frame at absolute node positions ``x`` (one node or all)."""
+def _held_frame(model: SheetModel, x, f, area, args, live, zb):
+    """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
+    ball at ``zb``."""
     return held_frame(
         model.bodies,
         x,
@@ -295,6 +313,7 @@ def _held_frame(model: SheetModel, x, f, area, args, live):
         args.drag,
         args.eps,
         live,
+        zb,
     )
 
 
@@ -307,7 +326,7 @@ def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
     n = q.shape[0]
     idx = jnp.arange(n)
     x = q + jnp.stack([jnp.zeros(()), zb])
-    hf = _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1))
+    hf = _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb)
     pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
     cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
     fb = args.ball_force(inc.t1) + args.support_force(zb)
@@ -406,11 +425,13 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
     C = C.at[0, -1].set(-h * bg @ h_diag[-1]).at[0, -2].set(-h * bg @ h_low[-1])
     D = jnp.reshape(1.0 - h * bz, (1, 1))
     if hh is not None:
-        # the held bodies see q + zb: every node's force moves with zb (d g_i/d zb = hh_i e_z),
-        # and the load L = sum_i dE_h/dz_i enters the ball's and the edge's rates
-        dg_dz = hh[:, :, 1]  # (n, 2)
+        # the held bodies see q + zb: every node's force moves with zb (d g_i/d zb = hh_i e_z;
+        # not a body that moves with the ball), and the load L = sum_i dE_h/dz_i enters the
+        # ball's and the edge's rates
+        hh, hz = hh
+        dg_dz = hz[:, :, 1]  # (n, 2)
         dl_dq = hh[:, 1, :]  # (n, 2)
-        dl_dz = jnp.sum(hh[:, 1, 1])
+        dl_dz = jnp.sum(hz[:, 1, 1])
         col = jnp.einsum("nij,nj->ni", lg, dg_dz).at[-1].set(eg @ dg_dz[-1] + el * dl_dz)
         B = B - h * col[:, :, None]
         C = C - h * bl * dl_dq[None]
@@ -454,9 +475,10 @@ def _blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     lq, lz = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er)), lz.at[-1].set(0.0)
     lg, lv = lg.at[-1].set(eg), lv.at[-1].set(ev)
     h_low = jnp.swapaxes(h_up, 1, 2)  # h_low[j] = d2E/dx_{j+1} dx_j
-    dg_dz = hh[:, :, 1]  # (n, 2): the held bodies see q + zb
+    hh, hz = hh
+    dg_dz = hz[:, :, 1]  # (n, 2): the held bodies at rest see q + zb
     dl_dq = hh[:, 1, :]
-    dl_dz = jnp.sum(hh[:, 1, 1])
+    dl_dz = jnp.sum(hz[:, 1, 1])
     # dv_b/dq_j through the forces: sum_i (dv_b/dg_i) H_ij, H tridiagonal
     big_v = vq + jnp.einsum("ni,nij->nj", vg, h_diag) + vl * dl_dq
     big_v = big_v.at[1:].add(jnp.einsum("ni,nij->nj", vg[:-1], h_up))

@@ -244,26 +244,27 @@ class SheetModel(eqx.Module):
         """Penetration of each node into the ball, minus its signed distance (R)."""
         return -self.ball.distance(jnp.stack([rho, z], axis=-1), zb)
 
-    def held_penalty_energy(self, rho, z):
-        """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any)."""
+    def held_penalty_energy(self, rho, z, zb=0.0):
+        """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any); one
+        that moves with the ball is displaced by ``zb``."""
         x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
-        parts = (jnp.sum(a * penalty_energy(pen, -e.body.distance(x))) for e in _held_entries(
-            self.bodies))  # fmt: skip
+        parts = (jnp.sum(a * penalty_energy(pen, -(e.body.distance(x, zb) if e.moves_with_ball
+                 else e.body.distance(x)))) for e in _held_entries(self.bodies))  # fmt: skip
         return sum(parts, jnp.zeros(()))
 
-    def held_load(self, rho, z):
+    def held_load(self, rho, z, zb=0.0):
         """Axial force of the sheet on the held bodies by contact pressure,
         $\\sum_i \\partial E_h/\\partial z_i$ (G h0 R, + upward): the part of the clamp's pull they
         carry instead of the ball (their friction's share: :meth:`held_friction`)."""
         if not self.bodies:
             return jnp.zeros(())
-        return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z))
+        return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z, zb))
 
-    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0):
+    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0, zb=0.0):
         """The friction of the held bodies at the nodes (:mod:`dynslip.physics.bodies.held`): a
         :class:`~dynslip.physics.bodies.held.HeldFrame` for node positions ``rho, z`` (N,) and
-        driving forces ``f`` (2, N), or None when no held body has friction. Not on the pole
-        node (no tangential motion) nor the clamped edge."""
+        driving forces ``f`` (2, N) (``zb``: the ball's height), or None when no held body has
+        friction. Not on the pole node (no tangential motion) nor the clamped edge."""
         from dynslip.physics.bodies.held import held_frame
 
         idx = jnp.arange(rho.shape[0])
@@ -271,13 +272,12 @@ class SheetModel(eqx.Module):
         x, area = jnp.stack([rho, z], axis=-1), self.mesh.area
         pen = self.penalty
         return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
-                          eps_density, live)  # fmt: skip
+                          eps_density, live, zb)  # fmt: skip
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)
-        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + self.held_penalty_energy(
-            rho, z
-        )
+        held = self.held_penalty_energy(rho, z, zb)
+        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + held
 
     def energy(self, rho, z, zb):
         return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)

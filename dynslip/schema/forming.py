@@ -22,7 +22,7 @@ from dynslip.schema.friction import FrictionSpec
 from dynslip.schema.materials import MaterialSpec
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec",
-           "FrictionSpec", "TubeSpec"]
+           "FrictionSpec", "TubeSpec", "BottleSpec"]
 
 #: bounds of the loading path: the longest time of a stage (s), the most stages, the most saved
 #: frames
@@ -202,6 +202,35 @@ class TubeSpec(Strict):
                               "0.3-1.0 assumed, docs/bodies.md), in [0, 10]")
 
 
+class BottleSpec(Strict):
+    """The bottle the ball sits on, as held bodies that move with the ball (the tube's frame:
+    the bottle stands under the ball; docs/bodies.md): a neck tube whose rounded lip is the
+    ball's support ring (tangent-below the ball), a conical shoulder, a cylindrical body;
+    Coulomb friction of the sheet on the glass."""
+
+    neck_od_mm: float = F(25.4, unit="mm", gt=0, le=1e3,
+                          description="the neck's outer diameter (the paper's 1 in), in (0, 1e3] "
+                                      "mm, below the ball's diameter")
+    neck_wall_mm: float = F(2.0, unit="mm", gt=0, le=1e3,
+                            description="the neck's glass wall (its lip a half torus of radius "
+                                        "neck_wall_mm / 2), in (0, 1e3] mm, below the neck's "
+                                        "radius")
+    neck_length_mm: float = F(65.0, unit="mm", gt=0, le=1e4,
+                              description="the neck's length from its lip to the shoulder "
+                                          "(bottles with a 1 in neck: 50-80 mm), in (0, 1e4] mm")
+    shoulder_height_mm: float = F(18.6, unit="mm", gt=0, le=1e4,
+                                  description="the conical shoulder's height from the neck to the "
+                                              "body, in (0, 1e4] mm")
+    body_od_mm: float = F(70.0, unit="mm", gt=0, le=1e4,
+                          description="the body's outer diameter (typically 60-75 mm), in (0, "
+                                      "1e4] mm, wider than the neck and inside the tube")
+    body_height_mm: float = F(140.0, unit="mm", gt=0, le=1e4,
+                              description="the body's height below the shoulder, in (0, 1e4] mm")
+    mu: float = F(0.7, ge=0, le=10,
+                  description="Coulomb coefficient of the sheet on the glass (latex on smooth "
+                              "clean glass: 0.5-1.0 assumed, docs/bodies.md), in [0, 10]")
+
+
 class FormingPhysics(Strict):
     """Geometry, material, friction and the loading path (physical units)."""
 
@@ -237,6 +266,8 @@ class FormingPhysics(Strict):
                       "cannot carry it; physics.md Section 4)")
     tube: TubeSpec | None = F(None, description="the tube's wall as a held body (the tube's "
                               "frame: the tube at rest, the ball moved); none by default")
+    bottle: BottleSpec | None = F(None, description="the bottle under the ball as held bodies "
+                                  "that move with it (the tube's frame); none by default")
     band_grip_N_per_mm: float = F(0.0, unit="N/mm", ge=0, le=1e3,
                                   description="clamp: band: the band's grip, the largest pull "
                                               "along the wall per length of its circumference "
@@ -259,6 +290,7 @@ class FormingPhysics(Strict):
         if self.tube is not None and not self.tube.wall_mm < self.rim_radius_mm:
             raise ValueError(f"tube.wall_mm = {self.tube.wall_mm}: the rim is thicker than the "
                              f"tube (allowed: below rim_radius_mm = {self.rim_radius_mm})")
+        self._bottle_fits()
         if any(s.clamp == "band" for s in self.stages) and self.tube is None:
             raise ValueError("stages: clamp: band holds the edge on the tube's wall: it needs "
                              "physics.tube")
@@ -291,6 +323,24 @@ class FormingPhysics(Strict):
                 if s.until != "duration":
                     known = False
         return self
+
+    def _bottle_fits(self):
+        b = self.bottle
+        if b is None:
+            return
+        if not b.neck_od_mm / 2 < self.ball_radius_mm:
+            raise ValueError(f"bottle.neck_od_mm = {b.neck_od_mm}: the bottle overlaps the ball "
+                             f"(the ball sits on the neck; allowed: below the ball's diameter "
+                             f"{2 * self.ball_radius_mm})")
+        if not b.neck_wall_mm < b.neck_od_mm / 2:
+            raise ValueError(f"bottle.neck_wall_mm = {b.neck_wall_mm}: allowed below the neck's "
+                             f"radius {b.neck_od_mm / 2}")
+        if not b.body_od_mm > b.neck_od_mm:
+            raise ValueError(f"bottle.body_od_mm = {b.body_od_mm}: allowed above the neck's "
+                             f"diameter {b.neck_od_mm}")
+        if self.tube is not None and not b.body_od_mm / 2 < self.rim_radius_mm - self.tube.wall_mm:
+            raise ValueError(f"bottle.body_od_mm = {b.body_od_mm}: wider than the tube's inside "
+                             f"(allowed: below {2 * (self.rim_radius_mm - self.tube.wall_mm)})")
 
     @property
     def force_scale_N(self) -> float:

@@ -62,10 +62,20 @@ BALL_ITERATIONS = 24
 
 
 class Held(eqx.Module):
-    """A held body and its friction law against the sheet (None: frictionless)."""
+    """A held body and its friction law against the sheet (None: frictionless).
+
+    ``moves_with_ball`` (static): the body is carried with the ball (the bottle in the tube's
+    frame, docs/bodies.md): it sits at its reference placement displaced by the ball's height
+    ``zb``, so a node's gap and its slip are relative to the ball. Its load still goes to the
+    lab (the table under the bottle), not to the ball's hold."""
 
     body: AbstractBody
     friction: AbstractFriction | None = None
+    moves_with_ball: bool = eqx.field(static=True, default=False)
+
+    def shift(self, zb):
+        """The body's axial displacement: ``zb`` when it moves with the ball, else 0."""
+        return zb if self.moves_with_ball else 0.0
 
     def __check_init__(self):
         if self.friction is not None and self.friction.n_internal() != 0:
@@ -99,12 +109,18 @@ class HeldFrame(eqx.Module):
     area: jnp.ndarray
     live: jnp.ndarray
     laws: tuple
+    moving: tuple = eqx.field(static=True, default=())
+
+    def _carried(self, k, vb):
+        # the drag the ball's motion drags a node with, relative to a body at rest; none on a
+        # body that moves with the ball
+        if self.moving and self.moving[k]:
+            return 0.0
+        return self.eta_a * vb * self.t[k][..., 1]
 
     def slip(self, vb):
         """``(G, S)`` per body and node (K, ...) at the ball's velocity ``vb``."""
-        g = jnp.stack(
-            [self.ft[k] + self.eta_a * vb * self.t[k][..., 1] for k in range(len(self.laws))]
-        )
+        g = jnp.stack([self.ft[k] + self._carried(k, vb) for k in range(len(self.laws))])
         s = jnp.stack(
             [
                 law.slip_force(g[k], self.normal[k], None, eps=self.eps, area=self.area)
@@ -137,17 +153,19 @@ class HeldFrame(eqx.Module):
         return jnp.sum(jnp.where(self.live, thr * jnp.abs(self.t[..., 1]), 0.0))
 
 
-def held_frame(bodies, x, f, normal_of, area, drag, eps, live) -> HeldFrame | None:
+def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFrame | None:
     """The :class:`HeldFrame` of the frictional held bodies at node positions ``x`` (..., 2)
     (absolute), driving forces ``f`` (..., 2), reference areas ``area`` (...); ``normal_of(d)``
     the penalty's normal force per reference area of a signed distance; ``live`` where held
-    friction acts (not the pole, not the clamped edge). None when no held body has friction."""
-    laws, ts, ns, fts = [], [], [], []
+    friction acts (not the pole, not the clamped edge); ``zb`` the ball's height (displaces a
+    body that moves with the ball). None when no held body has friction."""
+    laws, ts, ns, fts, moving = [], [], [], [], []
     for e in held_entries(bodies):
         if e.friction is None:
             continue
-        p = e.body.project(x)
+        p = e.body.project(x, e.shift(zb)) if e.moves_with_ball else e.body.project(x)
         laws.append(e.friction)
+        moving.append(e.moves_with_ball)
         ts.append(p.tangent)
         ns.append(area * normal_of(p.distance))
         fts.append(jnp.sum(f * p.tangent, axis=-1))
@@ -162,6 +180,7 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live) -> HeldFrame | No
         area=area,
         live=live,
         laws=tuple(laws),
+        moving=tuple(moving) if any(moving) else (),
     )
 
 
