@@ -53,8 +53,13 @@ def plot_world(
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
-    if limits is None:
+    if limits is None:  # the sheet and the ball of the frames drawn, with a margin
+        idx = list(frames.values())
+        zs = ds["z"].values[idx]
+        zb = ds["ball_z"].values[idx]
         ax.set_xlim(0, 1.1 * max(1.0, float(np.nanmax(ds["rho"].values))))
+        ax.set_ylim(min(np.nanmin(zs), np.min(zb) - 1.0) - 1.5,
+                    max(np.nanmax(zs), np.max(zb) + 1.0) + 0.5)
     else:
         ax.set_xlim(*limits[0])
         ax.set_ylim(*limits[1])
