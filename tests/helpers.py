@@ -156,3 +156,41 @@ def dask_cluster():
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+
+
+def set_field(dotted: str, value):
+    """An edit of a scenario's data: the field at ``dotted`` (list items by index) set to value."""
+
+    def edit(data):
+        node = data
+        keys = dotted.split(".")
+        for k in keys[:-1]:
+            node = node[int(k)] if k.isdigit() else node[k]
+        node[keys[-1]] = value
+
+    return edit
+
+
+def run_refused(tmp_path, capsys, scenario, edit, *words):
+    """``dynslip run`` on ``scenario`` with ``edit`` applied to its data: exit 2, one line naming
+    every one of ``words``, nothing written beside the bad file."""
+    import yaml
+
+    from dynslip.cli import main
+
+    data = yaml.safe_load(scenario.read_text())
+    edit(data)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = tmp_path / "out"
+    try:
+        rc = main(["run", str(path), "--out", str(out)])
+    except SystemExit as err:
+        rc = err.code
+    err = capsys.readouterr().err
+    assert rc == 2, err
+    line = one_line(err)
+    for w in words:
+        assert w in line, line
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.yaml"]

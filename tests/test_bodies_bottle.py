@@ -20,9 +20,7 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import yaml
 
-from dynslip.cli import main
 from dynslip.physics.bodies import Cylinder, Sphere
 from dynslip.physics.bodies.apparatus import bottle
 from dynslip.physics.bodies.held import Held
@@ -31,7 +29,7 @@ from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.simulate import Settings, simulate
-from helpers import one_line
+from helpers import run_refused, set_field
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "method2_bottle.yaml"
 N = 24
@@ -174,29 +172,6 @@ def test_a_bottle_the_sheet_never_reaches_changes_nothing(fixed_run):
     assert min(float(jnp.min(b.distance(x, ZB))) for b in BOTTLE) > 0.05  # never reached
 
 
-def _bad(tmp_path, capsys, dotted, value, *words):
-    data = yaml.safe_load(SCENARIO.read_text())
-    node = data
-    keys = dotted.split(".")
-    for k in keys[:-1]:
-        node = node[k]
-    node[keys[-1]] = value
-    path = tmp_path / "bad.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    out = tmp_path / "out"
-    try:
-        rc = main(["run", str(path), "--out", str(out)])
-    except SystemExit as err:
-        rc = err.code
-    err = capsys.readouterr().err
-    assert rc == 2, err
-    line = one_line(err)
-    for w in words:
-        assert w in line, line
-    assert not out.exists()
-    assert [p.name for p in tmp_path.iterdir()] == ["bad.yaml"]
-
-
 @pytest.mark.parametrize(
     "dotted, value, words",
     [
@@ -212,7 +187,7 @@ def _bad(tmp_path, capsys, dotted, value, *words):
     ],
 )
 def test_bad_bottle_input(tmp_path, capsys, dotted, value, words):
-    _bad(tmp_path, capsys, dotted, value, *words)
+    run_refused(tmp_path, capsys, SCENARIO, set_field(dotted, value), *words)
 
 
 def test_bottle_scenario_builds_the_bottle_moving_with_the_ball():

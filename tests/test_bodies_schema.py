@@ -10,44 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from dynslip.cli import main
 from dynslip.schema.base import load
-from helpers import one_line
+from helpers import run_refused, set_field
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 BAND = SCENARIOS / "method2_band.yaml"
-
-
-def _bad(tmp_path, capsys, edit, *words):
-    data = yaml.safe_load(BAND.read_text())
-    edit(data)
-    path = tmp_path / "bad.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    out = tmp_path / "out"
-    try:
-        rc = main(["run", str(path), "--out", str(out)])
-    except SystemExit as err:
-        rc = err.code
-    err = capsys.readouterr().err
-    assert rc == 2, err
-    line = one_line(err)
-    for w in words:
-        assert w in line, line
-    assert not out.exists()
-    assert [p.name for p in tmp_path.iterdir()] == ["bad.yaml"]
-
-
-def _set(dotted, value):
-    def edit(data):
-        node = data
-        keys = dotted.split(".")
-        for k in keys[:-1]:
-            node = node[int(k)] if k.isdigit() else node[k]
-        node[keys[-1]] = value
-
-    return edit
 
 
 @pytest.mark.parametrize(
@@ -65,7 +33,7 @@ def _set(dotted, value):
     ],
 )
 def test_bad_tube_and_band_input(tmp_path, capsys, dotted, value, words):
-    _bad(tmp_path, capsys, _set(dotted, value), *words)
+    run_refused(tmp_path, capsys, BAND, set_field(dotted, value), *words)
 
 
 def test_band_scenario_builds_the_tube_and_the_grip():
