@@ -273,8 +273,8 @@ def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
     from dynslip.plot.world import plot_world
 
     entries = held_entries(model.bodies)
-    held = [e.body for e in entries if not getattr(e, "moves_with_ball", False)]
-    with_ball = [e.body for e in entries if getattr(e, "moves_with_ball", False)]
+    held = [e.body for e in entries if not e.moves_with_ball]
+    with_ball = [e.body for e in entries if e.moves_with_ball]
     theta = ds["theta_max"].values
     widest = int(np.nanargmax(theta)) if np.isfinite(theta).any() else 0
     frames = {"widest contact": widest, "end": ds.sizes["time"] - 1}
