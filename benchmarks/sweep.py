@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def _base(tmp: Path) -> Path:
     """The method 2 scenario (the shipped file when there is one, else the kind's defaults)."""
     shipped = ROOT / "scenarios" / "method2_let_go.yaml"
-    p = tmp / "method2.yaml"
+    p = tmp / "method2_pinned.yaml"
     p.write_text(shipped.read_text() if shipped.exists() else yaml.safe_dump({"kind": "forming"}))
     return p
 

@@ -53,12 +53,14 @@ class Run:
 
 RUNS = {
     "method2": Run("scenarios/method2.yaml"),
+    "method2_pinned": Run("scenarios/method2_pinned.yaml"),
     "method2_let_go": Run("scenarios/method2_let_go.yaml", {"numerics.save_interval_s": 0.5}),
     "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
     "method2_rim_feed": Run("scenarios/method2_rim_feed.yaml", fast=False),
     "release_pull_tube": Run("scenarios/release_pull_tube.yaml", fast=False),
     "method2_rim80": Run(
-        "scenarios/method2.yaml", {"numerics.nodes": 100, "physics.stages.0.clamp_to_z_mm": -80.0}
+        "scenarios/method2_pinned.yaml",
+        {"numerics.nodes": 100, "physics.stages.0.clamp_to_z_mm": -80.0},
     ),
 }
 
@@ -83,8 +85,11 @@ FIGURES = {
     "state_map_method2.png": Figure(
         "method2", "dynslip run scenarios/method2.yaml (DIR/state_map.png)", "copy_state_map"
     ),
+    "world_method2.png": Figure(
+        "method2", "dynslip run scenarios/method2.yaml (DIR/world.png)", "copy_world"
+    ),
     "fronts_method2_tube.png": Figure(
-        "method2", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
+        "method2_pinned", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
     ),
     "animation_frame_let_go.png": Figure(
         "method2_let_go",
@@ -113,7 +118,7 @@ FIGURES = {
     ),
     "world_method2_rim80.png": Figure(
         "method2_rim80",
-        "dynslip run scenarios/method2.yaml --set numerics.nodes=100 "
+        "dynslip run scenarios/method2_pinned.yaml --set numerics.nodes=100 "
         "--set physics.stages.0.clamp_to_z_mm=-80; dynslip.plot.world.plot_world(ds, frames, "
         "held=bottle(20.0), with_clamp=(tube_wall(20.0),))",
         "world",
@@ -127,6 +132,10 @@ def copy_meridian(run_dir: Path, out: Path) -> None:
 
 def copy_state_map(run_dir: Path, out: Path) -> None:
     shutil.copyfile(run_dir / "state_map.png", out)
+
+
+def copy_world(run_dir: Path, out: Path) -> None:
+    shutil.copyfile(run_dir / "world.png", out)
 
 
 def copy_release_force(run_dir: Path, out: Path) -> None:
@@ -223,16 +232,26 @@ def export_view(run_dir: Path, out: Path) -> None:
             col = Poly3DCollection(polys, facecolor="0.75", edgecolor="none", alpha=0.6)
         else:
             c = colour[quads[keep]].mean(axis=1)
-            col = Poly3DCollection(polys, facecolor=cm.viridis(c / max(c.max(), 1e-300)),
-                                   edgecolor="none")
+            col = Poly3DCollection(
+                polys, facecolor=cm.viridis(c / max(c.max(), 1e-300)), edgecolor="none"
+            )
         ax.add_collection3d(col)
     lim = float(np.abs(sheet.points).max())
-    ax.set(xlim=(-lim, lim), ylim=(-lim, lim), zlim=(-lim, lim), xlabel="x (mm)",
-           ylabel="y (mm)", zlabel="z (mm)")
+    ax.set(
+        xlim=(-lim, lim),
+        ylim=(-lim, lim),
+        zlim=(-lim, lim),
+        xlabel="x (mm)",
+        ylabel="y (mm)",
+        zlabel="z (mm)",
+    )
     ax.set_box_aspect((1, 1, 1))
     ax.view_init(elev=15, azim=-60)
-    ax.set_title(f"dynslip export, last frame, read back with meshio: sheet coloured by\n"
-                 f"{name} (0 to {p.max():.3g}), ball grey", fontsize=9)
+    ax.set_title(
+        f"dynslip export, last frame, read back with meshio: sheet coloured by\n"
+        f"{name} (0 to {p.max():.3g}), ball grey",
+        fontsize=9,
+    )
     fig.savefig(out, dpi=110)
 
 

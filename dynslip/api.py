@@ -4,7 +4,7 @@ Example::
 
     import dynslip
 
-    scn = dynslip.load("scenarios/method2.yaml", set={"numerics.nodes": 20})
+    scn = dynslip.load("scenarios/method2_pinned.yaml", set={"numerics.nodes": 20})
     res = dynslip.run(scn)                 # in memory; out="DIR" also writes the usual folder
     res.trajectory                         # xarray.Dataset (docs/trajectory-contract.md)
     res.summary                            # dict, as summary.json

@@ -31,7 +31,7 @@ from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressu
 from dynslip.physics.simulate import Settings, simulate
 from helpers import run_refused, set_field
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "method2_bottle.yaml"
+SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
 N = 24
 RIM, PRE, TAU = 2.54, 1.05, 0.1
 MAT = make_material("gent", jm=50.0)

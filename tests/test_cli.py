@@ -105,9 +105,9 @@ def test_subprocess_no_traceback(tmp_path):
             "numerics.mu_bracket",
         ),  # negative mu
         ("cylinder.yaml", "physics.mu=-0.5", "physics.mu"),
-        ("method2.yaml", "physics.friction.mu_s=-1", "physics.friction.mu_s"),
+        ("method2_pinned.yaml", "physics.friction.mu_s=-1", "physics.friction.mu_s"),
         (
-            "method2.yaml",
+            "method2_pinned.yaml",
             "physics.pre_stretch=0.4",
             "physics.pre_stretch",
         ),  # below the slack bound 0.5

@@ -118,7 +118,7 @@ def test_user_folder_refused_with_files_intact(tmp_path, capsys, monkeypatch):
 @pytest.mark.parametrize("command", ["sweep", "window"])
 def test_user_folder_refused_by_sweep_and_window(tmp_path, capsys, monkeypatch, command):
     monkeypatch.setattr(sweep_mod, "default_member_fn", lambda *a, **k: pytest.fail("ran a member"))
-    src = _sweep_file(tmp_path) if command == "sweep" else SCENARIOS / "method2.yaml"
+    src = _sweep_file(tmp_path) if command == "sweep" else SCENARIOS / "method2_pinned.yaml"
     out = tmp_path / "mydata"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
@@ -428,7 +428,7 @@ def test_sweep_out_file_fronts_out_file_animate_out_dir(tmp_path, capsys, monkey
     for argv in (
         ["sweep", _sweep_file(tmp_path), "--out", f],
         ["sweep", _sweep_file(tmp_path), "--out", f, "--force"],
-        ["window", SCENARIOS / "method2.yaml", "--out", f],
+        ["window", SCENARIOS / "method2_pinned.yaml", "--out", f],
         ["fronts", traj, "--out", f],
         ["compare", traj, "--out", f],
         ["animate", traj, "--out", d],

@@ -329,10 +329,16 @@ def test_bad_input_is_one_line(physics, needle):
 
 
 def test_shipped_method2_validates(scenarios_dir):
+    """The main job is the experiment in its world (the tube as a body, the band, the bottle, the
+    measured friction); the pinned-rim stand-in is kept beside it."""
     from dynslip.schema.base import load
 
-    sc = load(scenarios_dir / "method2.yaml")
+    sc = load(scenarios_dir / "method2_pinned.yaml")
     assert sc.kind == "forming" and sc.physics.stages[0].name == "push_down"
+    p = load(scenarios_dir / "method2.yaml").physics
+    assert p.tube is not None and p.bottle is not None
+    assert (p.friction.mu_s, p.friction.mu_k) == (0.99, 0.82)
+    assert [s.clamp for s in p.stages[1:]] == ["band"] * (len(p.stages) - 1)
 
 
 def test_cli_bad_input_exit_2(tmp_path, scenarios_dir):
@@ -342,7 +348,7 @@ def test_cli_bad_input_exit_2(tmp_path, scenarios_dir):
             "-m",
             "dynslip.cli",
             "run",
-            str(scenarios_dir / "method2.yaml"),
+            str(scenarios_dir / "method2_pinned.yaml"),
             "--out",
             str(tmp_path / "o"),
             "--set",
@@ -369,7 +375,7 @@ def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir)
         "-m",
         "dynslip.cli",
         "run",
-        str(scenarios_dir / "method2.yaml"),
+        str(scenarios_dir / "method2_pinned.yaml"),
         "--out",
         str(out),
         "--set",

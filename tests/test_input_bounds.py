@@ -23,6 +23,7 @@ from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
+PINNED = "method2_pinned.yaml"  # the pinned-rim tube path: its stage fields are named below
 
 
 def _cli(argv, capsys) -> tuple[int, str]:
@@ -88,7 +89,7 @@ INF, NAN = math.inf, math.nan
     "name, field, value, named",
     [
         (
-            "method2.yaml",
+            PINNED,
             "physics.stages.1.duration_s",
             INF,
             "physics.stages.1.duration_s",
@@ -107,28 +108,28 @@ INF, NAN = math.inf, math.nan
             "physics.stages.0.ball_velocity_mm_s",
         ),  # step limit after 22 s
         (
-            "method2.yaml",
+            PINNED,
             "physics.stages.0.clamp_to_z_mm",
             NAN,
             "physics.stages.0.clamp_to_z_mm",
         ),  # named a stop rule
         (
-            "method2.yaml",
+            PINNED,
             "physics.ball_radius_mm",
             INF,
             "physics.ball_radius_mm",
         ),  # "rim inside the ball"
         ("paper_gent.yaml", "physics.ball_radius_mm", INF, "physics.ball_radius_mm"),
-        ("method2.yaml", "physics.material.jm", INF, "physics.material.jm"),
-        ("method2.yaml", "physics.thickness_um", -1e300, "physics.thickness_um"),
-        ("method2.yaml", "physics.friction.d_c_mm", 1e300, "physics.friction.d_c_mm"),
-        ("method2.yaml", "numerics.rtol", NAN, "numerics.rtol"),
-        ("method2.yaml", "numerics.drag_time_s", INF, "numerics.drag_time_s"),
-        ("method2.yaml", "numerics.penalty_stiffness", 1e300, "numerics.penalty_stiffness"),
-        ("method2.yaml", "numerics.max_steps", 10**12, "numerics.max_steps"),
-        ("method2.yaml", "numerics.nodes", 10**6, "numerics.nodes"),
+        (PINNED, "physics.material.jm", INF, "physics.material.jm"),
+        (PINNED, "physics.thickness_um", -1e300, "physics.thickness_um"),
+        (PINNED, "physics.friction.d_c_mm", 1e300, "physics.friction.d_c_mm"),
+        (PINNED, "numerics.rtol", NAN, "numerics.rtol"),
+        (PINNED, "numerics.drag_time_s", INF, "numerics.drag_time_s"),
+        (PINNED, "numerics.penalty_stiffness", 1e300, "numerics.penalty_stiffness"),
+        (PINNED, "numerics.max_steps", 10**12, "numerics.max_steps"),
+        (PINNED, "numerics.nodes", 10**6, "numerics.nodes"),
         (
-            "method2.yaml",
+            PINNED,
             "physics.stages.0.clamp_speed_mm_s",
             INF,
             "physics.stages.0.clamp_speed_mm_s",
@@ -140,7 +141,7 @@ INF, NAN = math.inf, math.nan
             "physics.stages.2.force_threshold_N",
         ),
         (
-            "method2.yaml",
+            PINNED,
             "physics.stages.4.rest_rate_mm_s",
             -INF,
             "physics.stages.4.rest_rate_mm_s",
@@ -162,7 +163,7 @@ def test_non_finite_and_out_of_range_name_the_field(tmp_path, capsys, name, fiel
 
 
 def test_material_model_names_the_model_field(tmp_path, capsys):
-    for name in ("paper_gent.yaml", "method2.yaml"):
+    for name in ("paper_gent.yaml", PINNED):
         line = _bad(
             ["validate", _scenario(tmp_path, name, _put("physics.material", {"model": "rubber"}))],
             capsys,
@@ -189,9 +190,9 @@ def test_kind_of_the_wrong_type_in_set(tmp_path, capsys, value):
 
 @pytest.mark.parametrize("values", [[["forming"], {"a": 1}], [{"a": 1}]])
 def test_kind_of_the_wrong_type_in_a_sweep_grid(tmp_path, capsys, values):
-    shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
+    shutil.copy(SCENARIOS / PINNED, tmp_path / PINNED)
     f = tmp_path / "s.yaml"
-    f.write_text(yaml.safe_dump({"base": "method2.yaml", "grid": {"kind": values}}))
+    f.write_text(yaml.safe_dump({"base": PINNED, "grid": {"kind": values}}))
     _bad(["validate", f], capsys, "'kind'")
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "'kind'")
     assert not (tmp_path / "o").exists()
@@ -264,10 +265,10 @@ def test_every_number_of_every_kind_has_a_stated_range():
 
 
 def test_sweep_axis_num_is_bounded(tmp_path, capsys):
-    shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
+    shutil.copy(SCENARIOS / PINNED, tmp_path / PINNED)
     f = tmp_path / "s.yaml"
     f.write_text(
-        "base: method2.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: "
+        "base: method2_pinned.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: "
         "1000000000}\n"
     )
     line = _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "num", "1000000000", "10000")
@@ -276,10 +277,11 @@ def test_sweep_axis_num_is_bounded(tmp_path, capsys):
 
 
 def test_sweep_members_are_bounded(tmp_path, capsys):
-    shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
+    shutil.copy(SCENARIOS / PINNED, tmp_path / PINNED)
     f = tmp_path / "s.yaml"
     f.write_text(
-        "base: method2.yaml\ngrid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: 200}\n"
+        "base: method2_pinned.yaml\n"
+        "grid:\n  physics.friction.mu: {start: 0.3, stop: 2.0, num: 200}\n"
         "  physics.friction.mu_s: {start: 0.3, stop: 2.0, num: 200}\n"
     )
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "40000 members", "10000")
@@ -298,9 +300,9 @@ def test_sweep_members_are_bounded(tmp_path, capsys):
     ],
 )
 def test_sweep_window_is_bounded(tmp_path, capsys, window, word):
-    shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
+    shutil.copy(SCENARIOS / PINNED, tmp_path / PINNED)
     f = tmp_path / "s.yaml"
-    f.write_text(f"base: method2.yaml\ngrid:\n  numerics.nodes: [20, 30]\nwindow: {window}\n")
+    f.write_text(f"base: {PINNED}\ngrid:\n  numerics.nodes: [20, 30]\nwindow: {window}\n")
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, f"window.{word}")
     assert not (tmp_path / "o").exists()
 
@@ -312,7 +314,7 @@ def test_sweep_window_is_bounded(tmp_path, capsys, window, word):
 ])
 def test_window_arguments_are_bounded(tmp_path, capsys, args, word):
     out = tmp_path / "w"
-    _bad(["window", SCENARIOS / "method2.yaml", "--out", out, *args], capsys, word)
+    _bad(["window", SCENARIOS / PINNED, "--out", out, *args], capsys, word)
     assert not out.exists()
 
 
@@ -320,13 +322,13 @@ def test_clamp_move_and_saved_frames_are_bounded(tmp_path, capsys):
     _bad(
         [
             "validate",
-            _scenario(tmp_path, "method2.yaml", _put("physics.stages.0.clamp_speed_mm_s", 1e-6)),
+            _scenario(tmp_path, PINNED, _put("physics.stages.0.clamp_speed_mm_s", 1e-6)),
         ],
         capsys,
         "push_down",
         "1e6 s",
     )
-    _bad(["validate", SCENARIOS / "method2.yaml", "--set", "numerics.save_interval_s=1e-4"], capsys,
+    _bad(["validate", SCENARIOS / PINNED, "--set", "numerics.save_interval_s=1e-4"], capsys,
          "save_interval_s", "frames")
     _bad(["validate", SCENARIOS / "cylinder.yaml", "--set", "numerics.n_profiles=10000",
           "--set", "numerics.n_nodes=10000"], capsys, "n_profiles * n_nodes")
@@ -335,7 +337,7 @@ def test_clamp_move_and_saved_frames_are_bounded(tmp_path, capsys):
 def test_stages_are_bounded(tmp_path, capsys):
     stages = [{"name": "push_down", "clamp_to_z_mm": -160.0, "clamp_speed_mm_s": 2.0}]
     stages += [{"name": f"hold{i}", "duration_s": 1.0} for i in range(200)]
-    _bad(["validate", _scenario(tmp_path, "method2.yaml", _put("physics.stages", stages))], capsys,
+    _bad(["validate", _scenario(tmp_path, PINNED, _put("physics.stages", stages))], capsys,
          "physics.stages")
 
 
@@ -388,9 +390,9 @@ def test_duplicate_keys_in_a_scenario(tmp_path, capsys, text, key):
 
 
 def test_duplicate_keys_in_a_sweep(tmp_path, capsys):
-    shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
+    shutil.copy(SCENARIOS / PINNED, tmp_path / PINNED)
     f = tmp_path / "s.yaml"
-    f.write_text("base: method2.yaml\ngrid:\n  numerics.nodes: [20, 30]\n  numerics.nodes: [40]\n")
+    f.write_text(f"base: {PINNED}\ngrid:\n  numerics.nodes: [20, 30]\n  numerics.nodes: [40]\n")
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "duplicate key", "numerics.nodes")
     _bad(["validate", f], capsys, "duplicate key")
     assert not (tmp_path / "o").exists()
@@ -399,25 +401,25 @@ def test_duplicate_keys_in_a_sweep(tmp_path, capsys):
 @pytest.mark.parametrize("name, field, value", [
     ("cylinder.yaml", "physics.mu", "0.5"),
     ("cylinder.yaml", "numerics.seed", "3"),
-    ("method2.yaml", "physics.ball_radius_mm", "20"),
-    ("method2.yaml", "physics.stages.1.duration_s", "10.0"),
+    (PINNED, "physics.ball_radius_mm", "20"),
+    (PINNED, "physics.stages.1.duration_s", "10.0"),
     ("paper_gent.yaml", "numerics.mu_bracket", ["0.1", 5.0]),
-    ("method2.yaml", "numerics.nodes", True),
+    (PINNED, "numerics.nodes", True),
 ])
 def test_numbers_given_as_text_are_refused_in_files(tmp_path, capsys, name, field, value):
     _bad(["validate", _scenario(tmp_path, name, _put(field, value))], capsys, f"'{field}", "number")
 
 
 def test_numbers_given_as_text_are_refused_in_sweep_files(tmp_path, capsys):
-    shutil.copy(SCENARIOS / "method2.yaml", tmp_path / "method2.yaml")
+    shutil.copy(SCENARIOS / PINNED, tmp_path / PINNED)
     for grid in ("{physics.friction.mu: {start: '0.3', stop: 2.0, num: 3}}",
                  "{physics.friction.mu: {start: 0.3, stop: 2.0, num: '3'}}",
                  "{physics.friction.mu: ['0.3', 0.5]}"):
         f = tmp_path / "s.yaml"
-        f.write_text(f"base: method2.yaml\ngrid: {grid}\n")
+        f.write_text(f"base: method2_pinned.yaml\ngrid: {grid}\n")
         _bad(["sweep", f, "--out", tmp_path / "o"], capsys)
     f.write_text(
-        "base: method2.yaml\noverrides: {numerics.nodes: '30'}\ngrid: {physics.friction.mu: "
+        "base: method2_pinned.yaml\noverrides: {numerics.nodes: '30'}\ngrid: {physics.friction.mu: "
         "[0.5]}\n"
     )
     _bad(["sweep", f, "--out", tmp_path / "o"], capsys, "numerics.nodes")
@@ -427,16 +429,16 @@ def test_numbers_given_as_text_are_refused_in_sweep_files(tmp_path, capsys):
 def test_set_values_are_parsed_as_yaml(capsys):
     assert parse_override("numerics.rtol=1e-5") == ("numerics.rtol", 1e-5)
     assert parse_override("numerics.nodes=30") == ("numerics.nodes", 30)
-    rc, err = _cli(["validate", SCENARIOS / "method2.yaml", "--set", "numerics.rtol=1e-5",
+    rc, err = _cli(["validate", SCENARIOS / PINNED, "--set", "numerics.rtol=1e-5",
                     "--set", "numerics.nodes=30", "--set", "physics.ball_radius_mm=2e1"], capsys)
     assert rc == 0, err
     _bad(
-        ["validate", SCENARIOS / "method2.yaml", "--set", "numerics.nodes='30'"],
+        ["validate", SCENARIOS / PINNED, "--set", "numerics.nodes='30'"],
         capsys,
         "numerics.nodes",
     )
     _bad(
-        ["validate", SCENARIOS / "method2.yaml", "--set", "numerics.rtol=.nan"],
+        ["validate", SCENARIOS / PINNED, "--set", "numerics.rtol=.nan"],
         capsys,
         "numerics.rtol",
     )
@@ -458,17 +460,17 @@ def test_a_newline_in_a_value_staysone_line(tmp_path, capsys):
         {"name": "a\nb\nc", "clamp_to_z_mm": 20.4, "clamp_speed_mm_s": 2.0}
     ]  # empty stage: named
     _bad(
-        ["validate", _scenario(tmp_path, "method2.yaml", _put("physics.stages", stages))],
+        ["validate", _scenario(tmp_path, PINNED, _put("physics.stages", stages))],
         capsys,
         "empty stage",
     )
-    _bad(["validate", SCENARIOS / "method2.yaml", "--set", 'name=[1, "x\\ny"]'], capsys, "name")
+    _bad(["validate", SCENARIOS / PINNED, "--set", 'name=[1, "x\\ny"]'], capsys, "name")
 
 
 def test_no_numpy_warnings_on_the_way(tmp_path, capsys):
     """The issue saw numpy warnings printed during validate of huge values: none now."""
-    for name, field, value in [("method2.yaml", "physics.ball_radius_mm", 1e308),
-                               ("method2.yaml", "physics.stages.1.clamp_velocity_mm_s", -1e308),
+    for name, field, value in [(PINNED, "physics.ball_radius_mm", 1e308),
+                               (PINNED, "physics.stages.1.clamp_velocity_mm_s", -1e308),
                                ("paper_gent.yaml", "physics.thickness_mm", 1e308),
                                ("cylinder.yaml", "physics.theta_max_to", 1e308)]:
         _bad(

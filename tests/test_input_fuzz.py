@@ -40,6 +40,7 @@ SCENARIO_FILES = [
     "paper_family.yaml",
     "method1.yaml",
     "method2.yaml",
+    "method2_pinned.yaml",
     "method2_raise.yaml",
     "release.yaml",
 ]
@@ -326,7 +327,7 @@ def _sweep_corruptions(name: str) -> list[tuple]:
     data = yaml.safe_load((SCENARIOS / name).read_text())
     cases = [
         (name, (UNKNOWN,), 1),
-        (name, ("base",), ["method2.yaml"]),
+        (name, ("base",), ["method2_pinned.yaml"]),
         (name, ("base",), 3),
         (name, ("grid",), {}),
         (name, ("grid", "kind"), [["forming"], {"a": 1}]),

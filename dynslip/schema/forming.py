@@ -164,7 +164,7 @@ class StageSpec(Strict):
 
 
 def _default_stages() -> list[StageSpec]:
-    """The default method 2 path (scenarios/method2.yaml): push down, hold, the rim lets the
+    """The default method 2 path (scenarios/method2_pinned.yaml): push down, hold, the rim lets the
     sheet go, the ball's hold is released, hold until at rest."""
     return [
         StageSpec(name="push_down", clamp_to_z_mm=-160.0, clamp_speed_mm_s=2.0),

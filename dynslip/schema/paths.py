@@ -3,7 +3,7 @@
 A path is keys joined by dots: ``numerics.nodes``, ``physics.friction.mu_s``. A list (the
 stages of a forming scenario) is stepped into by the index of an item or by its ``name``,
 so ``physics.stages.push_down.clamp_speed_mm_s`` and ``physics.stages.0.clamp_speed_mm_s``
-are the same field of ``scenarios/method2.yaml``.
+are the same field of ``scenarios/method2_pinned.yaml``.
 
 :func:`set_path` creates the mappings missing along the way (a file may leave a section
 out, its defaults apply); it never creates a list item: an index past the end or a name
