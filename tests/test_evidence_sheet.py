@@ -223,8 +223,8 @@ def test_headline_the_experiment_in_its_world_does_not_trap_at_the_measured_fric
     false; widest contact theta 1.661 in the hold, 0.524 at the end of the raise; closest
     approach to the bottle 0.48 R; the rim 3.97 R below the ball's centre at the bottom (the
     tube allows 4.08 R); largest stretch 3.27; deepest chord 0.016 R. N = 100 and 200 give the
-    same verdict (docs/experiment.md). If the model ever traps here, this test fails and the README's
-    headline must change."""
+    same verdict (docs/experiment.md). If the model ever traps here, this test fails and the
+    README's headline must change."""
     from dynslip.analysis.clearance import clearance
     from dynslip.physics.bodies.apparatus import bottle, deepest_rim
 
