@@ -17,7 +17,7 @@ computation that ran and failed raises :class:`~dynslip.errors.ComputationError`
 ``partial`` holds what was computed (a :class:`RunResult`, a sweep's dataset or a window's
 dictionary). Without ``out`` a run writes nothing: its datasets and summary are kept in
 memory (no figures are drawn); with ``out`` the folder follows the same rules
-as the command line (:mod:`dynslip.data.files`): checked before anything is computed,
+as the command line (:mod:`dynslip.data.folders`): checked before anything is computed,
 replaced only by a run that succeeded, a failed run kept as ``<out>.incomplete-<time>/``.
 """
 

@@ -431,7 +431,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _kept(err) -> str:
     """Where the partial results of a failed or interrupted run are (from the exception)."""
-    from dynslip.data.files import INCOMPLETE
+    from dynslip.data.folders import INCOMPLETE
 
     kept = getattr(err, "dynslip_kept", None)
     if kept is None:
@@ -442,7 +442,7 @@ def _kept(err) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    from dynslip.data.files import signal_name, sigterm_raises
+    from dynslip.data.folders import signal_name, sigterm_raises
 
     try:
         with sigterm_raises():  # SIGTERM raises like SIGINT: partial results kept and marked

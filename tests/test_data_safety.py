@@ -24,7 +24,8 @@ import yaml
 import dynslip.app.sweep as sweep_mod
 from dynslip.app import kinds
 from dynslip.cli import main
-from dynslip.data.files import INCOMPLETE, RESULT_MARKER, is_result_folder, provenance
+from dynslip.data.files import provenance
+from dynslip.data.folders import INCOMPLETE, RESULT_MARKER, is_result_folder
 from dynslip.errors import ComputationError
 from helpers import one_line
 

@@ -71,7 +71,7 @@ def run_export(
 ) -> Path:
     """Export ``trajectory`` into the folder ``out`` (default ``<trajectory folder>/paraview``);
     return the file to open (``trajectory.pvd`` or ``sheet.xdmf``)."""
-    from dynslip.data.files import StagedRun
+    from dynslip.data.folders import StagedRun
     from dynslip.data.trajectory import open_trajectory
 
     if fmt not in FORMATS:

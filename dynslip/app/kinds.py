@@ -63,12 +63,12 @@ def _inside(path, folder: Path) -> bool:
 def run_into(
     scn, out, console, *, force: bool = False, source=None, header: str | None = None
 ) -> dict:
-    """Run ``scn`` into the run folder ``out`` under the rules of :mod:`dynslip.data.files`:
+    """Run ``scn`` into the run folder ``out`` under the rules of :mod:`dynslip.data.folders`:
     ``out`` is checked before anything is computed or created; the run writes into a staging
     folder that replaces ``out`` only on success; a failed or interrupted run is kept as
     ``<out>.incomplete-<UTC time>/``. ``source``: the scenario file, which ``out`` must not
     hold; ``header``: printed once the checks have passed."""
-    from dynslip.data.files import StagedRun
+    from dynslip.data.folders import StagedRun
 
     out = Path(out)
     staged = StagedRun(out, force=force)

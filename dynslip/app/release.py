@@ -56,7 +56,7 @@ def _start_dataset(sc, console, run) -> tuple:
         return open_trajectory(src), src
     if src.suffix not in (".yaml", ".yml"):
         raise InputError(f"start_from: {str(src)!r}: expected a trajectory.nc or a scenario .yaml")
-    from dynslip.data.files import StagedRun
+    from dynslip.data.folders import StagedRun
     from dynslip.schema import base as scn
 
     start_sc = scn.load(src)

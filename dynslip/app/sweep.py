@@ -555,15 +555,8 @@ def run_sweep(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dynslip.data.files import (
-        RESULT_MARKER,
-        check_out,
-        kept_on_error,
-        provenance,
-        write_json,
-        write_netcdf,
-        write_result_marker,
-    )
+    from dynslip.data.files import provenance, write_json, write_netcdf
+    from dynslip.data.folders import RESULT_MARKER, check_out, kept_on_error, write_result_marker
 
     console = console or Console()
     sweep = Path(sweep)

@@ -17,6 +17,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from dynslip.analysis.windows import WindowResult, check_search, find_windows
+from dynslip.data.files import write_json
+from dynslip.data.folders import check_out, write_result_marker
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.paths import get_path
 from dynslip.schema.sweep import WindowSpec, friction_field, member_at
@@ -106,7 +108,6 @@ def run_window(
     from rich.console import Console
 
     from dynslip.app.members import default_member_fn, resolve
-    from dynslip.data.files import check_out
     from dynslip.schema import base as scen
 
     console = console or Console()
@@ -150,7 +151,6 @@ def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, l
             log) -> dict:
     """The window search of :func:`run_window` in ``out``, resuming from the evaluations ``log``
     kept by an earlier, stopped attempt of the same search (each evaluation is kept as it ends)."""
-    from dynslip.data.files import write_json, write_result_marker
 
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
@@ -340,7 +340,6 @@ def run_window_nodes(
     from rich.console import Console
 
     from dynslip.analysis.convergence import richardson
-    from dynslip.data.files import check_out, write_json, write_result_marker
     from dynslip.plot.sweep import plot_critical_mu
 
     console = console or Console()
