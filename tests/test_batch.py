@@ -206,9 +206,10 @@ def test_batched_sweep_equals_sequential(tmp_path, sequential, monkeypatch):
     outcome, end state and solver counts as ``sequential``, member by member; the summary
     says what ran."""
     from dynslip.app import sweep as sweep_app
+    from dynslip.app import sweep_runners
 
-    monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 1)
-    monkeypatch.setattr(sweep_app, "BATCH_SIZE", None)  # both members in one lockstep batch
+    monkeypatch.setattr(sweep_runners, "BATCH_WORKERS", 1)
+    monkeypatch.setattr(sweep_runners, "BATCH_SIZE", None)  # both members in one lockstep batch
     seq, rs = sequential
     bat = sweep_app.run_sweep(
         _sweep_file(tmp_path, MEMBERS), out=tmp_path / "bat", mode="batched", plot=False
@@ -228,8 +229,9 @@ def test_batched_sweep_in_two_worker_processes(tmp_path, sequential, monkeypatch
     every member ok, and the two members also run sequentially (in this process) have the
     same records."""
     from dynslip.app import sweep as sweep_app
+    from dynslip.app import sweep_runners
 
-    monkeypatch.setattr(sweep_app, "BATCH_WORKERS", 2)
+    monkeypatch.setattr(sweep_runners, "BATCH_WORKERS", 2)
     _, rs = sequential
     more = MEMBERS + [
         {"physics.friction.mu_s": 1.2, "physics.friction.mu_k": 1.0},

@@ -22,6 +22,7 @@ import yaml
 from pydantic import Field, ValidationError
 
 import dynslip.app.sweep as sweep_mod
+import dynslip.app.sweep_runners as sweep_runners
 import dynslip.schema.base as scenario_mod
 from dynslip.app.sweep import run_sweep
 from dynslip.errors import ComputationError, InputError
@@ -351,7 +352,7 @@ def test_bad_inputs_are_one_line_input_errors(tmp_path, monkeypatch):
 
     monkeypatch.setattr(scenario_mod, "validate_data", fake_validate)
     monkeypatch.setattr(sweep_mod, "default_member_fn", fake_member)
-    monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(sweep_runners, "CONNECT_TIMEOUT_S", 1.0)
     ok = write_sweep(tmp_path, {"grid": {"physics.friction.mu": [0.5]}}, name="ok.yaml")
     bad = write_sweep(tmp_path, {"grid": {"physics.friction.mu": ["x"]}}, name="bad.yaml")
     for argv, needle in [
@@ -378,11 +379,11 @@ def _cli_child(argv):
     """``_cli`` in a child process, with the same stand-ins as the calling test patches in."""
     script = (
         "import sys, test_sweep\n"
-        "import dynslip.schema.base as b, dynslip.app.sweep as s\n"
+        "import dynslip.schema.base as b, dynslip.app.sweep as s, dynslip.app.sweep_runners as r\n"
         "from dynslip import cli\n"
         "b.validate_data = test_sweep.fake_validate\n"
         "s.default_member_fn = test_sweep.fake_member\n"
-        "s.CONNECT_TIMEOUT_S = 1.0\n"
+        "r.CONNECT_TIMEOUT_S = 1.0\n"
         f"sys.exit(cli.main({[*argv, '--out', str(Path(argv[1]).with_suffix('.out'))]!r}))\n"
     )
     env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
@@ -440,7 +441,7 @@ def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
     """The real scenario schema (kind: forming): every case stops before anything runs."""
     from dynslip import cli
 
-    monkeypatch.setattr(sweep_mod, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(sweep_runners, "CONNECT_TIMEOUT_S", 1.0)
     monkeypatch.setattr(sweep_mod, "default_member_fn", lambda *a: pytest.fail("a member ran"))
     (tmp_path / "m2.yaml").write_text("kind: forming\nnumerics: {nodes: 20}\n")
     cases = [

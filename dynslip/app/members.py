@@ -5,9 +5,32 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-__all__ = ["resolve", "default_member_fn"]
+__all__ = ["Member", "resolve", "default_member_fn"]
+
+
+@dataclass
+class Member:
+    """A sweep's member: where it sits in the grid, what it assigns, its scenario before and
+    after validation, and the fingerprint that names its record file."""
+
+    index: tuple[int, ...]  # grid multi-index, or (list position,)
+    assign: dict[str, Any]  # swept field -> value (``base`` included when swept)
+    base: Path
+    data: dict  # scenario data before validation (base file + overrides + assignments)
+    resolved: dict  # validated, every default filled in
+    fingerprint: str
+
+    @property
+    def key(self) -> str:
+        return self.fingerprint[:16]
+
+    @property
+    def label(self) -> str:
+        return ", ".join(f"{k}={v}" for k, v in self.assign.items())
 
 
 def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dict:
