@@ -141,14 +141,9 @@ def _scipy(ref, core) -> tuple[dict, object]:
     from scipy.integrate import solve_ivp
 
     from dynslip.physics.field import Layout, _f, sheet_structure, vector_field
+    from dynslip.physics.frames import frame_record, initial_state, reset_internal
     from dynslip.physics.linalg import to_dense
-    from dynslip.physics.simulate import (
-        Result,
-        _stage_args,
-        frame_record,
-        initial_state,
-        reset_internal,
-    )
+    from dynslip.physics.simulate import Result, _stage_args
 
     sc, model, protocol, kw = core
     settings = kw["settings"]

@@ -7,15 +7,10 @@ import pytest
 
 from conftest import SCENARIOS
 from dynslip.app.forming import build_core
+from dynslip.physics.field import Layout, sheet_structure, vector_field
+from dynslip.physics.frames import initial_state
 from dynslip.physics.linalg import extract_blocks, to_dense
-from dynslip.physics.simulate import (
-    Layout,
-    _stage_args,
-    initial_state,
-    segment_solver,
-    sheet_structure,
-    vector_field,
-)
+from dynslip.physics.simulate import _stage_args, segment_solver
 from dynslip.schema.base import load
 
 N = 12
@@ -46,8 +41,8 @@ def _setup(name="method2_let_go"):
 
 MODEL, LAYOUT, STAGE_ARGS, Y0, SETTINGS = _setup()
 ARGS = STAGE_ARGS[0]  # push-down: ball held
-# the tube path's raise: the ball force-controlled (on the support), the clamp moved
-FREE_ARGS = _setup("method2")[2][2]
+# the pinned-rim tube path's raise: the ball force-controlled (on the support), the clamp moved
+FREE_ARGS = _setup("method2_pinned")[2][2]
 
 
 def _solve(linear_solver, y, t1):

@@ -30,9 +30,10 @@ and the segment solve are jitted once per mesh size and shared by every run
 
 Longer than 400 lines: one driver for both solver families, with the run's state machine
 (:class:`MemberRun`: stage set-up, segments, recording and stop rules) that
-:mod:`dynslip.physics.batch` steps in lockstep, and the failures it reports; the field and
-the solvers themselves live in :mod:`dynslip.physics.field`, :mod:`.loadstep` and
-:mod:`.newton`.
+:mod:`dynslip.physics.batch` steps in lockstep. The field, the solvers, the frames and the
+failures live in :mod:`dynslip.physics.field`, :mod:`.solvers` (with :mod:`.loadstep` and
+:mod:`.newton`), :mod:`.frames` and :mod:`.failures`; their names are also this module's, as
+before.
 """
 
 from __future__ import annotations
@@ -42,29 +43,31 @@ import math
 import time as _time
 from collections.abc import Callable
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dynslip.physics.failures import (
+    ContactUnresolved,
+    NonFinite,
+    RunFailure,
+    SolverFailure,
+    StepLimit,
+)
 from dynslip.physics.field import (
     N_ACC,
     Layout,
     StageArgs,
     _f,
-    evaluate,
-    heal,
-    sheet_structure,
     vector_field,
 )
+from dynslip.physics.frames import frame_record, initial_state, state_from
 from dynslip.physics.friction import AbstractFriction
-from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.loadstep import FullStateLoadStep
-from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
+from dynslip.physics.newton import zero_rate
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel, deepest_chord
-from dynslip.physics.upstream import VeryChord
+from dynslip.physics.solvers import SOLVERS, Settings, TimeStepping, _counts_newton, solver_for
 
 __all__ = [
     "Layout",
@@ -94,143 +97,6 @@ __all__ = [
 ]
 
 
-@dataclasses.dataclass(frozen=True)
-class Settings:
-    """Numerics of the driver (nondimensional except times in s)."""
-
-    solver: str = "kvaerno5"
-    rtol: float = 1e-5
-    atol: float = 1e-7
-    pcoeff: float = 0.3
-    icoeff: float = 0.3
-    max_steps: int = 20000  # per segment
-    save_interval: float = 1.0  # s
-    contact_threshold: float = 1e-2  # G h0 / R
-    heal_rate: float = (
-        0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
-    )
-    linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
-    # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
-    # increment bound in drag times, driven stages / stages with the ball or clamp under a force
-    newton_max_iter: int = 20
-    newton_backtrack: int = (
-        4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
-    )
-    max_increment: float = 20.0
-    max_increment_free: float = 5.0
-    # a run stops as failed when an element chord dips deeper than this into the ball, or the
-    # pole passes through it (the mesh no longer resolves the contact); None: never checked
-    max_chord_depth: float | None = None
-
-
-class TimeStepping(eqx.Module):
-    """A stiff diffrax solver (``method``: :class:`diffrax.Kvaerno5`, the reference, or another
-    implicit one) with a PID controller over a save segment; at the segment's end the friction
-    law's reset (healing, :func:`dynslip.physics.field.heal`, ``heal_rate``): a reset inside
-    the steps would be a discontinuity in an adaptive error-controlled step."""
-
-    method: type = eqx.field(static=True)
-    max_steps: int = eqx.field(static=True)
-    linear_solver: str = eqx.field(static=True, default="structured")
-    pcoeff: float = eqx.field(static=True, default=0.3)
-    icoeff: float = eqx.field(static=True, default=0.3)
-    heal_rate: float = eqx.field(static=True, default=0.0)
-
-    def _diffrax_solver(self, layout: Layout):
-        # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on
-        # both paths: the dense path otherwise builds diffrax's own VeryChord.
-        chord = diffrax.with_stepsize_controller_tols(VeryChord)
-        if self.linear_solver == "dense":
-            return self.method(root_finder=chord())
-        lin = BorderedBlockTridiagonal(sheet_structure(layout))
-        return self.method(root_finder=chord(linear_solver=lin))
-
-    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
-        term = diffrax.ODETerm(vector_field(model, layout))
-        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
-        sol = diffrax.diffeqsolve(
-            term,
-            self._diffrax_solver(layout),
-            t0,
-            t1,
-            dt0,
-            y0,
-            args=args,
-            stepsize_controller=ctrl,
-            max_steps=self.max_steps,
-            throw=False,
-            saveat=diffrax.SaveAt(t1=True),
-        )
-        y1 = sol.ys[-1]
-        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
-        # a zero-length segment (a run's first frame, a finished batch member) is not healed
-        y1 = jnp.where(t1 > t0, heal(model, layout, y1, args, self.heal_rate), y1)
-        st = sol.stats
-        return SegmentOutput(
-            y=y1,
-            ok=ok,
-            steps=st["num_steps"],
-            accepted=st["num_accepted_steps"],
-            rejected=st["num_rejected_steps"],
-            newton_iterations=jnp.zeros((), jnp.int32),
-            rate=zero_rate(layout.n),
-        )
-
-
-def _from_settings(cls, settings: Settings, **given):
-    """``cls`` (a solver object) with each of its fields that :class:`Settings` has by the same
-    name taken from ``settings``, and the ``given`` ones."""
-    take = {f.name for f in dataclasses.fields(cls)} - set(given)
-    return cls(**{k: getattr(settings, k) for k in take if hasattr(settings, k)}, **given)
-
-
-def _motion_newton(s: Settings) -> MotionNewton:
-    linear = "thomas" if s.linear_solver == "thomas" else "cyclic"
-    return _from_settings(
-        MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear
-    )
-
-
-def _time_stepping(method: type) -> Callable[[Settings], TimeStepping]:
-    return lambda s: _from_settings(TimeStepping, s, method=method)
-
-
-#: The segment solvers by the schema's ``numerics.solver`` name: each builds its solver object
-#: from the :class:`Settings`. Every object has ``segment(model, layout, y0, t0, t1, dt0, args,
-#: rtol, atol, rate) -> SegmentOutput``.
-SOLVERS: dict[str, Callable[[Settings], eqx.Module]] = {
-    "load_step": _motion_newton,
-    "load_step_full": lambda s: _from_settings(FullStateLoadStep, s),
-    "kvaerno5": _time_stepping(diffrax.Kvaerno5),
-    "kvaerno4": _time_stepping(diffrax.Kvaerno4),
-    "kvaerno3": _time_stepping(diffrax.Kvaerno3),
-    "implicit_euler": _time_stepping(diffrax.ImplicitEuler),
-}
-
-
-def solver_for(settings: Settings):
-    """The segment solver object of ``settings.solver``: the object itself, or the one
-    :data:`SOLVERS` builds for its name (``load_step``, the default,
-    :class:`dynslip.physics.newton.MotionNewton`; ``load_step_full``, the full-state Newton
-    baseline :class:`dynslip.physics.loadstep.FullStateLoadStep`; a diffrax solver,
-    :class:`TimeStepping`)."""
-    if not isinstance(settings.solver, str):
-        return settings.solver
-    try:
-        make = SOLVERS[settings.solver]
-    except KeyError:
-        raise ValueError(
-            f"Settings.solver = {settings.solver!r}: allowed: {', '.join(SOLVERS)} or a solver "
-            "object"
-        ) from None
-    return make(settings)
-
-
-def _counts_newton(solver) -> bool:
-    """Whether the solver's ``newton_iterations`` count anything (load stepping)."""
-    return not isinstance(solver, TimeStepping)
-
-
 _SOLVE_CACHE: dict = {}
 _COMPILED: dict = {}  # ahead-of-time compiled segment steps, keyed by everything static
 
@@ -243,134 +109,6 @@ def segment_solver(settings: Settings):
     if solver not in _SOLVE_CACHE:
         _SOLVE_CACHE[solver] = eqx.filter_jit(solver.segment)
     return _SOLVE_CACHE[solver]
-
-
-@eqx.filter_jit
-def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
-    """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
-    dy, aux = evaluate(model, layout, t, y, args)
-    rho, z, zb = aux["rho"], aux["z"], aux["zb"]
-    d = model.diagnostics(
-        rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y)
-    )
-    acc = layout.unpack(y)[3]
-    contact = d["contact"]
-    idx = jnp.arange(layout.n)
-    any_c = jnp.any(contact)
-    last = jnp.max(jnp.where(contact, idx, -1))
-    theta_all = jnp.arctan2(rho, z - zb)
-    theta_max = jnp.where(any_c, jnp.max(jnp.where(contact, theta_all, -jnp.inf)), jnp.nan)
-    rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
-    slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
-    return {
-        "rho": rho,
-        "z": z,
-        **{k: v for k, v in d.items() if k != "contact"},
-        "clamp_z": aux["zc"],
-        "clamp_rho": aux["rhoc"],
-        "clamp_force": aux["clamp_force"],
-        "clamp_force_rho": aux["clamp_force_rho"],
-        "ball_z": zb,
-        "ball_reaction": aux["ball_reaction"],
-        "ball_velocity": aux["ball_v"],
-        "theta_max": theta_max,
-        "rbar_max": rbar_max,
-        "work_clamp": acc[0],
-        "work_ball": acc[1],
-        "dissipation_drag": acc[2],
-        "dissipation_friction": acc[3],
-        "energy_elastic": model.elastic_energy(rho, z),
-        "energy_penalty": model.penalty_energy(rho, z, zb),
-        "slip_max": slip_max,
-        "n_contact": jnp.sum(contact),
-    }
-
-
-def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet: float, zb: float):
-    """Flat sheet at height ``z_sheet``, uniformly pre-stretched radially (rho = lambda rbar)."""
-    rho = pre_stretch * model.mesh.rbar
-    z = jnp.full(layout.n, _f(z_sheet))
-    return layout.pack(rho, z, _f(zb), jnp.zeros(N_ACC))
-
-
-def state_from(layout: Layout, start: dict):
-    """State vector from a saved end state: ``rho``, ``z`` (n,), ``zb``, and optionally
-    ``slip_distance`` (n,); the accumulators start at zero."""
-    internal = None
-    if layout.n_int:
-        internal = jnp.asarray(start.get("slip_distance", np.zeros(layout.n)), dtype=jnp.float64)
-        internal = jnp.where(jnp.isfinite(internal), internal, 0.0)
-    return layout.pack(
-        _f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(N_ACC), internal
-    )
-
-
-@eqx.filter_jit
-def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate=0.0):
-    """The friction law's restart at a save-segment end (time-stepped solvers):
-    :func:`dynslip.physics.field.heal`. Load stepping applies the same reset after every
-    increment."""
-    return heal(model, layout, y, args, heal_rate)
-
-
-class SolverFailure(RuntimeError):
-    """The solver did not reach the end of a segment (step limit, NaN, material range)."""
-
-
-class RunFailure(SolverFailure):
-    """Why a run stopped as failed, in physics terms, with the quantities (``Result.failure``;
-    ``Result.failed`` is its message). The schema layer maps each kind to the settings a user
-    can change (numerics.max_steps, numerics.nodes, ...): no setting names here."""
-
-    def __init__(self, stage: str, t: float, what: str):
-        self.stage, self.t, self.what = stage, t, what
-        super().__init__(f"stage '{stage}' at t = {t:.6g} s: {what}")
-
-
-class StepLimit(RunFailure):
-    """A save segment from ``t`` to ``t1`` needed more than ``max_steps`` steps."""
-
-    def __init__(self, stage: str, t: float, t1: float, max_steps: int):
-        self.t1, self.max_steps = t1, max_steps
-        super().__init__(
-            stage,
-            t,
-            f"the solver did not reach t = {t1:.6g} s: step limit reached "
-            f"({max_steps} steps per save segment)",
-        )
-
-
-class NonFinite(RunFailure):
-    """A state or energy went non-finite (a stretch outside the material's range, or divergence)."""
-
-
-class ContactUnresolved(RunFailure):
-    """The mesh no longer resolves the contact: an element chord ``depth`` (R) inside the ball,
-    beyond ``limit`` (R), on the element of material radii ``element`` (R), or the pole passed
-    through the ball (``pole_crossed``, depth 1)."""
-
-    def __init__(
-        self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool
-    ):
-        self.depth, self.limit, self.element, self.pole_crossed = (
-            depth,
-            limit,
-            element,
-            pole_crossed,
-        )
-        why = (
-            "the pole passed through the ball"
-            if pole_crossed
-            else f"the chord of the element on rbar [{element[0]:.4g}, {element[1]:.4g}] R "
-            f"lies {depth:.3g} R "
-            f"inside the ball (limit {limit:g} R)"
-        )
-        super().__init__(
-            stage,
-            t,
-            f"contact not resolved by the mesh: {why}; a finer mesh near the contact, or "
-            "a larger chord-depth limit, is needed",
-        )
 
 
 @dataclasses.dataclass

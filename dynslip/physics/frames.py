@@ -1,0 +1,81 @@
+"""What a saved frame records, and the states a run starts from (the flat sheet, a saved end
+state), with the friction law's restart at a save segment's end."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal
+from dynslip.physics.sheet import SheetModel
+
+__all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
+
+
+@eqx.filter_jit
+def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
+    """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
+    dy, aux = evaluate(model, layout, t, y, args)
+    rho, z, zb = aux["rho"], aux["z"], aux["zb"]
+    d = model.diagnostics(
+        rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y)
+    )
+    acc = layout.unpack(y)[3]
+    contact = d["contact"]
+    idx = jnp.arange(layout.n)
+    any_c = jnp.any(contact)
+    last = jnp.max(jnp.where(contact, idx, -1))
+    theta_all = jnp.arctan2(rho, z - zb)
+    theta_max = jnp.where(any_c, jnp.max(jnp.where(contact, theta_all, -jnp.inf)), jnp.nan)
+    rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
+    slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
+    return {
+        "rho": rho,
+        "z": z,
+        **{k: v for k, v in d.items() if k != "contact"},
+        "clamp_z": aux["zc"],
+        "clamp_rho": aux["rhoc"],
+        "clamp_force": aux["clamp_force"],
+        "clamp_force_rho": aux["clamp_force_rho"],
+        "ball_z": zb,
+        "ball_reaction": aux["ball_reaction"],
+        "ball_velocity": aux["ball_v"],
+        "theta_max": theta_max,
+        "rbar_max": rbar_max,
+        "work_clamp": acc[0],
+        "work_ball": acc[1],
+        "dissipation_drag": acc[2],
+        "dissipation_friction": acc[3],
+        "energy_elastic": model.elastic_energy(rho, z),
+        "energy_penalty": model.penalty_energy(rho, z, zb),
+        "slip_max": slip_max,
+        "n_contact": jnp.sum(contact),
+    }
+
+
+def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet: float, zb: float):
+    """Flat sheet at height ``z_sheet``, uniformly pre-stretched radially (rho = lambda rbar)."""
+    rho = pre_stretch * model.mesh.rbar
+    z = jnp.full(layout.n, _f(z_sheet))
+    return layout.pack(rho, z, _f(zb), jnp.zeros(N_ACC))
+
+
+def state_from(layout: Layout, start: dict):
+    """State vector from a saved end state: ``rho``, ``z`` (n,), ``zb``, and optionally
+    ``slip_distance`` (n,); the accumulators start at zero."""
+    internal = None
+    if layout.n_int:
+        internal = jnp.asarray(start.get("slip_distance", np.zeros(layout.n)), dtype=jnp.float64)
+        internal = jnp.where(jnp.isfinite(internal), internal, 0.0)
+    return layout.pack(
+        _f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(N_ACC), internal
+    )
+
+
+@eqx.filter_jit
+def reset_internal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate=0.0):
+    """The friction law's restart at a save-segment end (time-stepped solvers):
+    :func:`dynslip.physics.field.heal`. Load stepping applies the same reset after every
+    increment."""
+    return heal(model, layout, y, args, heal_rate)

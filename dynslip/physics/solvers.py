@@ -1,0 +1,162 @@
+r"""The segment solvers, as objects built from the driver's :class:`Settings` (the schema's
+``numerics``): load stepping by Newton on the motion alone
+(:class:`dynslip.physics.newton.MotionNewton`, the default), the full-state Newton baseline
+(:class:`dynslip.physics.loadstep.FullStateLoadStep`) and stiff diffrax solvers
+(:class:`TimeStepping`: Kvaerno5, the reference, and others). Every object has
+``segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``;
+:mod:`dynslip.physics.simulate` drives them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import diffrax
+import equinox as eqx
+import jax.numpy as jnp
+
+from dynslip.physics.field import Layout, heal, sheet_structure, vector_field
+from dynslip.physics.linalg import BorderedBlockTridiagonal
+from dynslip.physics.loadstep import FullStateLoadStep
+from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
+from dynslip.physics.upstream import VeryChord
+
+__all__ = ["SOLVERS", "Settings", "TimeStepping", "solver_for"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """Numerics of the driver (nondimensional except times in s)."""
+
+    solver: str = "kvaerno5"
+    rtol: float = 1e-5
+    atol: float = 1e-7
+    pcoeff: float = 0.3
+    icoeff: float = 0.3
+    max_steps: int = 20000  # per segment
+    save_interval: float = 1.0  # s
+    contact_threshold: float = 1e-2  # G h0 / R
+    heal_rate: float = (
+        0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
+    )
+    linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
+    # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
+    # increment bound in drag times, driven stages / stages with the ball or clamp under a force
+    newton_max_iter: int = 20
+    newton_backtrack: int = (
+        4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
+    )
+    max_increment: float = 20.0
+    max_increment_free: float = 5.0
+    # a run stops as failed when an element chord dips deeper than this into the ball, or the
+    # pole passes through it (the mesh no longer resolves the contact); None: never checked
+    max_chord_depth: float | None = None
+
+
+class TimeStepping(eqx.Module):
+    """A stiff diffrax solver (``method``: :class:`diffrax.Kvaerno5`, the reference, or another
+    implicit one) with a PID controller over a save segment; at the segment's end the friction
+    law's reset (healing, :func:`dynslip.physics.field.heal`, ``heal_rate``): a reset inside
+    the steps would be a discontinuity in an adaptive error-controlled step."""
+
+    method: type = eqx.field(static=True)
+    max_steps: int = eqx.field(static=True)
+    linear_solver: str = eqx.field(static=True, default="structured")
+    pcoeff: float = eqx.field(static=True, default=0.3)
+    icoeff: float = eqx.field(static=True, default=0.3)
+    heal_rate: float = eqx.field(static=True, default=0.0)
+
+    def _diffrax_solver(self, layout: Layout):
+        # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on
+        # both paths: the dense path otherwise builds diffrax's own VeryChord.
+        chord = diffrax.with_stepsize_controller_tols(VeryChord)
+        if self.linear_solver == "dense":
+            return self.method(root_finder=chord())
+        lin = BorderedBlockTridiagonal(sheet_structure(layout))
+        return self.method(root_finder=chord(linear_solver=lin))
+
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        term = diffrax.ODETerm(vector_field(model, layout))
+        ctrl = diffrax.PIDController(rtol=rtol, atol=atol, pcoeff=self.pcoeff, icoeff=self.icoeff)
+        sol = diffrax.diffeqsolve(
+            term,
+            self._diffrax_solver(layout),
+            t0,
+            t1,
+            dt0,
+            y0,
+            args=args,
+            stepsize_controller=ctrl,
+            max_steps=self.max_steps,
+            throw=False,
+            saveat=diffrax.SaveAt(t1=True),
+        )
+        y1 = sol.ys[-1]
+        ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
+        # a zero-length segment (a run's first frame, a finished batch member) is not healed
+        y1 = jnp.where(t1 > t0, heal(model, layout, y1, args, self.heal_rate), y1)
+        st = sol.stats
+        return SegmentOutput(
+            y=y1,
+            ok=ok,
+            steps=st["num_steps"],
+            accepted=st["num_accepted_steps"],
+            rejected=st["num_rejected_steps"],
+            newton_iterations=jnp.zeros((), jnp.int32),
+            rate=zero_rate(layout.n),
+        )
+
+
+def _from_settings(cls, settings: Settings, **given):
+    """``cls`` (a solver object) with each of its fields that :class:`Settings` has by the same
+    name taken from ``settings``, and the ``given`` ones."""
+    take = {f.name for f in dataclasses.fields(cls)} - set(given)
+    return cls(**{k: getattr(settings, k) for k in take if hasattr(settings, k)}, **given)
+
+
+def _motion_newton(s: Settings) -> MotionNewton:
+    linear = "thomas" if s.linear_solver == "thomas" else "cyclic"
+    return _from_settings(
+        MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear
+    )
+
+
+def _time_stepping(method: type) -> Callable[[Settings], TimeStepping]:
+    return lambda s: _from_settings(TimeStepping, s, method=method)
+
+
+#: The segment solvers by the schema's ``numerics.solver`` name: each builds its solver object
+#: from the :class:`Settings`. Every object has ``segment(model, layout, y0, t0, t1, dt0, args,
+#: rtol, atol, rate) -> SegmentOutput``.
+SOLVERS: dict[str, Callable[[Settings], eqx.Module]] = {
+    "load_step": _motion_newton,
+    "load_step_full": lambda s: _from_settings(FullStateLoadStep, s),
+    "kvaerno5": _time_stepping(diffrax.Kvaerno5),
+    "kvaerno4": _time_stepping(diffrax.Kvaerno4),
+    "kvaerno3": _time_stepping(diffrax.Kvaerno3),
+    "implicit_euler": _time_stepping(diffrax.ImplicitEuler),
+}
+
+
+def solver_for(settings: Settings):
+    """The segment solver object of ``settings.solver``: the object itself, or the one
+    :data:`SOLVERS` builds for its name (``load_step``, the default,
+    :class:`dynslip.physics.newton.MotionNewton`; ``load_step_full``, the full-state Newton
+    baseline :class:`dynslip.physics.loadstep.FullStateLoadStep`; a diffrax solver,
+    :class:`TimeStepping`)."""
+    if not isinstance(settings.solver, str):
+        return settings.solver
+    try:
+        make = SOLVERS[settings.solver]
+    except KeyError:
+        raise ValueError(
+            f"Settings.solver = {settings.solver!r}: allowed: {', '.join(SOLVERS)} or a solver "
+            "object"
+        ) from None
+    return make(settings)
+
+
+def _counts_newton(solver) -> bool:
+    """Whether the solver's ``newton_iterations`` count anything (load stepping)."""
+    return not isinstance(solver, TimeStepping)
