@@ -273,10 +273,18 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
             plot_release(ds, summary["release"], outs.folder)
     outs.json(summary)
     if outs.writes:
-        make_figures(ds, outs.folder, summary.get("outcome"))
+        make_figures(ds, outs.folder, summary.get("outcome"), _drawn_ball(model.ball))
         if model.bodies:
             _world_figure(sc, ds, model, outs, summary.get("outcome"))
     return summary
+
+
+def _drawn_ball(ball):
+    """The ball's body for the figures: None for the unit sphere (drawn as today's circle)."""
+    from dynslip.physics.bodies import Sphere
+
+    unit = isinstance(ball, Sphere) and ball.radius == 1.0 and ball.centre_z == 0.0
+    return None if unit else ball
 
 
 def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
@@ -296,6 +304,7 @@ def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
     frames = {"widest contact": widest, "end": ds.sizes["time"] - 1}
     end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
     fig = plot_world(ds, frames, held=held, with_ball=with_ball, limits=None,
+                     ball=_drawn_ball(model.ball),
                      title=f"{sc.name} (N = {ds.sizes['rbar']})\n{end}")
     save_figure(fig, outs.folder / "world.png", dpi=120)
 

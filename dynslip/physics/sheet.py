@@ -58,6 +58,7 @@ __all__ = [
     "Penalty",
     "SheetModel",
     "chord_depths",
+    "body_chord_depths",
     "deepest_chord",
     "make_mesh",
     "mesh_from_radii",
@@ -131,13 +132,35 @@ def chord_depths(rho, z, zb) -> np.ndarray:
     return 1.0 - np.sqrt(np.sum(closest * closest, axis=-1))
 
 
-def deepest_chord(rho, z, zb, pole_side: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _is_unit_ball(body) -> bool:
+    from dynslip.physics.bodies.sphere import Sphere
+
+    return body is None or (isinstance(body, Sphere) and body.radius == 1.0
+                            and body.centre_z == 0.0)
+
+
+def body_chord_depths(rho, z, zb, body=None) -> np.ndarray:
+    """:func:`chord_depths` against the ball ``body`` (its reference placement displaced by
+    ``zb``): the unit ball's closed form for None or the unit sphere (today's numbers, bit for
+    bit), else the depth along each chord inside any body
+    (:func:`dynslip.physics.bodies.chords.chord_depths`)."""
+    if _is_unit_ball(body):
+        return chord_depths(rho, z, zb)
+    from dynslip.physics.bodies.chords import chord_depths as any_body
+
+    return any_body(body, rho, z, zb)
+
+
+def deepest_chord(
+    rho, z, zb, pole_side: float, body=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The deepest chord of each frame (shapes as :func:`chord_depths`, frames on the leading
-    axes): ``(depth, element index, pole crossed)``. The pole node lies on the axis, which the
-    ball fills from ``zb - 1`` to ``zb + 1``, so a pole on the other side of the ball's centre
-    from ``pole_side`` (the sign of ``z_pole - zb`` at the start; 0: not checked) has passed
+    axes): ``(depth, element index, pole crossed)``, inside the ball ``body`` (None: the unit
+    ball; :func:`body_chord_depths`). The pole node lies on the axis, which a ball (a sphere,
+    a disc) fills across its centre, so a pole on the other side of the ball's centre from
+    ``pole_side`` (the sign of ``z_pole - zb`` at the start; 0: not checked) has passed
     through it: depth 1 on element 0, at least."""
-    depth = chord_depths(rho, z, zb)
+    depth = body_chord_depths(rho, z, zb, body)
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]

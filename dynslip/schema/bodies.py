@@ -201,32 +201,40 @@ class BodySpec(_Shape):
         return self
 
 
-class BallSpec(_Shape):
+class BallSpec(Strict):
     """The ball's kind (the moving body): a sphere of ``ball_radius_mm`` by default (today's
     ball), or a disc (a coin). The length unit R stays ``ball_radius_mm``: for a disc R is only
-    the length unit (set it to the coin's radius). Its centre is the ball's height (z_mm must be
-    0); the trapped criterion and the mesh check follow its kind (docs/bodies.md)."""
+    the length unit (set it to the coin's radius). Its centre is the ball's height; the trapped
+    criterion and the mesh check follow its kind (docs/bodies.md)."""
 
     kind: Literal["sphere", "disc"] = F("sphere", description="sphere (radius_mm, default "
                                         "ball_radius_mm) or disc (radius_mm, thickness_mm, "
                                         "edge_radius_mm: a coin)")
+    radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
+                                description="the sphere's radius (default ball_radius_mm) or the "
+                                            f"disc's; in (0, 1e4] {_MM}")
+    thickness_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
+                                   description=f"disc: the thickness, in (0, 1e4] {_MM}")
+    edge_radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
+                                     description="disc: its edge's rounding radius, in (0, "
+                                                 f"thickness / 2]; {_MM}")
 
     @model_validator(mode="after")
     def _sizes(self):
-        if self.z_mm != 0.0:
-            raise ValueError(f"ball.z_mm = {self.z_mm}: the ball's centre is its height "
-                             f"(allowed: 0)")
         if self.kind == "disc":
-            self._check_sizes("disc", "ball")
+            missing = [k for k in ("radius_mm", "thickness_mm", "edge_radius_mm")
+                       if getattr(self, k) is None]
+            if missing:
+                raise ValueError(f"ball: a disc needs {', '.join(missing)}")
         else:
-            extra = [k for k in _ALL_SIZES if k != "radius_mm" and getattr(self, k) is not None]
+            extra = [k for k in ("thickness_mm", "edge_radius_mm") if getattr(self, k) is not None]
             if extra:
                 raise ValueError(f"ball: {', '.join(extra)} is not a size of a sphere (its "
                                  f"size: radius_mm)")
         return self
 
     def radius(self, r: float) -> float:
-        """The sphere's radius (mm): radius_mm, else ball_radius_mm ``r``."""
+        """The ball's radius (mm): radius_mm, else ball_radius_mm ``r``."""
         return r if self.radius_mm is None else self.radius_mm
 
     def top_mm(self, r: float) -> float:
@@ -235,7 +243,15 @@ class BallSpec(_Shape):
 
     def widest_mm(self, r: float) -> float:
         """The ball's largest radius from the axis (mm)."""
-        return self.radius(r) if self.kind == "sphere" else self.radius_mm
+        return self.radius(r)
+
+    def core(self, r: float):
+        """The core body (units of R), centred at the origin."""
+        from dynslip.physics.bodies import Disc, Sphere
+
+        if self.kind == "sphere":
+            return Sphere(self.radius(r) / r)
+        return Disc(self.radius_mm / r, self.thickness_mm / r, self.edge_radius_mm / r)
 
 
 def ball_core(ball: BallSpec | None, r: float):
@@ -245,7 +261,7 @@ def ball_core(ball: BallSpec | None, r: float):
 
     if ball is None or (ball.kind == "sphere" and ball.radius(r) == r):
         return Sphere()
-    return ball.core(ball.kind, r)
+    return ball.core(r)
 
 
 def body_core(spec: BodySpec, r: float):

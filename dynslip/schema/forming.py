@@ -533,7 +533,7 @@ class FormingScenario(ScenarioBase):
             prot = build_protocol(self)
         except ValueError as err:
             raise ValueError(f"physics.stages: {err}") from None
-        if self.start_from is None and prot.clamp_min_distance_to_ball() <= 1.0:
+        if self.start_from is None and _clamp_enters_ball(prot, self.physics.ball_body()):
             raise ValueError("physics.stages: the clamp path enters the ball")
         assert isinstance(prot, Protocol)
         frames = sum(s.max_duration for s in prot.stages) / self.numerics.save_interval_s
@@ -547,6 +547,25 @@ class FormingScenario(ScenarioBase):
     # the resolved start state of ``start_from`` (filled in by
     # :func:`dynslip.app.forming.resolve_start`)
     _start: tuple | None = PrivateAttr(default=None)
+
+
+def _clamp_enters_ball(prot, ball) -> bool:
+    """Whether the keyframed clamp path comes into the ball: within the unit distance of the
+    centre for the unit ball (today's check), else at a distance at most 0 from the ball's body
+    along the straight segments between keyframes (sampled every 1e-3 of a segment)."""
+    from dynslip.physics.bodies import Sphere
+
+    if isinstance(ball, Sphere) and ball.radius == 1.0:
+        return prot.clamp_min_distance_to_ball() <= 1.0
+    import numpy as np
+
+    kf = prot.keyframes()
+    u = np.linspace(0.0, 1.0, 1001)[:, None]
+    for (_, r0, z0), (_, r1, z1) in zip(kf[:-1], kf[1:], strict=True):
+        x = np.array([r0, z0 - prot.ball_z0]) + u * np.array([r1 - r0, z1 - z0])
+        if float(np.min(np.asarray(ball.distance(x)))) <= 0.0:
+            return True
+    return False
 
 
 def _stop_rule(s, duration: float, r: float, fs: float):
