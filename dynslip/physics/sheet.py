@@ -58,7 +58,6 @@ __all__ = [
     "Penalty",
     "SheetModel",
     "chord_depths",
-    "body_chord_depths",
     "deepest_chord",
     "make_mesh",
     "mesh_from_radii",
@@ -132,35 +131,13 @@ def chord_depths(rho, z, zb) -> np.ndarray:
     return 1.0 - np.sqrt(np.sum(closest * closest, axis=-1))
 
 
-def _is_unit_ball(body) -> bool:
+def deepest_chord(rho, z, zb, pole_side: float, body=None) -> tuple[np.ndarray, ...]:
+    """Per frame (frames leading) ``(depth, element, pole crossed)`` of the deepest chord in the
+    ball ``body`` (None: the unit ball); a pole on its other side from ``pole_side`` crossed."""
+    from dynslip.physics.bodies.chords import chord_depths as in_body
     from dynslip.physics.bodies.sphere import Sphere
-
-    return body is None or (isinstance(body, Sphere) and body.radius == 1.0
-                            and body.centre_z == 0.0)
-
-
-def body_chord_depths(rho, z, zb, body=None) -> np.ndarray:
-    """:func:`chord_depths` against the ball ``body`` (its reference placement displaced by
-    ``zb``): the unit ball's closed form for None or the unit sphere (today's numbers, bit for
-    bit), else the depth along each chord inside any body
-    (:func:`dynslip.physics.bodies.chords.chord_depths`)."""
-    if _is_unit_ball(body):
-        return chord_depths(rho, z, zb)
-    from dynslip.physics.bodies.chords import chord_depths as any_body
-
-    return any_body(body, rho, z, zb)
-
-
-def deepest_chord(
-    rho, z, zb, pole_side: float, body=None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The deepest chord of each frame (shapes as :func:`chord_depths`, frames on the leading
-    axes): ``(depth, element index, pole crossed)``, inside the ball ``body`` (None: the unit
-    ball; :func:`body_chord_depths`). The pole node lies on the axis, which a ball (a sphere,
-    a disc) fills across its centre, so a pole on the other side of the ball's centre from
-    ``pole_side`` (the sign of ``z_pole - zb`` at the start; 0: not checked) has passed
-    through it: depth 1 on element 0, at least."""
-    depth = body_chord_depths(rho, z, zb, body)
+    unit = body is None or isinstance(body, Sphere) and (body.radius, body.centre_z) == (1, 0)
+    depth = chord_depths(rho, z, zb) if unit else in_body(body, rho, z, zb)
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]
