@@ -164,3 +164,40 @@ def test_bodies_build_as_held_entries_in_units_of_r():
     np.testing.assert_allclose(shape.body.length, (np.pi * 4.0 + 4.0) / r, rtol=1e-12)
     np.testing.assert_allclose(float(shape.body.distance(np.array([0.0, -96 / r]))), 0.0,
                                atol=1e-12)
+
+
+COIN = SCENARIOS / "coin.yaml"
+
+
+@pytest.mark.parametrize(
+    "dotted, value, words",
+    [
+        ("physics.ball.kind", "cube", ("physics.ball.kind", "cube", "'disc'")),
+        ("physics.ball.edge_radius_mm", 1.0, ("ball (kind disc)", "edge radius", "half")),
+        ("physics.ball.thickness_mm", 0.0, ("physics.ball.thickness_mm", "greater than 0")),
+        ("physics.ball.radius_mm", -12.0, ("physics.ball.radius_mm", "-12")),
+        ("physics.ball.edge_radius_mm", None, ("ball", "a disc needs edge_radius_mm")),
+        ("physics.rim_radius_mm", 12.0, ("rim_radius_mm", "inside the ball", "12.13")),
+    ],
+)
+def test_bad_ball_input(tmp_path, capsys, dotted, value, words):
+    run_refused(tmp_path, capsys, COIN, set_field(dotted, value), *words)
+
+
+def test_bottle_needs_the_sphere(tmp_path, capsys):
+    def edit(data):
+        data["physics"]["bottle"] = {}
+
+    run_refused(tmp_path, capsys, COIN, edit, "bottle", "sphere", "kind disc")
+
+
+def test_coin_scenario_builds_the_disc_and_starts_the_sheet_above_its_top():
+    from dynslip.app.forming import build_core
+    from dynslip.physics.bodies import Disc
+
+    model, protocol, kw = build_core(load(COIN))
+    r = 12.13
+    assert isinstance(model.ball, Disc)
+    np.testing.assert_allclose([model.ball.radius, model.ball.thickness, model.ball.edge_radius],
+                               [1.0, 1.75 / r, 0.3 / r], rtol=1e-15)
+    np.testing.assert_allclose([kw["z_sheet"], protocol.clamp_z0], (0.875 + 0.4) / r, rtol=1e-15)
