@@ -58,6 +58,8 @@ RUNS = {
     "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
     "method2_rim_feed": Run("scenarios/method2_rim_feed.yaml", fast=False),
     "release_pull_tube": Run("scenarios/release_pull_tube.yaml", fast=False),
+    "coin": Run("scenarios/coin.yaml", {"physics.friction.mu_s": 0.99,
+                                        "physics.friction.mu_k": 0.82}),
     "method2_rim80": Run(
         "scenarios/method2_pinned.yaml",
         {"numerics.nodes": 100, "physics.stages.0.clamp_to_z_mm": -80.0},
@@ -115,6 +117,18 @@ FIGURES = {
         "release_pull_tube",
         "dynslip run scenarios/release_pull_tube.yaml (DIR/release_force.png)",
         "copy_release_force",
+    ),
+    "meridian_coin.png": Figure(
+        "coin",
+        "dynslip run scenarios/coin.yaml --set physics.friction.mu_s=0.99 "
+        "--set physics.friction.mu_k=0.82 (DIR/meridian.png)",
+        "copy_meridian",
+    ),
+    "state_map_coin.png": Figure(
+        "coin",
+        "dynslip run scenarios/coin.yaml --set physics.friction.mu_s=0.99 "
+        "--set physics.friction.mu_k=0.82 (DIR/state_map.png)",
+        "copy_state_map",
     ),
     "world_method2_rim80.png": Figure(
         "method2_rim80",

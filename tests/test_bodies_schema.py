@@ -58,3 +58,146 @@ def test_band_scenario_builds_the_tube_and_the_grip():
     rbar = np.asarray(model.mesh.rbar)
     x = np.stack([sc.physics.pre_stretch * rbar, np.full_like(rbar, z0)], -1)
     assert float(np.min(np.asarray(wall.distance(x)))) > 0.0
+
+
+# ---- physics.bodies (issue 21): held bodies by kind and size in mm ----------------------------
+
+LET_GO = SCENARIOS / "method2_let_go.yaml"
+POST = {"name": "post", "kind": "cylinder", "radius_mm": 10.0, "height_mm": 30.0,
+        "edge_radius_mm": 2.0, "z_mm": -60.0}
+
+
+def _bodies(*bodies):
+    def edit(data):
+        data["physics"]["bodies"] = [dict(b) for b in bodies]
+
+    return edit
+
+
+def _profile(*segments, z_mm=-60.0):
+    return {"name": "shape", "kind": "profile", "z_mm": z_mm, "segments": list(segments)}
+
+
+def _line(a, b):
+    return {"type": "line", "start_mm": list(a), "end_mm": list(b)}
+
+
+def _arc(c, r, a0, a1):
+    return {"type": "arc", "centre_mm": list(c), "radius_mm": r, "start_deg": a0, "end_deg": a1}
+
+
+@pytest.mark.parametrize(
+    "bodies, words",
+    [
+        # a profile not connected
+        ((_profile(_line((0, 5), (5, 5)), _line((5, 4), (0, 0))),),
+         ("bodies.0", "'shape'", "profile not connected")),
+        # a smooth profile whose full loop crosses its closing line
+        ((_profile(_line((0, 3), (4, 3)), _arc((4, 1.5), 1.5, 90, -270), _line((4, 3), (6, 3)),
+                   _arc((6, 2), 1.0, 90, -90), _line((6, 1), (0, 1))),),
+         ("bodies.0", "crosses itself")),
+        # zero or negative sizes
+        (({**POST, "radius_mm": -5.0},), ("physics.bodies.0.radius_mm", "-5", "greater than 0")),
+        (({**POST, "height_mm": 0.0},), ("physics.bodies.0.height_mm", "greater than 0")),
+        (({"name": "coin", "kind": "disc", "radius_mm": 5.0, "thickness_mm": 0.0,
+           "edge_radius_mm": 0.1, "z_mm": -60.0},), ("physics.bodies.0.thickness_mm", "0")),
+        (({"name": "coin", "kind": "disc", "radius_mm": 5.0, "thickness_mm": 1.0,
+           "edge_radius_mm": 0.0, "z_mm": -60.0},), ("bodies.0", "edge radius 0", "> 0")),
+        (({"name": "ring", "kind": "torus", "ring_radius_mm": 30.0, "minor_radius_mm": -1.0,
+           "z_mm": -60.0},), ("physics.bodies.0.minor_radius_mm", "-1")),
+        # overlapping the ball, or each other, at the start
+        (({"name": "bead", "kind": "sphere", "radius_mm": 5.0, "z_mm": -22.0},),
+         ("bodies.0", "'bead'", "overlaps the ball", "3 mm", "apart or touching")),
+        ((POST, {**POST, "name": "post2", "z_mm": -55.0}),
+         ("bodies.1", "'post2'", "overlaps body 'post'")),
+        # the flat sheet (20.4 mm above the centre, out to the rim) starting inside a body
+        (({"name": "ring", "kind": "torus", "ring_radius_mm": 30.0, "minor_radius_mm": 3.0,
+           "z_mm": 21.0},), ("bodies.0", "'ring'", "the flat sheet starts inside it")),
+        # an unknown kind, a motion or friction law that is not built
+        (({**POST, "kind": "box"},), ("physics.bodies.0.kind", "box", "'cylinder'", "'profile'")),
+        (({**POST, "motion": "stage"},), ("physics.bodies.0.motion", "stage", "'with_ball'")),
+        (({**POST, "friction": {"law": "slip_weakening", "mu": 0.5}},),
+         ("physics.bodies.0.friction.law", "slip_weakening", "'coulomb'")),
+        (({**POST, "friction": {"law": "coulomb"}},), ("bodies.0.friction", "needs mu")),
+        (({**POST, "friction": {"law": "coulomb", "mu": -0.2}},),
+         ("physics.bodies.0.friction.mu", "-0.2")),
+        # a size of another kind, a duplicated name
+        (({**POST, "thickness_mm": 1.0},),
+         ("bodies.0", "thickness_mm", "not a size of a cylinder")),
+        ((POST, {**POST, "z_mm": -120.0}), ("bodies.name", "'post'", "duplicated")),
+    ],
+)
+def test_bad_bodies_input(tmp_path, capsys, bodies, words):
+    run_refused(tmp_path, capsys, LET_GO, _bodies(*bodies), *words)
+
+
+def test_bodies_build_as_held_entries_in_units_of_r():
+    """Each entry of physics.bodies becomes a Held entry of the model: its geometry in units of
+    R (the file's mm over ball_radius_mm), its friction and its motion as given."""
+    from dynslip.app.forming import build_core
+    from dynslip.physics.bodies import Cone, Cylinder, Profile, Torus
+    from dynslip.schema.base import load_data, validate_data
+
+    data = load_data(LET_GO)
+    data["physics"]["bodies"] = [
+        {**POST, "friction": {"law": "coulomb", "mu": 0.3}},
+        {"name": "ring", "kind": "torus", "ring_radius_mm": 35.0, "minor_radius_mm": 3.0,
+         "z_mm": -10.0, "motion": "with_ball"},
+        {"name": "spike", "kind": "cone", "radius_mm": 8.0, "apex_mm": 12.0, "z_mm": -140.0},
+        _profile(_arc((0, 0), 4.0, 90, 0), _line((4, 0), (4, -4)), _arc((0, -4), 4.0, 0, -90),
+                 z_mm=-100.0),
+    ]
+    model, _, _ = build_core(validate_data(data))
+    post, ring, spike, shape = model.bodies
+    r = 20.0
+    assert isinstance(post.body, Cylinder) and not post.moves_with_ball
+    np.testing.assert_allclose([post.body.radius, post.body.z_bottom, post.body.z_top,
+                                post.body.edge_radius], [10 / r, -60 / r, -30 / r, 2 / r])
+    np.testing.assert_allclose(float(post.friction.mu), 0.3)
+    assert isinstance(ring.body, Torus) and ring.moves_with_ball and ring.friction is None
+    np.testing.assert_allclose([ring.body.ring_radius, ring.body.minor_radius,
+                                ring.body.centre_z], [35 / r, 3 / r, -10 / r])
+    assert isinstance(spike.body, Cone)
+    np.testing.assert_allclose([spike.body.z_base, spike.body.z_apex], [-140 / r, -128 / r])
+    assert isinstance(shape.body, Profile)
+    # the capsule's length: two quarter circles and the straight side, in R
+    np.testing.assert_allclose(shape.body.length, (np.pi * 4.0 + 4.0) / r, rtol=1e-12)
+    np.testing.assert_allclose(float(shape.body.distance(np.array([0.0, -96 / r]))), 0.0,
+                               atol=1e-12)
+
+
+COIN = SCENARIOS / "coin.yaml"
+
+
+@pytest.mark.parametrize(
+    "dotted, value, words",
+    [
+        ("physics.ball.kind", "cube", ("physics.ball.kind", "cube", "'disc'")),
+        ("physics.ball.edge_radius_mm", 1.0, ("ball (kind disc)", "edge radius", "half")),
+        ("physics.ball.thickness_mm", 0.0, ("physics.ball.thickness_mm", "greater than 0")),
+        ("physics.ball.radius_mm", -12.0, ("physics.ball.radius_mm", "-12")),
+        ("physics.ball.edge_radius_mm", None, ("ball", "a disc needs edge_radius_mm")),
+        ("physics.rim_radius_mm", 12.0, ("rim_radius_mm", "inside the ball", "12.13")),
+    ],
+)
+def test_bad_ball_input(tmp_path, capsys, dotted, value, words):
+    run_refused(tmp_path, capsys, COIN, set_field(dotted, value), *words)
+
+
+def test_bottle_needs_the_sphere(tmp_path, capsys):
+    def edit(data):
+        data["physics"]["bottle"] = {}
+
+    run_refused(tmp_path, capsys, COIN, edit, "bottle", "sphere", "kind disc")
+
+
+def test_coin_scenario_builds_the_disc_and_starts_the_sheet_above_its_top():
+    from dynslip.app.forming import build_core
+    from dynslip.physics.bodies import Disc
+
+    model, protocol, kw = build_core(load(COIN))
+    r = 12.13
+    assert isinstance(model.ball, Disc)
+    np.testing.assert_allclose([model.ball.radius, model.ball.thickness, model.ball.edge_radius],
+                               [1.0, 1.75 / r, 0.3 / r], rtol=1e-15)
+    np.testing.assert_allclose([kw["z_sheet"], protocol.clamp_z0], (0.875 + 0.4) / r, rtol=1e-15)

@@ -13,6 +13,8 @@ largest depth exceeds the stated limit (``numerics.max_chord_depth``) has no ans
 In the meridian half-plane the ball is the unit disc about $(0, z_b)$. An element is the
 segment between two nodes, and it revolves into a conical band whose distance to the
 ball's centre (on the axis) equals the segment's. Its depth is one minus that distance.
+A ball of another kind (a coin, ``physics.ball``) is checked with its own geometry
+(:mod:`dynslip.physics.bodies.chords`: the deepest point of each chord inside the body).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from dynslip.physics.sheet import chord_depths, deepest_chord
 __all__ = ["chord_depths", "chord_check"]
 
 
-def chord_check(ds: xr.Dataset, limit: float) -> dict:
+def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:
     """The largest chord depth over the saved frames of a trajectory, where and when, the
     end state's, and whether the mesh resolves the contact (every depth at most ``limit``).
 
@@ -33,9 +35,10 @@ def chord_check(ds: xr.Dataset, limit: float) -> dict:
     ball and reads "not trapped". The pole node lies on the axis, which the ball fills from
     ``zb - 1`` to ``zb + 1``, so a pole that changes sides of the ball's centre has passed
     through it: that counts as depth 1 at the first frame on the other side
-    (``pole_crossed_ball``)."""
+    (``pole_crossed_ball``). ``body``: the ball's body (None: the unit ball, today's closed
+    form; any other body by :func:`dynslip.physics.bodies.chords.chord_depths`)."""
     rho, z, zb, times, rbar = (ds[v].values for v in ("rho", "z", "ball_z", "time", "rbar"))
-    depth, k, crossed = deepest_chord(rho, z, zb, np.sign(z[0, 0] - zb[0]))
+    depth, k, crossed = deepest_chord(rho, z, zb, np.sign(z[0, 0] - zb[0]), body)
     f = int(
         np.argmax(depth)
     )  # the first frame of the deepest (a crossing: the first on the other side)
@@ -44,7 +47,7 @@ def chord_check(ds: xr.Dataset, limit: float) -> dict:
         "max_chord_depth": worst,
         "time_s": float(times[f]),
         "element_rbar": [float(rbar[k[f]]), float(rbar[k[f] + 1])],
-        "end_max_chord_depth": float(deepest_chord(rho[-1], z[-1], zb[-1], 0.0)[0]),
+        "end_max_chord_depth": float(deepest_chord(rho[-1], z[-1], zb[-1], 0.0, body)[0]),
         "pole_crossed_ball": bool(crossed.any()),
         "limit": float(limit),
         "resolved": bool(worst <= limit),

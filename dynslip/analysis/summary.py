@@ -44,18 +44,20 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     at_rest = bool(last and last["condition_met"] and _stage_until(p, last["name"]) == "rest"
                    and len(result.stage_end) == len(stage_names))
     reaction = float(end["ball_reaction"])
-    mesh_check = chord_check(ds, sc.numerics.max_chord_depth)
+    ball = p.ball_body()
+    mesh_check = chord_check(ds, sc.numerics.max_chord_depth, ball)
+    trap = trap_check(ball, end, theta_max)
     if failed or not mesh_check["resolved"]:
         trapped = None  # a failed run, or sheet through the ball: no answer (analysis.resolution)
     else:
-        trapped = bool(at_rest and np.isfinite(theta_max) and theta_max > math.pi / 2
-                       and abs(reaction) < sc.numerics.trap_reaction_tol)
+        trapped = bool(at_rest and trap["past"] and abs(reaction) < sc.numerics.trap_reaction_tol)
     st = result.stats
     summary = {
         "status": "failed" if failed else "ok",
         "message": result.failed or "",
         "trapped": trapped,
         "mesh_check": mesh_check,
+        "trap_criterion": trap,
         "theta_max": theta_max,
         "rbar_max": rbar_max,
         "opening_radius": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
@@ -127,6 +129,53 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     }
     summary["outcome"] = outcome_words(summary)
     return summary
+
+
+def trap_criterion(ball):
+    """The ball's trapped criterion (:mod:`dynslip.physics.bodies.trap`): past the equator for
+    a sphere, past the edge's mid-height for a disc, past the widest part for any other body."""
+    from dynslip.physics.bodies import Disc, PastEdgeMidHeight, PastEquator, PastWidest, Sphere
+
+    if isinstance(ball, Sphere):
+        return PastEquator(radius=ball.radius)
+    if isinstance(ball, Disc):
+        return PastEdgeMidHeight(disc=ball)
+    return PastWidest(body=ball)
+
+
+def contact_extent(ball, frame, theta_max: float) -> float:
+    """How far the contact reaches along the ball's profile, s_max (units of R; NaN without
+    contact): for a sphere about the origin its radius times theta_max (s = a theta, so for the
+    unit ball exactly theta_max), else the largest surface coordinate of a node in contact."""
+    from dynslip.physics.bodies import Sphere
+
+    if isinstance(ball, Sphere) and ball.centre_z == 0.0:
+        return ball.radius * theta_max
+    contact = np.asarray(frame["state"]) > 0
+    if not contact.any():
+        return float("nan")
+    x = np.stack([np.asarray(frame["rho"]), np.asarray(frame["z"])], -1)[contact]
+    return float(np.max(np.asarray(ball.project(x, float(frame["ball_z"])).s)))
+
+
+def trap_check(ball, frame, theta_max: float) -> dict:
+    """Whether the end state's contact reaches past the ball's trapped threshold
+    (:func:`trap_criterion`): for the unit ball exactly today's theta_max > pi/2."""
+    crit = trap_criterion(ball)
+    s_max = contact_extent(ball, frame, theta_max)
+    thr = float(crit.threshold())
+    return {
+        "criterion": type(crit).__name__,
+        "ball": type(ball).__name__,
+        "s_max": s_max,
+        "threshold": thr,
+        "margin": s_max - thr,
+        "past": bool(np.isfinite(s_max) and s_max > thr),
+        "means": ("the contact's extent s_max along the ball's profile (arc length from its top "
+                  "pole, units of R) against the kind's threshold: a sphere's equator (s = "
+                  "radius pi/2: for the unit ball theta_max > pi/2), a disc's edge at "
+                  "mid-height; trapped needs past, at rest, and the ball's reaction gone"),
+    }
 
 
 def rest_words(p, ds: xr.Dataset, result, at_rest: bool) -> str:

@@ -48,25 +48,23 @@ def build_core(sc):
             od_mm=2 * p.rim_radius_mm,
             wall_mm=p.tube.wall_mm,
             height_mm=p.tube.height_mm,
-            rim_z=(r + p.sheet_gap_mm + p.tube.rim_gap_mm) / r,
+            rim_z=p.tube_rim_z,
         )
         law = Coulomb(mu=jnp.asarray(p.tube.mu), eps=jnp.asarray(nu.friction_smoothing))
         bodies = (Held(wall, law),)
     if p.bottle is not None:
-        from dynslip.physics.bodies.apparatus import bottle
         from dynslip.physics.bodies.held import Held
         from dynslip.physics.friction import Coulomb
 
-        b = p.bottle
-        parts = bottle(r, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm, b.shoulder_height_mm,
-                       b.body_od_mm, b.body_height_mm)  # fmt: skip
-        law = Coulomb(mu=jnp.asarray(b.mu), eps=jnp.asarray(nu.friction_smoothing))
-        bodies = bodies + tuple(Held(part, law, moves_with_ball=True) for part in parts)
+        law = Coulomb(mu=jnp.asarray(p.bottle.mu), eps=jnp.asarray(nu.friction_smoothing))
+        bodies = bodies + tuple(Held(part, law, moves_with_ball=True) for part in p.bottle_parts())
+    bodies = bodies + held_bodies(p, nu.friction_smoothing)
     g_h0 = p.force_scale_N / r  # N/mm
     model = SheetModel(
         mesh,
         material,
         Penalty(jnp.asarray(nu.penalty_stiffness), jnp.asarray(nu.penalty_width)),
+        ball=p.ball_body(),
         bodies=bodies,
         band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
     )
@@ -95,12 +93,30 @@ def build_core(sc):
         drag=nu.drag_time_s,
         ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
         pre_stretch=p.pre_stretch,
-        z_sheet=(r + p.sheet_gap_mm) / r,
+        z_sheet=p.sheet_start_mm / r,
         weight=weight,
         settings=settings,
         support_stiffness=nu.support_stiffness,
     )
     return model, protocol, kwargs
+
+
+def held_bodies(p, friction_smoothing: float) -> tuple:
+    """The core entries of ``physics.bodies`` (:class:`~dynslip.physics.bodies.held.Held`, units
+    of R): each body with its friction (none: frictionless; coulomb: its own mu, smoothed as the
+    run's law) and its motion (with_ball: carried with the ball)."""
+    from dynslip.physics.bodies.held import Held
+    from dynslip.physics.friction import Coulomb
+    from dynslip.schema.bodies import body_core
+
+    out = []
+    for b in p.bodies:
+        law = None
+        if b.friction.law == "coulomb":
+            law = Coulomb(mu=jnp.asarray(b.friction.mu), eps=jnp.asarray(friction_smoothing))
+        out.append(Held(body_core(b, p.ball_radius_mm), law,
+                        moves_with_ball=b.motion == "with_ball"))
+    return tuple(out)
 
 
 def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None):
@@ -257,10 +273,18 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
             plot_release(ds, summary["release"], outs.folder)
     outs.json(summary)
     if outs.writes:
-        make_figures(ds, outs.folder, summary.get("outcome"))
+        make_figures(ds, outs.folder, summary.get("outcome"), _drawn_ball(model.ball))
         if model.bodies:
             _world_figure(sc, ds, model, outs, summary.get("outcome"))
     return summary
+
+
+def _drawn_ball(ball):
+    """The ball's body for the figures: None for the unit sphere (drawn as today's circle)."""
+    from dynslip.physics.bodies import Sphere
+
+    unit = isinstance(ball, Sphere) and ball.radius == 1.0 and ball.centre_z == 0.0
+    return None if unit else ball
 
 
 def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
@@ -280,6 +304,7 @@ def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
     frames = {"widest contact": widest, "end": ds.sizes["time"] - 1}
     end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
     fig = plot_world(ds, frames, held=held, with_ball=with_ball, limits=None,
+                     ball=_drawn_ball(model.ball),
                      title=f"{sc.name} (N = {ds.sizes['rbar']})\n{end}")
     save_figure(fig, outs.folder / "world.png", dpi=120)
 

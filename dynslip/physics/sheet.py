@@ -131,13 +131,13 @@ def chord_depths(rho, z, zb) -> np.ndarray:
     return 1.0 - np.sqrt(np.sum(closest * closest, axis=-1))
 
 
-def deepest_chord(rho, z, zb, pole_side: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The deepest chord of each frame (shapes as :func:`chord_depths`, frames on the leading
-    axes): ``(depth, element index, pole crossed)``. The pole node lies on the axis, which the
-    ball fills from ``zb - 1`` to ``zb + 1``, so a pole on the other side of the ball's centre
-    from ``pole_side`` (the sign of ``z_pole - zb`` at the start; 0: not checked) has passed
-    through it: depth 1 on element 0, at least."""
-    depth = chord_depths(rho, z, zb)
+def deepest_chord(rho, z, zb, pole_side: float, body=None) -> tuple[np.ndarray, ...]:
+    """Per frame (frames leading) ``(depth, element, pole crossed)`` of the deepest chord in the
+    ball ``body`` (None: the unit ball); a pole on its other side from ``pole_side`` crossed."""
+    from dynslip.physics.bodies.chords import chord_depths as in_body
+    from dynslip.physics.bodies.sphere import Sphere
+    unit = body is None or isinstance(body, Sphere) and (body.radius, body.centre_z) == (1, 0)
+    depth = chord_depths(rho, z, zb) if unit else in_body(body, rho, z, zb)
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]

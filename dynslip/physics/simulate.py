@@ -380,7 +380,8 @@ class MemberRun:
             return None
         first = self.frames[0]
         depth, k, crossed = deepest_chord(
-            rec["rho"], rec["z"], rec["ball_z"], np.sign(first["z"][0] - first["ball_z"])
+            rec["rho"], rec["z"], rec["ball_z"], np.sign(first["z"][0] - first["ball_z"]),
+            self.model.ball,
         )
         if crossed or depth > limit:
             rbar = np.asarray(self.model.mesh.rbar)

@@ -14,7 +14,7 @@ import matplotlib
 import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
+from matplotlib.patches import Circle, Polygon
 
 from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.data import files as io
@@ -88,10 +88,21 @@ def _stage_style(ds, i):
     return matplotlib.colormaps["tab10"](s % 10), STAGE_STYLES[s % len(STAGE_STYLES)], s
 
 
-def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
+def ball_patch(ball, zb: float, **kw):
+    """The ball's meridian section as a patch at height ``zb``: the unit circle for None (the
+    default sphere), else the body's outline (:meth:`~dynslip.physics.bodies.base.AbstractBody.
+    outline`) mirrored about the axis."""
+    if ball is None:
+        return Circle((0, zb), 1.0, **kw)
+    o = ball.meridian_points(400, zb)
+    return Polygon(np.concatenate([o, (o * [-1.0, 1.0])[::-1]]), closed=True, **kw)
+
+
+def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False, ball=None):
     """Sheet (mirrored about the axis), ball and clamp at ``indices``: a colour and a line style
     per stage; a ball outline only where the ball has moved (more than 0.05 R) since the last
-    one drawn, the end position filled; ``zoom``: the neighbourhood of the ball only."""
+    one drawn, the end position filled; ``zoom``: the neighbourhood of the ball only. ``ball``:
+    the ball's body (:mod:`dynslip.physics.bodies`; None: the unit sphere)."""
     drawn_z: list[float] = []
     last = indices[-1]
     width = {}
@@ -107,9 +118,9 @@ def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False):
         ax.plot(-rho, z, color=c, ls=ls, lw=lw, zorder=3 if i == last else 2)
         zb = float(fr["ball_z"])
         if i == last:
-            ax.add_patch(Circle((0, zb), 1.0, facecolor="0.85", edgecolor="k", lw=1.0, zorder=1))
+            ax.add_patch(ball_patch(ball, zb, facecolor="0.85", edgecolor="k", lw=1.0, zorder=1))
         elif all(abs(zb - q) > 0.05 for q in drawn_z):
-            ax.add_patch(Circle((0, zb), 1.0, fill=False, edgecolor=c, ls="-", lw=0.7, zorder=1))
+            ax.add_patch(ball_patch(ball, zb, fill=False, edgecolor=c, ls="-", lw=0.7, zorder=1))
         drawn_z.append(zb)
         if not zoom:
             ax.plot(
@@ -219,15 +230,16 @@ def plot_state_map(ds: xr.Dataset, ax, rbar_limit=None):
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.13), ncol=2, frameon=False)
 
 
-def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure:
+def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None, ball=None) -> Figure:
     """The figure ``meridian.png`` from a trajectory dataset: meridian snapshots (rho, z) of
     sheet, ball and clamp at ``indices`` (default :func:`snapshot_indices`, one per stage),
-    whole and near the ball; ``outcome``: summary.json's ``outcome`` for the title."""
+    whole and near the ball; ``outcome``: summary.json's ``outcome`` for the title; ``ball``:
+    the ball's body (None: the unit sphere)."""
     idx = snapshot_indices(ds, per_stage=1) if indices is None else indices
     fig = Figure(figsize=(11, 7), layout="constrained")
     ax0, ax1 = fig.subplots(1, 2, width_ratios=[1, 1.3])
-    plot_meridian(ds, ax0, idx)
-    plot_meridian(ds, ax1, idx, zoom=True)
+    plot_meridian(ds, ax0, idx, ball=ball)
+    plot_meridian(ds, ax1, idx, zoom=True, ball=ball)
     handles, labels = ax0.get_legend_handles_labels()
     ax1.legend(
         handles,
@@ -261,14 +273,16 @@ def state_map(ds: xr.Dataset, outcome: str | None = None) -> Figure:
     return fig
 
 
-def make_figures(ds: xr.Dataset, out: Path, outcome: str | None = None) -> list[Path]:
+def make_figures(ds: xr.Dataset, out: Path, outcome: str | None = None,
+                 ball=None) -> list[Path]:
     """Write the three figures into ``out``; returns their paths. ``outcome``: the run's
-    answer in words (summary.json's ``outcome``) for their titles. The figures are not
-    pyplot's (no backend is chosen or changed)."""
+    answer in words (summary.json's ``outcome``) for their titles; ``ball``: the ball's body
+    drawn in the meridian (None: the unit sphere). The figures are not pyplot's (no backend is
+    chosen or changed)."""
     out = Path(out)
     idx = snapshot_indices(ds, per_stage=1)
     return [
-        io.save_figure(meridian(ds, idx, outcome), out / "meridian.png", dpi=120),
+        io.save_figure(meridian(ds, idx, outcome, ball), out / "meridian.png", dpi=120),
         io.save_figure(theta_rbar(ds, idx, outcome), out / "theta_rbar.png", dpi=120),
         io.save_figure(state_map(ds, outcome), out / "state_map.png", dpi=120),
     ]

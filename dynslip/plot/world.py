@@ -21,11 +21,13 @@ def plot_world(
     title: str = "",
     with_ball=(),
     limits=((0, 3.2), (-6.5, 2.0)),
+    ball=None,
 ) -> Figure:
     """``frames``: label -> time index. ``held``: bodies in the frame of the run; ``with_clamp``
     and ``with_ball``: bodies displaced by the clamp's or the ball's height of each frame.
     ``limits``: the axes' ``((rho0, rho1), (z0, z1))``, or None to fit the frames and bodies.
-    Units of R on both axes."""
+    ``ball``: the ball's body, its outline dotted (None: the unit sphere). Units of R on both
+    axes."""
     fig = Figure(figsize=(6.0, 8.0), constrained_layout=True)
     ax = fig.add_subplot()
     colours = ["tab:blue", "tab:red", "tab:green", "tab:purple"]
@@ -34,8 +36,12 @@ def plot_world(
         ax.fill(o[:, 0], o[:, 1], color="0.8", ec="0.4", lw=0.8, zorder=1)
     for (label, i), col in zip(frames.items(), colours, strict=False):
         zb = float(ds["ball_z"].values[i])
-        th = np.linspace(0, np.pi, 200)
-        ax.plot(np.sin(th), zb + np.cos(th), color=col, lw=0.8, ls=":", zorder=2)
+        if ball is None:
+            th = np.linspace(0, np.pi, 200)
+            ax.plot(np.sin(th), zb + np.cos(th), color=col, lw=0.8, ls=":", zorder=2)
+        else:
+            o = ball.meridian_points(400, zb)
+            ax.plot(o[:, 0], o[:, 1], color=col, lw=0.8, ls=":", zorder=2)
         moving = [(b, float(ds["clamp_z"].values[i])) for b in with_clamp]
         moving += [(b, zb) for b in with_ball]
         for body, dz in moving:

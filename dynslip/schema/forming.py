@@ -18,6 +18,7 @@ from typing import Literal
 from pydantic import PrivateAttr, model_validator
 
 from dynslip.schema.base import F, ScenarioBase, Strict
+from dynslip.schema.bodies import BallSpec, BodySpec
 from dynslip.schema.friction import FrictionSpec
 from dynslip.schema.materials import MaterialSpec
 
@@ -268,6 +269,13 @@ class FormingPhysics(Strict):
                               "frame: the tube at rest, the ball moved); none by default")
     bottle: BottleSpec | None = F(None, description="the bottle under the ball as held bodies "
                                   "that move with it (the tube's frame); none by default")
+    ball: BallSpec = F(BallSpec(), description="the ball's kind: a sphere of ball_radius_mm (the "
+                       "default) or a disc (a coin; R = ball_radius_mm is then only the length "
+                       "unit); schema/bodies.py")
+    bodies: list[BodySpec] = F(default_factory=list, max_length=50,
+                               description="held bodies (obstacles) by kind and size in mm, "
+                               "divided by ball_radius_mm (R) in the core; at most 50; "
+                               "schema/bodies.py")
     band_grip_N_per_mm: float = F(0.0, unit="N/mm", ge=0, le=1e3,
                                   description="clamp: band: the band's grip, the largest pull "
                                               "along the wall per length of its circumference "
@@ -284,17 +292,18 @@ class FormingPhysics(Strict):
         if len(set(names)) != len(names):
             raise ValueError(f"stages: duplicate stage names "
                              f"{sorted({n for n in names if names.count(n) > 1})}")
-        if self.rim_radius_mm <= self.ball_radius_mm:
+        if self.rim_radius_mm <= self.ball.widest_mm(self.ball_radius_mm):
             raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the ball "
-                             f"(radius {self.ball_radius_mm} mm)")
+                             f"(radius {self.ball.widest_mm(self.ball_radius_mm)} mm)")
         if self.tube is not None and not self.tube.wall_mm < self.rim_radius_mm:
             raise ValueError(f"tube.wall_mm = {self.tube.wall_mm}: the rim is thicker than the "
                              f"tube (allowed: below rim_radius_mm = {self.rim_radius_mm})")
         self._bottle_fits()
+        self._bodies_fit()
         if any(s.clamp == "band" for s in self.stages) and self.tube is None:
             raise ValueError("stages: clamp: band holds the edge on the tube's wall: it needs "
                              "physics.tube")
-        z = self.ball_radius_mm + self.sheet_gap_mm
+        z = self.sheet_start_mm
         known = True
         let_go = False
         for s in self.stages:
@@ -324,10 +333,65 @@ class FormingPhysics(Strict):
                     known = False
         return self
 
+    @property
+    def sheet_start_mm(self) -> float:
+        """The flat sheet's initial height (mm, from the ball's centre): sheet_gap_mm above the
+        ball's top."""
+        return self.ball.top_mm(self.ball_radius_mm) + self.sheet_gap_mm
+
+    def ball_body(self):
+        """The core ball body (units of R; :func:`dynslip.schema.bodies.ball_core`)."""
+        from dynslip.schema.bodies import ball_core
+
+        return ball_core(self.ball, self.ball_radius_mm)
+
+    def _bodies_fit(self):
+        from dynslip.physics.bodies import BodyGeometryError
+
+        r = self.ball_radius_mm
+        try:
+            ball = self.ball_body()
+        except BodyGeometryError as err:
+            raise ValueError(f"ball (kind {self.ball.kind}): {err}") from None
+        if not self.bodies:
+            return
+        from dynslip.schema.bodies import check_bodies
+
+        others = []
+        if self.tube is not None:
+            from dynslip.physics.bodies.apparatus import tube_wall
+
+            others.append(("tube", tube_wall(r, od_mm=2 * self.rim_radius_mm,
+                                             wall_mm=self.tube.wall_mm,
+                                             height_mm=self.tube.height_mm,
+                                             rim_z=self.tube_rim_z)))
+        if self.bottle is not None:
+            others += [("bottle", part) for part in self.bottle_parts()]
+        check_bodies(self.bodies, ball, others, r, self.sheet_start_mm / r, self.rim_radius_mm / r)
+
+    @property
+    def tube_rim_z(self) -> float:
+        """The tube's rim height (units of R): rim_gap_mm above the flat sheet's start."""
+        return (self.sheet_start_mm + self.tube.rim_gap_mm) / self.ball_radius_mm
+
+    def bottle_parts(self) -> tuple:
+        """The bottle's core bodies (units of R;
+        :func:`~dynslip.physics.bodies.apparatus.bottle`)."""
+        from dynslip.physics.bodies.apparatus import bottle
+
+        b = self.bottle
+        return bottle(self.ball_radius_mm, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm,
+                      b.shoulder_height_mm, b.body_od_mm, b.body_height_mm)
+
     def _bottle_fits(self):
         b = self.bottle
         if b is None:
             return
+        r = self.ball_radius_mm
+        if self.ball.kind != "sphere" or self.ball.radius(r) != r:
+            raise ValueError(f"bottle: its neck's lip is placed under a sphere of radius "
+                             f"ball_radius_mm; allowed with ball.kind = sphere of that radius "
+                             f"(the ball is kind {self.ball.kind})")
         if not b.neck_od_mm / 2 < self.ball_radius_mm:
             raise ValueError(f"bottle.neck_od_mm = {b.neck_od_mm}: the bottle overlaps the ball "
                              f"(the ball sits on the neck; allowed: below the ball's diameter "
@@ -469,7 +533,7 @@ class FormingScenario(ScenarioBase):
             prot = build_protocol(self)
         except ValueError as err:
             raise ValueError(f"physics.stages: {err}") from None
-        if self.start_from is None and prot.clamp_min_distance_to_ball() <= 1.0:
+        if self.start_from is None and _clamp_enters_ball(prot, self.physics.ball_body()):
             raise ValueError("physics.stages: the clamp path enters the ball")
         assert isinstance(prot, Protocol)
         frames = sum(s.max_duration for s in prot.stages) / self.numerics.save_interval_s
@@ -483,6 +547,25 @@ class FormingScenario(ScenarioBase):
     # the resolved start state of ``start_from`` (filled in by
     # :func:`dynslip.app.forming.resolve_start`)
     _start: tuple | None = PrivateAttr(default=None)
+
+
+def _clamp_enters_ball(prot, ball) -> bool:
+    """Whether the keyframed clamp path comes into the ball: within the unit distance of the
+    centre for the unit ball (today's check), else at a distance at most 0 from the ball's body
+    along the straight segments between keyframes (sampled every 1e-3 of a segment)."""
+    from dynslip.physics.bodies import Sphere
+
+    if isinstance(ball, Sphere) and ball.radius == 1.0:
+        return prot.clamp_min_distance_to_ball() <= 1.0
+    import numpy as np
+
+    kf = prot.keyframes()
+    u = np.linspace(0.0, 1.0, 1001)[:, None]
+    for (_, r0, z0), (_, r1, z1) in zip(kf[:-1], kf[1:], strict=True):
+        x = np.array([r0, z0 - prot.ball_z0]) + u * np.array([r1 - r0, z1 - z0])
+        if float(np.min(np.asarray(ball.distance(x)))) <= 0.0:
+            return True
+    return False
 
 
 def _stop_rule(s, duration: float, r: float, fs: float):
@@ -517,7 +600,7 @@ def build_protocol(sc: FormingScenario):
     p = sc.physics
     r = p.ball_radius_mm
     fs = p.force_scale_N
-    z = (r + p.sheet_gap_mm) / r
+    z = p.sheet_start_mm / r
     stages = []
     prev_ball = None
     for s in p.stages:
@@ -564,4 +647,4 @@ def build_protocol(sc: FormingScenario):
                                 ball_force_end=0.0, **ckw))
         prev_ball = s.ball
     return Protocol(tuple(stages), clamp_rho0=p.rim_radius_mm / r,
-                    clamp_z0=(r + p.sheet_gap_mm) / r, ball_z0=0.0)
+                    clamp_z0=p.sheet_start_mm / r, ball_z0=0.0)

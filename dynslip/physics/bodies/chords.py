@@ -64,3 +64,4 @@ def chord_depths(body: AbstractBody, rho, z, zpos) -> np.ndarray:
     zp = jnp.asarray(zpos, float)[..., None]
     zp = jnp.broadcast_to(zp, x.shape[:-2] + (x.shape[-2] - 1,))
     return np.asarray(_depths(body, x[..., :-1, :], x[..., 1:, :], zp))
+
