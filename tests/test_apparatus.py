@@ -62,3 +62,37 @@ def test_clearance_of_a_flat_sheet_above_a_cylinder_is_the_height_gap():
     c = clearance(_flat_sheet(-1.0, [0.5, 1.5]), (cyl,), moves_with_clamp=True)
     np.testing.assert_allclose(c["per_frame"][0], 0.5, atol=1e-12)
     assert c["per_frame"][1] < 0 and c["touched"] and c["time"] == 1.0
+
+
+def test_body_contacts_per_held_body_with_and_without_the_ball():
+    """Per held body: the closest approach of the sheet over the path against the closed form
+    (a flat sheet at z = -1 over a cylinder's top), a body held in the lab and one displaced by
+    the ball's height at each frame; only the one the sheet reaches is touched."""
+    from dynslip.analysis.clearance import body_contacts
+
+    ds = _flat_sheet(-1.0, [0.0, 0.0]).assign(ball_z=("time", np.array([0.25, 1.5])))
+    held, carried = Cylinder(1.0, -3.0, -2.0), Cylinder(0.5, -4.0, -2.5)
+    out = body_contacts(ds, [("post", held, False), ("ring", carried, True)], 20.0)
+    post, ring = out
+    assert post["name"] == "post" and not post["touched"]
+    np.testing.assert_allclose([post["closest_R"], post["closest_mm"]], [1.0, 20.0], atol=1e-12)
+    # carried up by 0.25 then 1.5: its top at -2.25 then -1.0 (the sheet's height: touched)
+    assert ring["moves_with_ball"] and ring["touched"] and ring["time_s"] == 1.0
+    np.testing.assert_allclose(ring["closest_R"], 0.0, atol=1e-12)
+
+
+def test_the_world_scenario_names_its_held_bodies_as_the_solver_holds_them():
+    """``physics.named_bodies()`` (summary.json's ``bodies``) lists the tube's wall and the
+    bottle's parts in the order and with the motion of the solver's own entries."""
+    from pathlib import Path
+
+    from dynslip.app.forming import build_core
+    from dynslip.schema.base import load
+
+    sc = load(Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml")
+    named = sc.physics.named_bodies()
+    model, _, _ = build_core(sc)
+    assert [n for n, _, _ in named] == ["tube wall", "bottle neck", "bottle shoulder",
+                                        "bottle body"]
+    assert [w for _, _, w in named] == [e.moves_with_ball for e in model.bodies]
+    assert all(b == e.body for (_, b, _), e in zip(named, model.bodies, strict=True))

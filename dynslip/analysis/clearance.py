@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-__all__ = ["clearance"]
+__all__ = ["body_contacts", "clearance"]
 
 
 def _distance_fn(bodies):
@@ -45,3 +45,27 @@ def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
         "point": (float(x[k][0]), float(x[k][1])),
         "touched": bool(d[k] <= 0.0),
     }
+
+
+def body_contacts(ds: xr.Dataset, entries, length_mm: float) -> list[dict]:
+    """Per held body of a run, from its saved path: ``entries`` are ``(name, body,
+    moves_with_ball)`` (a body that moves with the ball is displaced by ``ball_z`` at each
+    frame). For each: the closest approach of a sheet node over the path (``closest_R``, units
+    of R, and ``closest_mm``; negative: inside), its time and material radius, and
+    ``touched`` (a node reached the surface: the penalty, which acts only inside, pressed it).
+    Nodes are points, as in :func:`clearance`."""
+    out = []
+    for name, body, with_ball in entries:
+        d = ds.assign(clamp_z=ds["ball_z"]) if with_ball else ds
+        c = clearance(d, (body,), moves_with_clamp=with_ball)
+        out.append({
+            "name": name,
+            "moves_with_ball": bool(with_ball),
+            "touched": c["touched"],
+            "closest_R": c["min"],
+            "closest_mm": c["min"] * length_mm,
+            "time_s": c["time"],
+            "rbar": c["rbar"],
+        })
+    return out
+

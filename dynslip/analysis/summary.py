@@ -127,6 +127,15 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         },
         "nodes": sc.numerics.nodes,
     }
+    entries = p.named_bodies()
+    if entries:
+        from dynslip.analysis.clearance import body_contacts
+
+        summary["bodies"] = body_contacts(ds, entries, p.ball_radius_mm)
+        summary["bodies_means"] = (
+            "per held body: the sheet's closest approach over the saved path (closest_R, "
+            "closest_mm; negative: inside it) and whether it touched the body"
+        )
     summary["outcome"] = outcome_words(summary)
     return summary
 

@@ -39,19 +39,11 @@ def build_core(sc):
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
     bodies = ()
     if p.tube is not None:
-        from dynslip.physics.bodies.apparatus import tube_wall
         from dynslip.physics.bodies.held import Held
         from dynslip.physics.friction import Coulomb
 
-        wall = tube_wall(
-            r,
-            od_mm=2 * p.rim_radius_mm,
-            wall_mm=p.tube.wall_mm,
-            height_mm=p.tube.height_mm,
-            rim_z=p.tube_rim_z,
-        )
         law = Coulomb(mu=jnp.asarray(p.tube.mu), eps=jnp.asarray(nu.friction_smoothing))
-        bodies = (Held(wall, law),)
+        bodies = (Held(p.tube_body(), law),)
     if p.bottle is not None:
         from dynslip.physics.bodies.held import Held
         from dynslip.physics.friction import Coulomb
@@ -99,6 +91,15 @@ def build_core(sc):
         support_stiffness=nu.support_stiffness,
     )
     return model, protocol, kwargs
+
+
+def _touched_words(bodies: list) -> str:
+    """The end table's line on the held bodies: which the sheet touched, else the nearest."""
+    hit = [b["name"] for b in bodies if b["touched"]]
+    if hit:
+        return ", ".join(hit)
+    near = min(bodies, key=lambda b: b["closest_R"])
+    return f"none (nearest: {near['name']}, {near['closest_mm']:.3g} mm)"
 
 
 def held_bodies(p, friction_smoothing: float) -> tuple:
@@ -328,6 +329,8 @@ def _print_summary(console, s: dict) -> None:
         ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
         ("energy residual / work", s["energy_balance"]["relative_residual"]),
     ]
+    if "bodies" in s:
+        rows.append(("held bodies touched", _touched_words(s["bodies"])))
     if "release" in s:
         rows += [("release: peak force (N)", s["release"]["peak_force_N"]),
                  ("release: opening reached R", s["release"]["opening_reached_R"])]

@@ -374,6 +374,29 @@ class FormingPhysics(Strict):
         """The tube's rim height (units of R): rim_gap_mm above the flat sheet's start."""
         return (self.sheet_start_mm + self.tube.rim_gap_mm) / self.ball_radius_mm
 
+    def tube_body(self):
+        """The tube's wall as a core body (units of R;
+        :func:`~dynslip.physics.bodies.apparatus.tube_wall`), hanging from its rim."""
+        from dynslip.physics.bodies.apparatus import tube_wall
+
+        t = self.tube
+        return tube_wall(self.ball_radius_mm, od_mm=2 * self.rim_radius_mm, wall_mm=t.wall_mm,
+                         height_mm=t.height_mm, rim_z=self.tube_rim_z)
+
+    def named_bodies(self) -> list:
+        """Every held body of the world, ``(name, core body, moves_with_ball)``: the tube's
+        wall, the bottle's parts and each of ``physics.bodies``, in the order the solver holds
+        them."""
+        from dynslip.schema.bodies import body_core
+
+        out = [("tube wall", self.tube_body(), False)] if self.tube is not None else []
+        if self.bottle is not None:
+            names = ("bottle neck", "bottle shoulder", "bottle body")
+            out += [(n, b, True) for n, b in zip(names, self.bottle_parts(), strict=True)]
+        out += [(b.name, body_core(b, self.ball_radius_mm), b.motion == "with_ball")
+                for b in self.bodies]
+        return out
+
     def bottle_parts(self) -> tuple:
         """The bottle's core bodies (units of R;
         :func:`~dynslip.physics.bodies.apparatus.bottle`)."""
