@@ -13,6 +13,8 @@ Nodes are points: a chord between two nodes may come closer than its ends (the m
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,7 +23,11 @@ import xarray as xr
 __all__ = ["body_contacts", "clearance"]
 
 
+@functools.lru_cache(maxsize=64)
 def _distance_fn(bodies):
+    """The jitted (time, node) distance to ``bodies``; one per body tuple (bodies are static
+    and hashable), so summaries of many runs of one world compile it once."""
+
     def d(x, z):
         return jnp.min(jnp.stack([b.distance(x, z) for b in bodies]))
 
