@@ -26,6 +26,8 @@ FLUSH_FRAMES = 25
 
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
+    from dynslip.physics.bodies.held import Held
+    from dynslip.physics.friction import Coulomb
     from dynslip.physics.protocols import ball_drag_coefficient
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import Settings
@@ -37,20 +39,12 @@ def build_core(sc):
     material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
-    bodies = ()
-    if p.tube is not None:
-        from dynslip.physics.bodies.held import Held
-        from dynslip.physics.friction import Coulomb
-
-        law = Coulomb(mu=jnp.asarray(p.tube.mu), eps=jnp.asarray(nu.friction_smoothing))
-        bodies = (Held(p.tube_body(), law),)
-    if p.bottle is not None:
-        from dynslip.physics.bodies.held import Held
-        from dynslip.physics.friction import Coulomb
-
-        law = Coulomb(mu=jnp.asarray(p.bottle.mu), eps=jnp.asarray(nu.friction_smoothing))
-        bodies = bodies + tuple(Held(part, law, moves_with_ball=True) for part in p.bottle_parts())
-    bodies = bodies + held_bodies(p, nu.friction_smoothing)
+    eps = jnp.asarray(nu.friction_smoothing)
+    bodies = tuple(
+        Held(body, None if mu is None else Coulomb(mu=jnp.asarray(mu), eps=eps),
+             moves_with_ball=with_ball)
+        for _, body, with_ball, mu in p.held_specs()
+    )
     g_h0 = p.force_scale_N / r  # N/mm
     model = SheetModel(
         mesh,
@@ -100,24 +94,6 @@ def _touched_words(bodies: list) -> str:
         return ", ".join(hit)
     near = min(bodies, key=lambda b: b["closest_R"])
     return f"none (nearest: {near['name']}, {near['closest_mm']:.3g} mm)"
-
-
-def held_bodies(p, friction_smoothing: float) -> tuple:
-    """The core entries of ``physics.bodies`` (:class:`~dynslip.physics.bodies.held.Held`, units
-    of R): each body with its friction (none: frictionless; coulomb: its own mu, smoothed as the
-    run's law) and its motion (with_ball: carried with the ball)."""
-    from dynslip.physics.bodies.held import Held
-    from dynslip.physics.friction import Coulomb
-    from dynslip.schema.bodies import body_core
-
-    out = []
-    for b in p.bodies:
-        law = None
-        if b.friction.law == "coulomb":
-            law = Coulomb(mu=jnp.asarray(b.friction.mu), eps=jnp.asarray(friction_smoothing))
-        out.append(Held(body_core(b, p.ball_radius_mm), law,
-                        moves_with_ball=b.motion == "with_ball"))
-    return tuple(out)
 
 
 def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None):
@@ -284,8 +260,7 @@ def _drawn_ball(ball):
     """The ball's body for the figures: None for the unit sphere (drawn as today's circle)."""
     from dynslip.physics.bodies import Sphere
 
-    unit = isinstance(ball, Sphere) and ball.radius == 1.0 and ball.centre_z == 0.0
-    return None if unit else ball
+    return None if isinstance(ball, Sphere) and ball.is_unit else ball
 
 
 def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:

@@ -136,7 +136,7 @@ def deepest_chord(rho, z, zb, pole_side: float, body=None) -> tuple[np.ndarray, 
     ball ``body`` (None: the unit ball); a pole on its other side from ``pole_side`` crossed."""
     from dynslip.physics.bodies.chords import chord_depths as in_body
     from dynslip.physics.bodies.sphere import Sphere
-    unit = body is None or isinstance(body, Sphere) and (body.radius, body.centre_z) == (1, 0)
+    unit = body is None or isinstance(body, Sphere) and body.is_unit
     depth = chord_depths(rho, z, zb) if unit else in_body(body, rho, z, zb)
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)

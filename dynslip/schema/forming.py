@@ -383,19 +383,25 @@ class FormingPhysics(Strict):
         return tube_wall(self.ball_radius_mm, od_mm=2 * self.rim_radius_mm, wall_mm=t.wall_mm,
                          height_mm=t.height_mm, rim_z=self.tube_rim_z)
 
-    def named_bodies(self) -> list:
-        """Every held body of the world, ``(name, core body, moves_with_ball)``: the tube's
-        wall, the bottle's parts and each of ``physics.bodies``, in the order the solver holds
-        them."""
+    def held_specs(self) -> list:
+        """Every held body of the world, ``(name, core body, moves_with_ball, mu)`` (mu None:
+        frictionless): the tube's wall, the bottle's parts and each of ``physics.bodies``, in
+        the order the solver holds them (``build_core`` makes each a ``Held`` entry)."""
         from dynslip.schema.bodies import body_core
 
-        out = [("tube wall", self.tube_body(), False)] if self.tube is not None else []
-        if self.bottle is not None:
+        t, b = self.tube, self.bottle
+        out = [("tube wall", self.tube_body(), False, t.mu)] if t is not None else []
+        if b is not None:
             names = ("bottle neck", "bottle shoulder", "bottle body")
-            out += [(n, b, True) for n, b in zip(names, self.bottle_parts(), strict=True)]
-        out += [(b.name, body_core(b, self.ball_radius_mm), b.motion == "with_ball")
-                for b in self.bodies]
+            out += [(n, part, True, b.mu)
+                    for n, part in zip(names, self.bottle_parts(), strict=True)]
+        out += [(s.name, body_core(s, self.ball_radius_mm), s.motion == "with_ball",
+                 s.friction.mu if s.friction.law == "coulomb" else None) for s in self.bodies]
         return out
+
+    def named_bodies(self) -> list:
+        """:meth:`held_specs` without the friction: ``(name, core body, moves_with_ball)``."""
+        return [spec[:3] for spec in self.held_specs()]
 
     def bottle_parts(self) -> tuple:
         """The bottle's core bodies (units of R;

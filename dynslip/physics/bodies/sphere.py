@@ -44,6 +44,12 @@ class Sphere(AbstractBody):
         self.centre_z = float(centre_z)
         self.segments = (Arc((0.0, self.centre_z), self.radius, math.pi / 2, -math.pi / 2),)
 
+    @property
+    def is_unit(self) -> bool:
+        """The unit ball about the origin: the closed forms of the sheet, its mesh check and its
+        figures apply."""
+        return (self.radius, self.centre_z) == (1.0, 0.0)
+
     def project(self, x, z=0.0) -> Projection:
         x = jnp.asarray(x, float)
         rho, dz = x[..., 0], x[..., 1] - (self.centre_z + z)
