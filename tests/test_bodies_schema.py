@@ -115,7 +115,7 @@ def _arc(c, r, a0, a1):
            "z_mm": 21.0},), ("bodies.0", "'ring'", "the flat sheet starts inside it")),
         # an unknown kind, a motion or friction law that is not built
         (({**POST, "kind": "box"},), ("physics.bodies.0.kind", "box", "'cylinder'", "'profile'")),
-        (({**POST, "motion": "stage"},), ("physics.bodies.0.motion", "stage", "'with_ball'")),
+        (({**POST, "motion": "free"},), ("physics.bodies.0.motion", "free", "'stage'")),
         (({**POST, "friction": {"law": "slip_weakening", "mu": 0.5}},),
          ("physics.bodies.0.friction.law", "slip_weakening", "'coulomb'")),
         (({**POST, "friction": {"law": "coulomb"}},), ("bodies.0.friction", "needs mu")),
@@ -129,6 +129,47 @@ def _arc(c, r, a0, a1):
 )
 def test_bad_bodies_input(tmp_path, capsys, bodies, words):
     run_refused(tmp_path, capsys, LET_GO, _bodies(*bodies), *words)
+
+
+def _moved(motion, velocities, stage=0):
+    def edit(data):
+        data["physics"]["bodies"] = [{**POST, "motion": motion}]
+        data["physics"]["stages"][stage]["body_velocity_mm_s"] = dict(velocities)
+
+    return edit
+
+
+@pytest.mark.parametrize(
+    "motion, velocities, words",
+    [
+        # a motion for a body that does not exist, or is not moved by the stages
+        ("stage", {"piston": 1.0}, ("body_velocity_mm_s", "'piston'", "allowed", "'post'")),
+        ("held", {"post": 1.0}, ("body_velocity_mm_s", "'post'", "no body has motion: stage")),
+        ("stage", {"post": 2e4}, ("body_velocity_mm_s", "'post'", "[-1e4, 1e4]")),
+    ],
+)
+def test_bad_stage_motion_input(tmp_path, capsys, motion, velocities, words):
+    run_refused(tmp_path, capsys, LET_GO, _moved(motion, velocities), *words)
+
+
+def test_a_stage_moved_body_builds_with_its_velocities_in_r_per_s():
+    """motion: stage makes the body's Held entry stage-moved, and each stage's
+    body_velocity_mm_s becomes the core stage's body_vz in R/s (0 where not named), one per
+    held entry; a scenario without stage-moved bodies has no body_vz at all."""
+    from dynslip.app.forming import build_core
+    from dynslip.schema.base import load_data
+    from dynslip.schema.forming import FormingScenario
+
+    data = load_data(LET_GO)
+    _moved("stage", {"post": 2.5}, stage=0)(data)
+    sc = FormingScenario.model_validate(data)
+    model, protocol, _ = build_core(sc)
+    r = sc.physics.ball_radius_mm
+    assert [e.stage for e in model.bodies] == [True]
+    assert protocol.stages[0].body_vz == (2.5 / r,)
+    assert all(st.body_vz == (0.0,) for st in protocol.stages[1:])
+    plain = load(LET_GO)
+    assert all(st.body_vz == () for st in build_core(plain)[1].stages)
 
 
 def test_bodies_build_as_held_entries_in_units_of_r():

@@ -40,10 +40,11 @@ def build_core(sc):
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
     eps = jnp.asarray(nu.friction_smoothing)
+    moved = set(p.stage_moved_names())
     bodies = tuple(
         Held(body, None if mu is None else Coulomb(mu=jnp.asarray(mu), eps=eps),
-             moves_with_ball=with_ball)
-        for _, body, with_ball, mu in p.held_specs()
+             moves_with_ball=with_ball, stage=name in moved)
+        for name, body, with_ball, mu in p.held_specs()
     )
     g_h0 = p.force_scale_N / r  # N/mm
     model = SheetModel(

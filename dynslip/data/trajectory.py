@@ -84,6 +84,8 @@ PER_TIME = {
     "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
     "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),
     "work_ball": ("1", "accumulated work of the hold (and gravity) on the ball", "G*h0*R^2"),
+    "work_bodies": ("1", "accumulated work on the sheet of the held bodies moved by the stages "
+                    "(0 without any)", "G*h0*R^2"),
     "energy_elastic": ("1", "stored relaxed elastic energy (pre-stretch included)", "G*h0*R^2"),
     "energy_penalty": ("1", "contact penalty energy", "G*h0*R^2"),
     "dissipation_friction": ("1", "accumulated friction dissipation", "G*h0*R^2"),
@@ -134,7 +136,7 @@ def frames_to_dataset(
         if k not in ("energy_residual", "stage")
     }
     scal["stage"] = np.array([int(f["stage"]) for f in frames], np.int16)
-    scal["energy_residual"] = (scal["work_clamp"] + scal["work_ball"]
+    scal["energy_residual"] = (scal["work_clamp"] + scal["work_ball"] + scal["work_bodies"]
                                - (scal["energy_elastic"] + scal["energy_penalty"] - e0)
                                - scal["dissipation_friction"] - scal["dissipation_drag"])
     for name, (units, long_name, scale) in PER_TIME.items():

@@ -12,9 +12,10 @@ import from here, and nothing here imports a solver.
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import free_ball_velocity
+from dynslip.physics.bodies.held import free_ball_velocity, held_entries, place_bodies
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import Structure
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
@@ -34,28 +35,33 @@ __all__ = [
 ]
 
 N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
+#: with bodies moved by the stages, a fifth: work_bodies, their work on the sheet
+N_ACC_MOVED = 5
 
 
 class Layout(eqx.Module):
     """Slices of the flat state vector for a sheet of ``n`` nodes.
 
-    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(4), internal(n_int * n)]``: node
+    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(n_acc), internal(n_int * n)]``: node
     ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
     clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
     of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
+    ``n_acc``: 4 accumulators (:data:`N_ACC`), 5 when bodies are moved by the stages (their
+    work on the sheet, :data:`N_ACC_MOVED`).
     """
 
     n: int = eqx.field(static=True)
     n_int: int = eqx.field(static=True, default=0)
+    n_acc: int = eqx.field(static=True, default=N_ACC)
 
     @property
     def size(self) -> int:
-        return (self.n - 1) + self.n + 1 + N_ACC + self.n_int * self.n
+        return (self.n - 1) + self.n + 1 + self.n_acc + self.n_int * self.n
 
     @property
     def accumulators(self) -> slice:
         """Where the energy accumulators sit in the state."""
-        return slice(2 * self.n, 2 * self.n + N_ACC)
+        return slice(2 * self.n, 2 * self.n + self.n_acc)
 
     @property
     def internal_start(self) -> int:
@@ -111,6 +117,10 @@ class StageArgs(eqx.Module):
     support_k: jnp.ndarray = (
         1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
     )
+    # the held bodies' heights at the stage's start and their axial velocities over it, (K,)
+    # per held entry (R, R/s): None when no body is moved by the stages
+    body_z0: jnp.ndarray | None = None
+    body_v: jnp.ndarray | None = None
 
     def frac(self, t):
         return jnp.clip((t - self.t0) / self.ramp, 0.0, 1.0)
@@ -134,6 +144,7 @@ def _f(x):
 
 def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     """Rates and the quantities derived on the way (shared by the vector field and frames)."""
+    model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
@@ -186,7 +197,10 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     d_fric = d_fric + jnp.where(band, (-g_z[-1] - s_band) * w_band, 0.0)
     w_clamp = cz * (v[1, -1] - w_band) + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
-    dacc = jnp.stack([w_clamp, w_ball, d_drag, d_fric])
+    parts = [w_clamp, w_ball, d_drag, d_fric]
+    if layout.n_acc > N_ACC:
+        parts.append(bodies_power(model, rho, z, zb, vb, hf))
+    dacc = jnp.stack(parts)
     dint = None
     if internal is not None:
         dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
@@ -203,6 +217,26 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
         "zb": zb,
         "kin": k,
     }
+
+
+def bodies_power(model: SheetModel, rho, z, zb, vb, hf):
+    r"""The power of the stage-moved held bodies on the sheet (G h0 R^2 / s):
+    $\sum_k v_k\,(-\sum_i \partial E_{h,k}/\partial z_i + \sum_i f_{ik} t_{k,z})$, the axial
+    force each exerts on the sheet (penalty and friction) times its velocity. (Friction's part
+    relative to the body is the dissipation; this is the rest of $f\cdot\dot x$.)"""
+    entries = held_entries(model.bodies)
+    fric = [k for k, e in enumerate(entries) if e.friction is not None]
+    axial = hf.axial_per_body(vb) if hf is not None else None
+    total = jnp.zeros(())
+    for k, e in enumerate(entries):
+        if not e.stage:
+            continue
+        one = eqx.tree_at(lambda m: m.bodies, model, (e,))
+        push = -jnp.sum(jax.grad(one.held_penalty_energy, argnums=1)(rho, z, zb))
+        if e.friction is not None:
+            push = push + axial[fric.index(k)]
+        total = total + e.velocity * push
+    return total
 
 
 def vector_field(model: SheetModel, layout: Layout):
@@ -247,13 +281,16 @@ def sheet_structure(layout: Layout) -> Structure:
     )
 
 
-def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate):
+def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=None):
     """The friction law's reset of the per-node state where a node is stuck again: slip rate
     $|S|/(\\eta A) \\le$ ``heal_rate`` (R/s) or out of contact
     (:func:`dynslip.physics.friction.heals`, the one criterion of both solvers). Unchanged for
-    memoryless laws."""
+    memoryless laws. ``t``: the time of ``y``, where the stage-moved bodies are placed (None:
+    ``model`` is placed already)."""
     if layout.n_int == 0:
         return y
+    if t is not None:
+        model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)

@@ -7,6 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from dynslip.physics.bodies.held import place_bodies
 from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal
 from dynslip.physics.sheet import SheetModel
 
@@ -17,6 +18,7 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
     """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
     dy, aux = evaluate(model, layout, t, y, args)
+    model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(
         rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y)
@@ -47,6 +49,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         "work_ball": acc[1],
         "dissipation_drag": acc[2],
         "dissipation_friction": acc[3],
+        "work_bodies": acc[4] if layout.n_acc > N_ACC else jnp.zeros(()),
         "energy_elastic": model.elastic_energy(rho, z),
         "energy_penalty": model.penalty_energy(rho, z, zb),
         "slip_max": slip_max,
@@ -58,7 +61,7 @@ def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet
     """Flat sheet at height ``z_sheet``, uniformly pre-stretched radially (rho = lambda rbar)."""
     rho = pre_stretch * model.mesh.rbar
     z = jnp.full(layout.n, _f(z_sheet))
-    return layout.pack(rho, z, _f(zb), jnp.zeros(N_ACC))
+    return layout.pack(rho, z, _f(zb), jnp.zeros(layout.n_acc))
 
 
 def state_from(layout: Layout, start: dict):
@@ -69,7 +72,7 @@ def state_from(layout: Layout, start: dict):
         internal = jnp.asarray(start.get("slip_distance", np.zeros(layout.n)), dtype=jnp.float64)
         internal = jnp.where(jnp.isfinite(internal), internal, 0.0)
     return layout.pack(
-        _f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(N_ACC), internal
+        _f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(layout.n_acc), internal
     )
 
 

@@ -262,7 +262,7 @@ class FullStateLoadStep(eqx.Module):
             args,
             cap,
             self.max_steps,
-            after=lambda t, y: heal(model, layout, y, args, self.heal_rate),
+            after=lambda t, y: heal(model, layout, y, args, self.heal_rate, t),
         )
         return eqx.tree_at(lambda o: o.rate, out, zero_rate(layout.n))
 

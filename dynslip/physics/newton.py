@@ -60,6 +60,7 @@ from dynslip.physics.bodies.held import (
     frictional,
     held_entries,
     held_frame,
+    place_bodies,
 )
 from dynslip.physics.field import Layout, StageArgs, evaluate, heal
 from dynslip.physics.friction import AbstractFriction
@@ -141,8 +142,6 @@ def _held_penalty(model: SheetModel, area, x, zb=0.0, moving=None):
     return sum(
         (
             area * penalty_energy(model.penalty, contact_gap(e.body, x, e.shift(zb))[0])
-            if e.moves_with_ball
-            else area * penalty_energy(model.penalty, contact_gap(e.body, x)[0])
             for e in held_entries(model.bodies)
             if moving is None or e.moves_with_ball == moving
         ),
@@ -527,6 +526,8 @@ class MotionNewton(eqx.Module):
         rate``
         (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0))``."""
         friction = args.friction
+        # the stage-moved bodies where they are at the increment's end (implicit Euler)
+        model = place_bodies(model, args.body_z0, args.body_v, args.t0, t1)
         h = t1 - t0
         rho, z, zb0, acc0 = layout.unpack(y0)
         q0 = jnp.stack([rho, z - zb0], axis=1)

@@ -302,6 +302,8 @@ class Stage:
     over the stage's duration). ``support``: the ball also rests on a rigid support below it
     (the bottle neck), a unilateral contact: the support pushes the ball up where its centre
     is below ``Protocol.ball_z0`` and never pulls it down, so the pocket may lift the ball off.
+    ``body_vz``: the axial velocity (R/s) over the stage of each held body of the model, in
+    order (those not moved by the stages: 0); empty: none moves.
     """
 
     name: str
@@ -316,6 +318,7 @@ class Stage:
     clamp_force_start: tuple[float, float] | None = None
     clamp_force_end: tuple[float, float] = (0.0, 0.0)
     support: bool = False
+    body_vz: tuple[float, ...] = ()
 
     @property
     def max_duration(self) -> float:
@@ -353,6 +356,7 @@ class Protocol:
                     clamp_vz=s.clamp_vz / factor,
                     clamp_vrho=s.clamp_vrho / factor,
                     ball_vz=s.ball_vz / factor,
+                    body_vz=tuple(v / factor for v in s.body_vz),
                 )
             )
         return dataclasses.replace(self, stages=tuple(out))

@@ -245,11 +245,11 @@ class SheetModel(eqx.Module):
         return -self.ball.distance(jnp.stack([rho, z], axis=-1), zb)
 
     def held_penalty_energy(self, rho, z, zb=0.0):
-        """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any); one
-        that moves with the ball is displaced by ``zb``."""
+        """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any), each
+        displaced by :meth:`~dynslip.physics.bodies.held.Held.shift` (``zb``, or its offset)."""
         x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
-        parts = (jnp.sum(a * penalty_energy(pen, -(e.body.distance(x, zb) if e.moves_with_ball
-                 else e.body.distance(x)))) for e in _held_entries(self.bodies))  # fmt: skip
+        parts = (jnp.sum(a * penalty_energy(pen, -e.body.distance(x, e.shift(zb))))
+                 for e in _held_entries(self.bodies))  # fmt: skip
         return sum(parts, jnp.zeros(()))
 
     def held_load(self, rho, z, zb=0.0):

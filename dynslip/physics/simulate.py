@@ -48,6 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dynslip.physics.bodies.held import stage_moved
 from dynslip.physics.failures import (
     ContactUnresolved,
     NonFinite,
@@ -57,6 +58,7 @@ from dynslip.physics.failures import (
 )
 from dynslip.physics.field import (
     N_ACC,
+    N_ACC_MOVED,
     Layout,
     StageArgs,
     _f,
@@ -134,8 +136,13 @@ def _stage_args(
     weight,
     support_z=0.0,
     support_k=1e3,
+    body_z0=None,
 ):
     dur = stage.max_duration
+    moved = {}
+    if body_z0 is not None:
+        v = np.zeros(len(body_z0)) if not stage.body_vz else np.asarray(stage.body_vz, float)
+        moved = {"body_z0": _f(body_z0), "body_v": _f(v)}
     f0 = f_start if stage.ball_force_start is None else stage.ball_force_start
     fc0 = fc_start if stage.clamp_force_start is None else stage.clamp_force_start
     return StageArgs(
@@ -158,6 +165,7 @@ def _stage_args(
         support=_f(1.0 if stage.support else 0.0),
         support_z=_f(support_z),
         support_k=_f(support_k),
+        **moved,
     )
 
 
@@ -233,7 +241,11 @@ class MemberRun:
             support_z=protocol.ball_z0,
             support_k=support_stiffness,
         )
-        self.layout = Layout(model.mesh.n, friction.n_internal())
+        # bodies moved by the stages: their heights (R, per held entry; their reference
+        # placement is 0) are carried from stage to stage, and their work is accumulated
+        self.body_z = np.zeros(len(model.bodies)) if stage_moved(model.bodies) else None
+        n_acc = N_ACC_MOVED if self.body_z is not None else N_ACC
+        self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc)
         self.solver = solver_for(settings)
         if start is None:
             self.y = initial_state(model, self.layout, pre_stretch, z_sheet, protocol.ball_z0)
@@ -278,7 +290,8 @@ class MemberRun:
         stage = self.protocol.stages[si]
         zb_now = float(self.y[2 * self.layout.n - 1])
         self.args = _stage_args(
-            stage, self.t, zb_now, self.reaction, self.clamp_reaction, **self.loads
+            stage, self.t, zb_now, self.reaction, self.clamp_reaction, **self.loads,
+            body_z0=self.body_z,
         )
         self.t_start = self.t
         n_seg = max(1, math.ceil(stage.max_duration / self.settings.save_interval - 1e-9))
@@ -397,6 +410,8 @@ class MemberRun:
 
     def _end_stage(self) -> None:
         last = self.frames[-1]
+        if self.body_z is not None:
+            self.body_z = self.body_z + np.asarray(self.args.body_v) * (self.t - self.t_start)
         self.reaction = float(last["ball_reaction"])
         self.clamp_reaction = (float(last["clamp_force_rho"]), float(last["clamp_force"]))
         self.stage_end.append(

@@ -95,7 +95,7 @@ class TimeStepping(eqx.Module):
         y1 = sol.ys[-1]
         ok = (sol.result == diffrax.RESULTS.successful) & jnp.all(jnp.isfinite(y1))
         # a zero-length segment (a run's first frame, a finished batch member) is not healed
-        y1 = jnp.where(t1 > t0, heal(model, layout, y1, args, self.heal_rate), y1)
+        y1 = jnp.where(t1 > t0, heal(model, layout, y1, args, self.heal_rate, t1), y1)
         st = sol.stats
         return SegmentOutput(
             y=y1,

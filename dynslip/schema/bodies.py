@@ -190,9 +190,10 @@ class BodySpec(_Shape):
         ..., description="sphere (radius_mm), disc (radius_mm, thickness_mm, edge_radius_mm), "
         "cylinder (radius_mm, height_mm; inner_radius_mm, edge_radius_mm), cone (radius_mm, "
         "apex_mm), torus (ring_radius_mm, minor_radius_mm), profile (segments)")
-    motion: Literal["held", "with_ball"] = F(
+    motion: Literal["held", "with_ball", "stage"] = F(
         "held", description="held: at rest; with_ball: carried with the ball (as the bottle); "
-        "a body free along the axis is not built")
+        "stage: moved by the stages (each stage's body_velocity_mm_s gives its velocity by "
+        "name; 0 where not named); a body free along the axis is not built")
     friction: BodyFrictionSpec = BodyFrictionSpec()
 
     @model_validator(mode="after")

@@ -78,6 +78,11 @@ class StageSpec(Strict):
                                               "held ball (ball: "
                                   "hold); the pole of the "
                                   "ball points up, the pocket's opening down")
+    body_velocity_mm_s: dict[str, float] = F(
+        default_factory=dict, unit="mm/s",
+        description="signed axial velocity (up > 0), in [-1e4, 1e4] mm/s, over this stage of "
+        "each held body with motion: stage (physics.bodies), by name; a body not named stays "
+        "where the previous stage left it")
     force_threshold_N: float | None = F(None, unit="N", gt=0, le=1e6,
                                         description="threshold of until: clamp_force_below, in (0, "
                                                     "1e6] N")
@@ -153,6 +158,9 @@ class StageSpec(Strict):
             raise ValueError("ball_force_N goes with ball: pull (and ball: pull needs it)")
         if self.until == "theta_max_below" and self.theta_stop_rad is None:
             raise ValueError("until: theta_max_below needs theta_stop_rad")
+        for name, v in self.body_velocity_mm_s.items():
+            if not (math.isfinite(v) and -1e4 <= v <= 1e4):
+                raise ValueError(f"body_velocity_mm_s[{name!r}] = {v}: allowed [-1e4, 1e4] mm/s")
         if self.ball_velocity_mm_s != 0.0 and self.ball != "hold":
             raise ValueError("ball_velocity_mm_s moves a held ball: it needs ball: hold")
         if self.until == "rest":
@@ -295,6 +303,14 @@ class FormingPhysics(Strict):
         if self.rim_radius_mm <= self.ball.widest_mm(self.ball_radius_mm):
             raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the ball "
                              f"(radius {self.ball.widest_mm(self.ball_radius_mm)} mm)")
+        moved = self.stage_moved_names()
+        allowed = ", ".join(repr(n) for n in moved) or "none: no body has motion: stage"
+        for s in self.stages:
+            for name in s.body_velocity_mm_s:
+                if name not in moved:
+                    raise ValueError(
+                        f"stage {s.name!r}: body_velocity_mm_s names {name!r}, which is not a "
+                        f"body with motion: stage (allowed: {allowed})")
         if self.tube is not None and not self.tube.wall_mm < self.rim_radius_mm:
             raise ValueError(f"tube.wall_mm = {self.tube.wall_mm}: the rim is thicker than the "
                              f"tube (allowed: below rim_radius_mm = {self.rim_radius_mm})")
@@ -398,6 +414,19 @@ class FormingPhysics(Strict):
         out += [(s.name, body_core(s, self.ball_radius_mm), s.motion == "with_ball",
                  s.friction.mu if s.friction.law == "coulomb" else None) for s in self.bodies]
         return out
+
+    def stage_moved_names(self) -> list:
+        """The names of ``physics.bodies`` moved by the stages (motion: stage)."""
+        return [b.name for b in self.bodies if b.motion == "stage"]
+
+    def body_velocities(self, stage) -> tuple:
+        """The axial velocity (R/s) over ``stage`` of each held body, in :meth:`held_specs`
+        order (0 for those not moved by the stages); empty when no body is."""
+        if not self.stage_moved_names():
+            return ()
+        r = self.ball_radius_mm
+        return tuple(stage.body_velocity_mm_s.get(name, 0.0) / r
+                     for name, *_ in self.held_specs())
 
     def named_bodies(self) -> list:
         """:meth:`held_specs` without the friction: ``(name, core body, moves_with_ball)``."""
@@ -643,12 +672,15 @@ def build_protocol(sc: FormingScenario):
         z += vz * dur
         stop = _stop_rule(s, dur, r, fs)
         ckw = {"clamp_vz": vz}
+        moved = p.body_velocities(s)
         if s.clamp == "let_go":
             ckw = {"clamp_mode": CLAMP_FORCE}
         elif s.clamp == "free":
             ckw = {"clamp_mode": CLAMP_FORCE, "clamp_force_start": (0.0, 0.0)}
         elif s.clamp == "band":
             ckw = {"clamp_vz": vz, "clamp_mode": CLAMP_BAND}
+        if moved:
+            ckw["body_vz"] = moved
         if s.ball == "hold":
             stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD,
                                 ball_vz=s.ball_velocity_mm_s / r, **ckw))

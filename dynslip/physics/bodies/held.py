@@ -54,7 +54,15 @@ import jax.numpy as jnp
 from dynslip.physics.bodies.base import AbstractBody
 from dynslip.physics.friction import AbstractFriction
 
-__all__ = ["Held", "HeldFrame", "free_ball_velocity", "held_entries", "held_frame"]
+__all__ = [
+    "Held",
+    "HeldFrame",
+    "free_ball_velocity",
+    "held_entries",
+    "held_frame",
+    "place_bodies",
+    "stage_moved",
+]
 
 #: safeguarded Newton iterations of the free ball's velocity (piecewise smooth and monotone: a
 #: few steps land on the linear piece of the root; each iteration halves the bracket at worst)
@@ -67,15 +75,28 @@ class Held(eqx.Module):
     ``moves_with_ball`` (static): the body is carried with the ball (the bottle in the tube's
     frame, docs/bodies.md): it sits at its reference placement displaced by the ball's height
     ``zb``, so a node's gap and its slip are relative to the ball. Its load still goes to the
-    lab (the table under the bottle), not to the ball's hold."""
+    lab (the table under the bottle), not to the ball's hold.
+
+    ``stage`` (static): the body is moved by the protocol's stages (each stage gives it an axial
+    velocity, :class:`dynslip.physics.protocols.Stage` ``body_vz``). Inside a solve it is
+    placed at ``offset`` (R) moving at ``velocity`` (R/s) by :func:`place_bodies`; the slip
+    is relative to it, and the work it does on the sheet is the run's ``work_bodies``."""
 
     body: AbstractBody
     friction: AbstractFriction | None = None
     moves_with_ball: bool = eqx.field(static=True, default=False)
+    stage: bool = eqx.field(static=True, default=False)
+    offset: float | jax.Array = 0.0
+    velocity: float | jax.Array = 0.0
 
     def shift(self, zb):
-        """The body's axial displacement: ``zb`` when it moves with the ball, else 0."""
-        return zb if self.moves_with_ball else 0.0
+        """The body's axial displacement: ``zb`` when it moves with the ball, else its
+        ``offset`` (0 for a body at rest)."""
+        return zb if self.moves_with_ball else self.offset
+
+    def speed(self, vb):
+        """The body's axial velocity: the ball's ``vb`` when it moves with it, else its own."""
+        return vb if self.moves_with_ball else self.velocity
 
     def __check_init__(self):
         if self.friction is not None and self.friction.n_internal() != 0:
@@ -88,6 +109,30 @@ class Held(eqx.Module):
 def held_entries(bodies) -> tuple:
     """The model's held bodies as :class:`Held` entries (a bare body: frictionless)."""
     return tuple(b if isinstance(b, Held) else Held(b) for b in bodies)
+
+
+def stage_moved(bodies) -> bool:
+    """Whether any held body is moved by the stages (static)."""
+    return any(e.stage for e in held_entries(bodies))
+
+
+def place_bodies(model, body_z0, body_v, t0, t):
+    """``model`` with each stage-moved held body placed at time ``t`` of a stage that started at
+    ``t0`` with the bodies at ``body_z0`` (K,) moving at ``body_v`` (K,) (one per held entry, in
+    order; R and R/s); unchanged when ``body_z0`` is None (no body is moved by a stage)."""
+    if body_z0 is None:
+        return model
+    entries = []
+    for k, e in enumerate(held_entries(model.bodies)):
+        if e.stage:
+            e = eqx.tree_at(
+                lambda h: (h.offset, h.velocity),
+                e,
+                (body_z0[k] + body_v[k] * (t - t0), body_v[k]),
+                is_leaf=lambda x: x is None,
+            )
+        entries.append(e)
+    return eqx.tree_at(lambda m: m.bodies, model, tuple(entries))
 
 
 def frictional(bodies) -> bool:
@@ -110,13 +155,15 @@ class HeldFrame(eqx.Module):
     live: jnp.ndarray
     laws: tuple
     moving: tuple = eqx.field(static=True, default=())
+    speeds: tuple = ()  # the bodies' own axial velocities (R/s; empty: all at rest)
 
     def _carried(self, k, vb):
-        # the drag the ball's motion drags a node with, relative to a body at rest; none on a
-        # body that moves with the ball
+        # the drag the ball's motion drags a node with, relative to the body: eta A (vb - v_k)
+        # t_z (v_k = 0 at rest); none on a body that moves with the ball
         if self.moving and self.moving[k]:
             return 0.0
-        return self.eta_a * vb * self.t[k][..., 1]
+        rel = vb - self.speeds[k] if self.speeds else vb
+        return self.eta_a * rel * self.t[k][..., 1]
 
     def slip(self, vb):
         """``(G, S)`` per body and node (K, ...) at the ball's velocity ``vb``."""
@@ -140,6 +187,12 @@ class HeldFrame(eqx.Module):
         g, s = self.slip(vb)
         return jnp.sum(jnp.where(self.live, (g - s) * s / self.eta_a, 0.0), axis=0)
 
+    def axial_per_body(self, vb):
+        """$\\sum_i f_{ik} t_{k,z}$ per frictional body (K,)."""
+        g, s = self.slip(vb)
+        f = jnp.where(self.live, s - g, 0.0)
+        return jnp.sum(f * self.t[..., 1], axis=tuple(range(1, f.ndim)))
+
     def axial(self, vb):
         """$\\sum_{ik} f_{ik} t_{k,z}$: the axial friction force on the sheet (its reaction on the
         bodies)."""
@@ -159,13 +212,14 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFr
     the penalty's normal force per reference area of a signed distance; ``live`` where held
     friction acts (not the pole, not the clamped edge); ``zb`` the ball's height (displaces a
     body that moves with the ball). None when no held body has friction."""
-    laws, ts, ns, fts, moving = [], [], [], [], []
+    laws, ts, ns, fts, moving, speeds = [], [], [], [], [], []
     for e in held_entries(bodies):
         if e.friction is None:
             continue
-        p = e.body.project(x, e.shift(zb)) if e.moves_with_ball else e.body.project(x)
+        p = e.body.project(x, e.shift(zb))
         laws.append(e.friction)
         moving.append(e.moves_with_ball)
+        speeds.append(e.velocity)
         ts.append(p.tangent)
         ns.append(area * normal_of(p.distance))
         fts.append(jnp.sum(f * p.tangent, axis=-1))
@@ -181,6 +235,7 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFr
         live=live,
         laws=tuple(laws),
         moving=tuple(moving) if any(moving) else (),
+        speeds=tuple(speeds) if any(e.stage for e in held_entries(bodies)) else (),
     )
 
 
