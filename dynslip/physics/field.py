@@ -15,7 +15,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import free_ball_velocity, held_entries, place_bodies
+from dynslip.physics.bodies.held import (
+    free_ball_velocity,
+    held_entries,
+    place_bodies,
+    place_free,
+)
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.linalg import Structure
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
@@ -46,17 +51,30 @@ class Layout(eqx.Module):
     ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
     clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
     of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
-    ``n_acc``: 4 accumulators (:data:`N_ACC`), 5 when bodies are moved by the stages (their
-    work on the sheet, :data:`N_ACC_MOVED`).
+    ``n_acc``: 4 accumulators (:data:`N_ACC`), 5 when bodies are moved by the stages or free
+    (their work on the sheet, :data:`N_ACC_MOVED`). ``n_free``: the heights of the held bodies
+    free along the axis (R, relative to their reference placements), last.
     """
 
     n: int = eqx.field(static=True)
     n_int: int = eqx.field(static=True, default=0)
     n_acc: int = eqx.field(static=True, default=N_ACC)
+    n_free: int = eqx.field(static=True, default=0)
 
     @property
     def size(self) -> int:
-        return (self.n - 1) + self.n + 1 + self.n_acc + self.n_int * self.n
+        return (self.n - 1) + self.n + 1 + self.n_acc + self.n_int * self.n + self.n_free
+
+    def free(self, y):
+        """The free bodies' heights (n_free,), or None without any."""
+        if self.n_free == 0:
+            return None
+        return y[self.size - self.n_free :]
+
+    def with_free(self, y, zk):
+        if self.n_free == 0:
+            return y
+        return y.at[self.size - self.n_free :].set(zk)
 
     @property
     def accumulators(self) -> slice:
@@ -86,10 +104,12 @@ class Layout(eqx.Module):
         acc = y[self.accumulators]
         return rho, z, zb, acc
 
-    def pack(self, rho, z, zb, acc, internal=None):
+    def pack(self, rho, z, zb, acc, internal=None, free=None):
         parts = [rho[1:], z, jnp.reshape(zb, (1,)), acc]
         if self.n_int:
             parts.append(jnp.zeros(self.n) if internal is None else internal)
+        if self.n_free:
+            parts.append(jnp.zeros(self.n_free) if free is None else free)
         return jnp.concatenate(parts)
 
 
@@ -144,7 +164,7 @@ def _f(x):
 
 def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     """Rates and the quantities derived on the way (shared by the vector field and frames)."""
-    model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
+    model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
@@ -197,14 +217,20 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     d_fric = d_fric + jnp.where(band, (-g_z[-1] - s_band) * w_band, 0.0)
     w_clamp = cz * (v[1, -1] - w_band) + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
+    v_free = None
+    w_bodies = jnp.zeros(())
+    if layout.n_free:
+        v_free, f_free, eta_free = free_body_rates(model, rho, z, zb)
+        d_drag = d_drag + jnp.sum(eta_free * v_free**2)
+        w_bodies = w_bodies + jnp.sum(f_free * v_free)  # the applied forces' work
     parts = [w_clamp, w_ball, d_drag, d_fric]
     if layout.n_acc > N_ACC:
-        parts.append(bodies_power(model, rho, z, zb, vb, hf))
+        parts.append(w_bodies + bodies_power(model, rho, z, zb, vb, hf))
     dacc = jnp.stack(parts)
     dint = None
     if internal is not None:
         dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
-    dy = layout.pack(v[0], v[1], vb, dacc, dint)
+    dy = layout.pack(v[0], v[1], vb, dacc, dint, v_free)
     return dy, {
         "clamp_force": cz,
         "clamp_force_rho": crho,
@@ -219,6 +245,34 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     }
 
 
+def place_state(model: SheetModel, layout: Layout, y, args: StageArgs, t):
+    """``model`` with its stage-moved bodies placed at time ``t`` and its free bodies at the
+    heights the state ``y`` holds (:func:`dynslip.physics.bodies.held.place_bodies`)."""
+    model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
+    return place_free(model, layout.free(y))
+
+
+def body_load(model: SheetModel, entry, rho, z, zb):
+    r"""$L_k = \sum_i \partial E_{h,k}/\partial z_i$: the axial force of the sheet's pressure on
+    one held body ``entry`` (G h0 R, + up)."""
+    one = eqx.tree_at(lambda m: m.bodies, model, (entry,))
+    return jnp.sum(jax.grad(one.held_penalty_energy, argnums=1)(rho, z, zb))
+
+
+def free_body_rates(model: SheetModel, rho, z, zb):
+    r"""The free bodies' velocities $v_k = (L_k + F_k)/\eta_k$ (R/s; frictionless: the
+    sheet's pressure $L_k$ and the applied force $F_k$ against the body's drag $\eta_k$), with
+    $F_k$ and $\eta_k$: three (K,) arrays in held order."""
+    v, f, eta = [], [], []
+    for e in held_entries(model.bodies):
+        if e.free:
+            load = body_load(model, e, rho, z, zb)
+            v.append((load + e.force) / e.drag)
+            f.append(e.force)
+            eta.append(e.drag)
+    return jnp.stack(v), jnp.stack(f), jnp.stack(eta)
+
+
 def bodies_power(model: SheetModel, rho, z, zb, vb, hf):
     r"""The power of the stage-moved held bodies on the sheet (G h0 R^2 / s):
     $\sum_k v_k\,(-\sum_i \partial E_{h,k}/\partial z_i + \sum_i f_{ik} t_{k,z})$, the axial
@@ -231,8 +285,7 @@ def bodies_power(model: SheetModel, rho, z, zb, vb, hf):
     for k, e in enumerate(entries):
         if not e.stage:
             continue
-        one = eqx.tree_at(lambda m: m.bodies, model, (e,))
-        push = -jnp.sum(jax.grad(one.held_penalty_energy, argnums=1)(rho, z, zb))
+        push = -body_load(model, e, rho, z, zb)
         if e.friction is not None:
             push = push + axial[fric.index(k)]
         total = total + e.velocity * push
@@ -290,7 +343,7 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=Non
     if layout.n_int == 0:
         return y
     if t is not None:
-        model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
+        model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)

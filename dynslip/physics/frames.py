@@ -7,8 +7,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.bodies.held import place_bodies
-from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal
+from dynslip.physics.bodies.held import held_entries
+from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, place_state
 from dynslip.physics.sheet import SheetModel
 
 __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
@@ -18,7 +18,7 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
     """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
     dy, aux = evaluate(model, layout, t, y, args)
-    model = place_bodies(model, args.body_z0, args.body_v, args.t0, t)
+    model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(
         rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y)
@@ -53,6 +53,11 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         "energy_elastic": model.elastic_energy(rho, z),
         "energy_penalty": model.penalty_energy(rho, z, zb),
         "slip_max": slip_max,
+        # each held body's axial displacement from its reference placement (R): the ball's height
+        # for one moving with it, the stages' or the state's for a moved or free one, else 0
+        "body_z": jnp.stack([jnp.asarray(e.shift(zb), float) for e in held_entries(model.bodies)])
+        if model.bodies
+        else jnp.zeros(0),
         "n_contact": jnp.sum(contact),
     }
 

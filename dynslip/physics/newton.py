@@ -61,6 +61,7 @@ from dynslip.physics.bodies.held import (
     held_entries,
     held_frame,
     place_bodies,
+    place_free,
 )
 from dynslip.physics.field import Layout, StageArgs, evaluate, heal
 from dynslip.physics.friction import AbstractFriction
@@ -498,6 +499,41 @@ def _blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     return lower, diag, upper, B, C, D
 
 
+def free_system(model, friction, inc: Increment, zk0):
+    r"""The increment's residual and Newton matrix with free held bodies
+    (:attr:`dynslip.physics.bodies.held.Held.free`): the border unknowns are $(z_b, z_1 ..
+    z_K)$, the bodies' residuals $z_k - z_{k,0} - \Delta t\,v_k$ with $v_k = (L_k + F_k)/\eta_k$
+    (:func:`dynslip.physics.field.free_body_rates`). The block-tridiagonal part and the ball's
+    border are :func:`newton_blocks`' at the bodies' heights; the bodies' columns (K forward
+    passes of the residual) and rows (K reverse passes) are exact. Returns ``(res, blocks,
+    placed)``, ``placed(zk)`` the model with the bodies at ``zk``."""
+    from dynslip.physics.field import free_body_rates
+
+    def placed(zk):
+        return place_free(model, zk)
+
+    def body_res(q, zb, zk):
+        v, _, _ = free_body_rates(placed(zk), q[:, 0], q[:, 1] + zb, zb)
+        return zk - zk0 - inc.h * v
+
+    def res(q, w):
+        zb, zk = w[0], w[1:]
+        r_q, r_z = residual(placed(zk), friction, inc, q, zb)
+        return r_q, jnp.concatenate([jnp.reshape(r_z, (1,)), body_res(q, zb, zk)])
+
+    def blocks(q, w):
+        zb, zk = w[0], w[1:]
+        lower, diag, upper, b, c, d = newton_blocks(placed(zk), friction, inc, q, zb)
+        cq, cz = jax.jacfwd(lambda zk: residual(placed(zk), friction, inc, q, zb))(zk)
+        rq, rzb, rzk = jax.jacrev(body_res, argnums=(0, 1, 2))(q, zb, zk)
+        b = jnp.concatenate([b, cq], axis=-1)  # (n, 2, 1 + K)
+        c = jnp.concatenate([c, rq], axis=0)  # (1 + K, n, 2)
+        d = jnp.block([[d, cz[None, :]], [rzb[:, None], rzk]])
+        return lower, diag, upper, b, c, d
+
+    return res, blocks, placed
+
+
 # --------------------------------------------------------------------------- the solver object
 
 
@@ -535,13 +571,22 @@ class MotionNewton(eqx.Module):
         inc = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args)
         rq, rz = rate
         q = q0 + h * rq
-        zb = zb0 + h * rz
+        nf = layout.n_free
+        if nf:
+            # free bodies: the border is (zb, z_1 .. z_K), placed into the model by res/blocks
+            res, blocks, placed = free_system(model, friction, inc, layout.free(y0))
+            zb = jnp.concatenate([jnp.reshape(zb0 + h * rz, (1,)), layout.free(y0)])
+        else:
+            zb = zb0 + h * rz
 
-        def res(q, zb):
-            return residual(model, friction, inc, q, zb)
+            def res(q, zb):
+                return residual(model, friction, inc, q, zb)
+
+            def blocks(q, zb):
+                return newton_blocks(model, friction, inc, q, zb)
 
         def size(rq, rz):
-            return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.abs(rz))
+            return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))
 
         r_q, r_z = res(q, zb)
 
@@ -551,8 +596,7 @@ class MotionNewton(eqx.Module):
 
         def body(c):
             q, zb, r_q, r_z, it, _, _ = c
-            blocks = newton_blocks(model, friction, inc, q, zb)
-            dq, dz = bordered_solve(*blocks, r_q, r_z, self.linear)
+            dq, dz = bordered_solve(*blocks(q, zb), r_q, r_z, self.linear)
             f0 = size(r_q, r_z)
 
             def bt_cond(b):
@@ -573,22 +617,28 @@ class MotionNewton(eqx.Module):
             qn, zbn = q - alpha * dq, zb - alpha * dz
             step = jnp.maximum(
                 jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
-                jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn)),
+                jnp.max(jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn))),
             )
             done = (step < 1.0) & (size(tq, tz) <= atol)
-            bad = ~(jnp.all(jnp.isfinite(qn)) & jnp.isfinite(zbn) & jnp.isfinite(size(tq, tz)))
+            bad = ~(
+                jnp.all(jnp.isfinite(qn)) & jnp.all(jnp.isfinite(zbn)) & jnp.isfinite(size(tq, tz))
+            )
             return qn, zbn, tq, tz, it + 1, done, bad
 
         init = (q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False))
         q, zb, _, _, it, done, bad = jax.lax.while_loop(cond, body, init)
+        zk = None
+        if nf:
+            zb, zk = zb[0], zb[1:]
+            model = placed(zk)
         g, load = forces(model, q, zb)
         _, _, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
-        y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1)
+        y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1, zk)
         # the accumulators by the rectangle rule at x1, with the friction law the motion used: the
         # return map's coefficient at the increment's start, mu(delta0) (with mu(delta1) the
         # friction power of fully mobilised nodes is counted at the weakened threshold, which
         # the motion never saw: 5x the work on the let-go path)
-        y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0)
+        y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk)
         dy, _ = evaluate(model, layout, t1, y_rates, args)
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate)

@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.bodies.held import stage_moved
+from dynslip.physics.bodies.held import n_free, stage_moved
 from dynslip.physics.failures import (
     ContactUnresolved,
     NonFinite,
@@ -244,9 +244,16 @@ class MemberRun:
         # bodies moved by the stages: their heights (R, per held entry; their reference
         # placement is 0) are carried from stage to stage, and their work is accumulated
         self.body_z = np.zeros(len(model.bodies)) if stage_moved(model.bodies) else None
-        n_acc = N_ACC_MOVED if self.body_z is not None else N_ACC
-        self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc)
+        # bodies free along the axis: their heights are state unknowns (load stepping only)
+        nf = n_free(model.bodies)
+        n_acc = N_ACC_MOVED if self.body_z is not None or nf else N_ACC
+        self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf)
         self.solver = solver_for(settings)
+        if nf and not _counts_newton(self.solver):
+            raise ValueError(
+                "a held body free along the axis needs load stepping (solver load_step): its "
+                "height is a border unknown of Newton's system"
+            )
         if start is None:
             self.y = initial_state(model, self.layout, pre_stretch, z_sheet, protocol.ball_z0)
         else:

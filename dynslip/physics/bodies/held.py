@@ -60,7 +60,9 @@ __all__ = [
     "free_ball_velocity",
     "held_entries",
     "held_frame",
+    "n_free",
     "place_bodies",
+    "place_free",
     "stage_moved",
 ]
 
@@ -80,7 +82,12 @@ class Held(eqx.Module):
     ``stage`` (static): the body is moved by the protocol's stages (each stage gives it an axial
     velocity, :class:`dynslip.physics.protocols.Stage` ``body_vz``). Inside a solve it is
     placed at ``offset`` (R) moving at ``velocity`` (R/s) by :func:`place_bodies`; the slip
-    is relative to it, and the work it does on the sheet is the run's ``work_bodies``."""
+    is relative to it, and the work it does on the sheet is the run's ``work_bodies``.
+
+    ``free`` (static): the body moves along the axis under the sheet's pressure and the applied
+    axial ``force`` (G h0 R, + up) against its drag ``drag`` (G h0 R s / R), frictionless; its
+    height is a state unknown (load stepping: a border unknown of Newton's system beside the
+    ball's), placed by :func:`place_free`."""
 
     body: AbstractBody
     friction: AbstractFriction | None = None
@@ -88,6 +95,9 @@ class Held(eqx.Module):
     stage: bool = eqx.field(static=True, default=False)
     offset: float | jax.Array = 0.0
     velocity: float | jax.Array = 0.0
+    free: bool = eqx.field(static=True, default=False)
+    force: float | jax.Array = 0.0
+    drag: float | jax.Array = 1.0
 
     def shift(self, zb):
         """The body's axial displacement: ``zb`` when it moves with the ball, else its
@@ -99,6 +109,8 @@ class Held(eqx.Module):
         return vb if self.moves_with_ball else self.velocity
 
     def __check_init__(self):
+        if self.free and (self.friction is not None or self.moves_with_ball or self.stage):
+            raise ValueError("a free held body is frictionless and has no other motion")
         if self.friction is not None and self.friction.n_internal() != 0:
             raise ValueError(
                 "a held body's friction law must be memoryless (Coulomb, or a law of the "
@@ -131,6 +143,25 @@ def place_bodies(model, body_z0, body_v, t0, t):
                 (body_z0[k] + body_v[k] * (t - t0), body_v[k]),
                 is_leaf=lambda x: x is None,
             )
+        entries.append(e)
+    return eqx.tree_at(lambda m: m.bodies, model, tuple(entries))
+
+
+def n_free(bodies) -> int:
+    """How many held bodies are free along the axis (static)."""
+    return sum(e.free for e in held_entries(bodies))
+
+
+def place_free(model, zk):
+    """``model`` with its free bodies at the heights ``zk`` (n_free,) (R, in held order);
+    unchanged when ``zk`` is None."""
+    if zk is None:
+        return model
+    entries, j = [], 0
+    for e in held_entries(model.bodies):
+        if e.free:
+            e = eqx.tree_at(lambda h: h.offset, e, zk[j])
+            j += 1
         entries.append(e)
     return eqx.tree_at(lambda m: m.bodies, model, tuple(entries))
 
