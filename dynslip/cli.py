@@ -81,9 +81,10 @@ def cmd_run(args) -> int:
     if getattr(args, "animate", False):
         traj = out / "trajectory.nc"
         if traj.exists():
+            from dynslip.app.drawn import drawn_bodies_at
             from dynslip.plot.animate import animate
 
-            path = animate(traj)
+            path = animate(traj, bodies=drawn_bodies_at(traj))
             console.print(f"animation: {path}")
         else:
             console.print(
@@ -147,6 +148,9 @@ def cmd_animate(args) -> int:
     if args.size:
         kw["size"] = parse_size(args.size)
     _check_file_out(args.out)
+    from dynslip.app.drawn import drawn_bodies_at
+
+    kw["bodies"] = drawn_bodies_at(Path(args.trajectory))
     path = animate(Path(args.trajectory), Path(args.out) if args.out else None, **kw)
     print(f"animation: {path}")
     return 0

@@ -12,7 +12,7 @@ import json
 
 import numpy as np
 
-__all__ = ["drawn_bodies"]
+__all__ = ["drawn_bodies", "drawn_bodies_at"]
 
 
 def drawn_bodies(ds) -> dict | None:
@@ -34,3 +34,11 @@ def drawn_bodies(ds) -> dict | None:
         return None
     unit = isinstance(ball, Sphere) and ball.is_unit
     return {"ball": None if unit else np.asarray(ball.outline()), "held": held}
+
+
+def drawn_bodies_at(trajectory_path) -> dict | None:
+    """:func:`drawn_bodies` of the trajectory file ``trajectory_path`` (an
+    :class:`~dynslip.errors.InputError` for a file that is not one)."""
+    from dynslip.data.trajectory import open_trajectory
+
+    return drawn_bodies(open_trajectory(trajectory_path))
