@@ -53,6 +53,7 @@ class Run:
 
 RUNS = {
     "method2": Run("scenarios/method2.yaml"),
+    "method2_n30": Run("scenarios/method2.yaml", {"numerics.nodes": 30}),
     "method2_pinned": Run("scenarios/method2_pinned.yaml"),
     "method2_let_go": Run("scenarios/method2_let_go.yaml", {"numerics.save_interval_s": 0.5}),
     "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
@@ -89,6 +90,19 @@ FIGURES = {
     ),
     "world_method2.png": Figure(
         "method2", "dynslip run scenarios/method2.yaml (DIR/world.png)", "copy_world"
+    ),
+    "state_map_tube_wall_method2.png": Figure(
+        "method2_n30",
+        "dynslip run scenarios/method2.yaml --set numerics.nodes=30; "
+        "dynslip fronts DIR/trajectory.nc --body 'tube wall' (DIR/state_map_tube_wall.png)",
+        "body_state_tube_wall",
+    ),
+    "animation_frame_method2_bodies.png": Figure(
+        "method2_n30",
+        "dynslip run scenarios/method2.yaml --set numerics.nodes=30; "
+        "dynslip.plot.animate.save_frame_png(DIR / 'trajectory.nc', PATH, time=<widest contact>, "
+        "bodies=dynslip.app.drawn.drawn_bodies_at(DIR / 'trajectory.nc'))",
+        "animation_frame_bodies",
     ),
     "fronts_method2_tube.png": Figure(
         "method2_pinned", "dynslip fronts DIR/trajectory.nc (DIR/fronts.png)", "fronts"
@@ -170,6 +184,33 @@ def fronts(run_dir: Path, out: Path, rest_speed: float | None = None) -> None:
 
 def fronts_rest_speed(run_dir: Path, out: Path) -> None:
     fronts(run_dir, out, rest_speed=1e-4)
+
+
+def body_state_tube_wall(run_dir: Path, out: Path) -> None:
+    from dynslip.app.fronts import run_fronts
+
+    with tempfile.TemporaryDirectory() as tmp:
+        (png,) = run_fronts(run_dir / "trajectory.nc", Path(tmp), body="tube wall")
+        shutil.copyfile(png, out)
+
+
+def animation_frame_bodies(run_dir: Path, out: Path) -> None:
+    """The main job's frame at the widest contact on the ball: every body drawn (the tube's
+    wall at rest, the bottle moving with the ball)."""
+    import json
+
+    import numpy as np
+    import xarray as xr
+
+    from dynslip.app.drawn import drawn_bodies_at
+    from dynslip.plot.animate import save_frame_png
+
+    with xr.open_dataset(run_dir / "trajectory.nc", engine="netcdf4") as ds:
+        theta = ds["theta_max"].values
+        t = float(ds["time"].values[int(np.nanargmax(theta)) if np.isfinite(theta).any() else -1])
+    outcome = json.loads((run_dir / "summary.json").read_text()).get("outcome")
+    save_frame_png(run_dir / "trajectory.nc", out, time=t, outcome=outcome,
+                   bodies=drawn_bodies_at(run_dir / "trajectory.nc"))
 
 
 def animation_frame(run_dir: Path, out: Path) -> None:

@@ -81,9 +81,10 @@ def cmd_run(args) -> int:
     if getattr(args, "animate", False):
         traj = out / "trajectory.nc"
         if traj.exists():
+            from dynslip.app.drawn import drawn_bodies_at
             from dynslip.plot.animate import animate
 
-            path = animate(traj)
+            path = animate(traj, bodies=drawn_bodies_at(traj))
             console.print(f"animation: {path}")
         else:
             console.print(
@@ -147,6 +148,9 @@ def cmd_animate(args) -> int:
     if args.size:
         kw["size"] = parse_size(args.size)
     _check_file_out(args.out)
+    from dynslip.app.drawn import drawn_bodies_at
+
+    kw["bodies"] = drawn_bodies_at(Path(args.trajectory))
     path = animate(Path(args.trajectory), Path(args.out) if args.out else None, **kw)
     print(f"animation: {path}")
     return 0
@@ -157,7 +161,8 @@ def cmd_fronts(args) -> int:
 
     _check_dir_out(args.out)
     paths = run_fronts(
-        Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed
+        Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed,
+        body=args.body,
     )
     for p in paths:
         print(p)
@@ -239,7 +244,8 @@ EPILOGS = {
   dynslip animate outputs/method2_let_go/trajectory.nc --format mp4 --t-start 100 --t-end 160""",
     "fronts": """examples:
   dynslip fronts outputs/method2_let_go/trajectory.nc
-  dynslip fronts outputs/method2_let_go/trajectory.nc --rest-speed 1e-4 --out outputs/fronts""",
+  dynslip fronts outputs/method2_let_go/trajectory.nc --rest-speed 1e-4 --out outputs/fronts
+  dynslip fronts outputs/method2/trajectory.nc --body 'tube wall'""",
     "sweep": """examples:
   dynslip sweep scenarios/sweep_method2.yaml
   dynslip sweep scenarios/sweep_method2.yaml --mode batched --out outputs/study
@@ -340,6 +346,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="count slipping nodes slower than this [R/s] as at rest; default: the state flags as "
             "saved",
+    )
+    f.add_argument(
+        "--body",
+        default=None,
+        help="instead of the fronts, draw the state map of this held body (a name of "
+        "physics.named_bodies, e.g. 'tube wall') as state_map_<name>.png; default: the fronts",
     )
     f.set_defaults(fn=cmd_fronts)
 

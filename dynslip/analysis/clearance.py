@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-__all__ = ["body_contacts", "clearance"]
+__all__ = ["body_contacts", "clearance", "contact_extent"]
 
 
 @functools.lru_cache(maxsize=64)
@@ -59,9 +59,10 @@ def body_contacts(ds: xr.Dataset, entries, length_mm: float) -> list[dict]:
     frame). For each: the closest approach of a sheet node over the path (``closest_R``, units
     of R, and ``closest_mm``; negative: inside), its time and material radius, and
     ``touched`` (a node reached the surface: the penalty, which acts only inside, pressed it).
-    Nodes are points, as in :func:`clearance`."""
+    Nodes are points, as in :func:`clearance`. A trajectory with the per-body observables (its
+    ``body`` dimension, in ``entries``' order) adds :func:`contact_extent`'s."""
     out = []
-    for name, body, with_ball in entries:
+    for k, (name, body, with_ball) in enumerate(entries):
         d = ds.assign(clamp_z=ds["ball_z"]) if with_ball else ds
         c = clearance(d, (body,), moves_with_clamp=with_ball)
         out.append({
@@ -73,5 +74,43 @@ def body_contacts(ds: xr.Dataset, entries, length_mm: float) -> list[dict]:
             "time_s": c["time"],
             "rbar": c["rbar"],
         })
+        if "body" in ds.dims and k < ds.sizes["body"]:
+            out[-1].update(contact_extent(ds, k, length_mm))
     return out
+
+
+def _pair(lo, hi, scale=1.0):
+    return None if not np.isfinite(lo) else [float(lo) * scale, float(hi) * scale]
+
+
+def contact_extent(ds: xr.Dataset, k: int, length_mm: float) -> dict:
+    """The contact with held body ``k`` of a trajectory's ``body`` dimension, in its surface
+    coordinate s (arc length along its profile, :mod:`dynslip.physics.bodies.observe`): the
+    extent ``[s_min, s_max]`` at the end (``contact_s_end_R``, ``_mm``; None without contact),
+    the longest extent over the path (``contact_length_max_R``, ``_mm``, 0 if never touched; its
+    time and extent) and the envelope of every frame's extents (``contact_s_range_R``), the nodes
+    in contact at the end and at most, and ``stuck_fraction_end``: of the nodes in contact at
+    the end, the fraction stuck relative to the body (None without contact or on a frictionless
+    body)."""
+    lo = np.asarray(ds["body_s_min"].values[:, k], float)
+    hi = np.asarray(ds["body_s_max"].values[:, k], float)
+    state = np.asarray(ds["body_state"].values[-1, k])
+    n = np.asarray(ds["body_n_contact"].values[:, k])
+    length = np.where(np.isfinite(lo), hi - lo, -1.0)
+    j = int(np.argmax(length))
+    touching = state != 0
+    frictional = touching.any() and not (state[touching] == 4).any()
+    some = np.isfinite(lo).any()
+    return {
+        "contact_s_end_R": _pair(lo[-1], hi[-1]),
+        "contact_s_end_mm": _pair(lo[-1], hi[-1], length_mm),
+        "contact_length_max_R": max(float(length[j]), 0.0),
+        "contact_length_max_mm": max(float(length[j]), 0.0) * length_mm,
+        "contact_length_max_time_s": float(ds["time"].values[j]) if some else None,
+        "contact_s_at_length_max_R": _pair(lo[j], hi[j]),
+        "contact_s_range_R": [float(np.nanmin(lo)), float(np.nanmax(hi))] if some else None,
+        "n_contact_end": int(n[-1]),
+        "n_contact_max": int(n.max()),
+        "stuck_fraction_end": float(np.mean(state[touching] == 1)) if frictional else None,
+    }
 

@@ -134,7 +134,10 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         summary["bodies"] = body_contacts(ds, entries, p.ball_radius_mm)
         summary["bodies_means"] = (
             "per held body: the sheet's closest approach over the saved path (closest_R, "
-            "closest_mm; negative: inside it) and whether it touched the body"
+            "closest_mm; negative: inside it) and whether it touched the body; the contact's "
+            "extent in the body's surface coordinate s (arc length along its profile, from "
+            "the profile's start) at the end and its longest over the path, and the fraction "
+            "of the nodes in contact at the end stuck relative to the body (frictional bodies)"
         )
     summary["outcome"] = outcome_words(summary)
     return summary

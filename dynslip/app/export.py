@@ -5,8 +5,12 @@ and ``trajectory.pvd``, the index ParaView reads (each time step: part 0 the she
 the ball). ``--format xdmf``: ``sheet.xdmf`` and ``ball.xdmf`` (meshio's XDMF time series,
 data inline): an XDMF time series has one geometry, so the points are those of the first
 frame and the motion is the point field ``displacement [mm]`` (ParaView: Warp By Vector,
-scale 1). :mod:`dynslip.data.vtk` has the meshes and fields. The folder is written whole or
-not at all (a staging folder renamed on success).
+scale 1). Each held body of the run's world (the tube's wall, the bottle's parts,
+``physics.bodies``) adds its own part, ``body<K>_NNNN.vtu`` (``body<K>.xdmf``), K its index in
+``physics.named_bodies()`` (the names in the .pvd's ``name`` attribute); the ball is drawn with
+its own outline when it is not the unit sphere (:mod:`dynslip.app.drawn`).
+:mod:`dynslip.data.vtk` has the meshes and fields. The folder is written whole or not at all
+(a staging folder renamed on success).
 """
 
 from __future__ import annotations
@@ -19,41 +23,58 @@ from dynslip.errors import InputError
 FORMATS = ("vtu", "xdmf")
 
 
-def _pvd(entries: list[tuple[float, int, str]]) -> str:
-    """The ParaView collection file (.pvd) indexing the frames (time, part, file)."""
+def _pvd(entries: list[tuple[float, int, str]], names=None) -> str:
+    """The ParaView collection file (.pvd) indexing the frames (time, part, file); ``names``:
+    part -> a name written as the data set's ``name`` attribute."""
     root = ET.Element("VTKFile", type="Collection", version="0.1")
     coll = ET.SubElement(root, "Collection")
     for t, part, name in entries:
-        ET.SubElement(coll, "DataSet", timestep=repr(float(t)), group="", part=str(part), file=name)
+        extra = {"name": names[part]} if names and part in names else {}
+        ET.SubElement(coll, "DataSet", timestep=repr(float(t)), group="", part=str(part),
+                      file=name, **extra)
     ET.indent(root)
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
+
+
+def _parts(ds) -> list[tuple[str, str, object]]:
+    """``(file stem, name, make(ds, k))`` of every part: the sheet, the ball, each held body."""
+    from dynslip.app.drawn import drawn_bodies
+    from dynslip.data.vtk import ball_mesh, revolved_mesh, scales, sheet_mesh
+
+    drawn = drawn_bodies(ds) or {"ball": None, "held": []}
+    r = scales(ds)["R"]
+    parts = [("sheet", "sheet", sheet_mesh),
+             ("ball", "ball", lambda d, k: ball_mesh(d, k, outline=drawn["ball"]))]
+    for i, (name, outline, with_ball) in enumerate(drawn["held"]):
+        def make(d, k, outline=outline, with_ball=with_ball):
+            return revolved_mesh(outline, r, float(d["ball_z"].values[k]) if with_ball else 0.0)
+
+        parts.append((f"body{i}", name, make))
+    return parts
 
 
 def _write_vtu(ds, folder: Path) -> list[Path]:
     import meshio
 
     from dynslip.data.files import write_text
-    from dynslip.data.vtk import ball_mesh, sheet_mesh
 
     entries = []
+    parts = _parts(ds)
     for k, t in enumerate(ds["time"].values):
-        for part, (stem, mesh) in enumerate(
-            (("sheet", sheet_mesh(ds, k)), ("ball", ball_mesh(ds, k)))
-        ):
+        for part, (stem, _, make) in enumerate(parts):
             name = f"{stem}_{k:04d}.vtu"
-            meshio.write(folder / name, mesh, file_format="vtu")
+            meshio.write(folder / name, make(ds, k), file_format="vtu")
             entries.append((float(t), part, name))
-    return [write_text(folder / "trajectory.pvd", _pvd(entries))]
+    names = {i: n for i, (_, n, _) in enumerate(parts) if i >= 2}
+    return [write_text(folder / "trajectory.pvd", _pvd(entries, names))]
 
 
 def _write_xdmf(ds, folder: Path) -> list[Path]:
     import numpy as np
     from meshio.xdmf import TimeSeriesWriter
 
-    from dynslip.data.vtk import ball_mesh, sheet_mesh
-
     paths = []
-    for stem, make in (("sheet", sheet_mesh), ("ball", ball_mesh)):
+    for stem, _, make in _parts(ds):
         first = make(ds, 0)
         path = folder / f"{stem}.xdmf"
         with TimeSeriesWriter(path, data_format="XML") as w:

@@ -127,6 +127,7 @@ def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=No
         },
         friction_smoothing=sc.numerics.friction_smoothing,
         extra_attrs=extra_attrs,
+        body_names=[name for name, *_ in p.named_bodies()] or None,
     )
 
 

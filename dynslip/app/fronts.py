@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 from dynslip.analysis.front_summary import fronts_dataset
@@ -13,8 +14,12 @@ from dynslip.plot.fronts import plot_fronts
 __all__ = ["run_fronts", "summary_lines"]
 
 
-def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None) -> list[Path]:
-    """``dynslip fronts``: write ``fronts.nc``, ``fronts.png`` and ``fronts_summary.json``.
+def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None,
+               body: str | None = None) -> list[Path]:
+    """``dynslip fronts``: write ``fronts.nc``, ``fronts.png`` and ``fronts_summary.json``;
+    with ``body`` (a held body's name, ``physics.named_bodies()``) only that body's state map,
+    ``state_map_<name>.png`` (:mod:`dynslip.plot.bodies`; an unknown name raises
+    :class:`~dynslip.errors.InputError` and writes nothing).
 
     ``out_dir`` defaults to the trajectory's folder; ``rest_speed`` (R/s): see
     :func:`motion_state`. Returns the three paths in that order.
@@ -24,6 +29,14 @@ def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None) -
     trajectory_path = Path(trajectory_path)
     ds = open_trajectory(trajectory_path)
     out_dir = trajectory_path.parent if out_dir is None else Path(out_dir)
+    if body is not None:
+        from dynslip.data.trajectory import body_index
+        from dynslip.plot.bodies import plot_body_state
+
+        body_index(ds, body)  # InputError before anything is written
+        slug = re.sub(r"[^A-Za-z0-9]+", "_", body).strip("_").lower() or "body"
+        return [plot_body_state(ds, body, out_dir / f"state_map_{slug}.png",
+                                _outcome(trajectory_path))]
     fr = fronts_dataset(ds, rest_speed)
     stages = json.loads(fr.attrs["stage_summary"])
     return [

@@ -94,6 +94,20 @@ PER_TIME = {
 }
 """Per-frame variables (time) of the contract: name -> (units, long_name, scale)."""
 
+BODY_STATE_MEANINGS = ("free", "stuck", "slipping_toward_decreasing_s",
+                       "slipping_toward_increasing_s", "touching_frictionless")
+"""The ``body_state`` flags 0-4 (:mod:`dynslip.physics.bodies.observe`)."""
+PER_BODY_NODE = {
+    "body_s": ("1", "the body's surface coordinate (arc length along its profile) of the "
+               "node's closest point", "R"),
+}
+"""Per held body and node (time, body, rbar), floats: name -> (units, long_name, scale)."""
+PER_BODY = {
+    "body_s_min": ("1", "lowest surface coordinate s in contact with the body (NaN: none)", "R"),
+    "body_s_max": ("1", "highest surface coordinate s in contact with the body (NaN: none)", "R"),
+}
+"""Per held body and frame (time, body), floats: name -> (units, long_name, scale)."""
+
 
 def _attrs_scale(scale):
     return {"scale": scale} if scale else {}
@@ -112,6 +126,7 @@ def frames_to_dataset(
     friction: dict,
     friction_smoothing: float,
     extra_attrs=None,
+    body_names=None,
 ) -> xr.Dataset:
     """The trajectory contract (docs/trajectory-contract.md) from the driver's frames.
 
@@ -120,7 +135,9 @@ def frames_to_dataset(
     values as global attributes: ``scenario_json`` (the resolved scenario), ``scales``
     (``R_m``, ``G_Pa``, ``h0_m``, ``force_scale_N``), ``contact_threshold``, ``friction``
     (``mu``, ``friction_law``, ``mu_s``, ``mu_k``, ``d_c``) and ``friction_smoothing``;
-    ``extra_attrs`` last (e.g. the provenance of a start state)."""
+    ``extra_attrs`` last (e.g. the provenance of a start state). Frames with per-body fields
+    (a model with held bodies) add them on a ``body`` dimension, its coordinate
+    ``body_names`` (default ``body 0``, ...); without them there is no ``body`` dimension."""
     time = np.array([f["time"] for f in frames])
     data = {}
     for name, (units, long_name, scale) in PER_NODE.items():
@@ -141,7 +158,16 @@ def frames_to_dataset(
                                - scal["dissipation_friction"] - scal["dissipation_drag"])
     for name, (units, long_name, scale) in PER_TIME.items():
         data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
-    coords = {
+    coords = {}
+    if frames and "body_s" in frames[0]:
+        data.update(_per_body(frames))
+        k = data["body_s"].shape[1]
+        names = [f"body {i}" for i in range(k)] if body_names is None else list(body_names)
+        if len(names) != k:
+            raise ValueError(f"body_names: {len(names)} names for {k} held bodies")
+        coords["body"] = io.variable(np.array(names, dtype=str), ("body",), "1",
+                                     "held body (physics.named_bodies order)")
+    coords |= {
         "time": io.variable(time, ("time",), "s", "physical time of the saved frame"),
         "rbar": io.variable(
             np.asarray(rbar), ("rbar",), "1", "undeformed (material) radius / R", scale="R"
@@ -161,6 +187,42 @@ def frames_to_dataset(
     if extra_attrs:
         attrs.update(extra_attrs)
     return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _per_body(frames) -> dict:
+    """The per-body variables of frames that carry them (:func:`frames_to_dataset`)."""
+    data = {}
+    for name, (units, long_name, scale) in PER_BODY_NODE.items():
+        arr = np.stack([np.asarray(f[name], float) for f in frames])
+        data[name] = io.variable(arr, ("time", "body", "rbar"), units, long_name,
+                                 **_attrs_scale(scale))
+    for name, (units, long_name, scale) in PER_BODY.items():
+        arr = np.stack([np.asarray(f[name], float) for f in frames])
+        data[name] = io.variable(arr, ("time", "body"), units, long_name, **_attrs_scale(scale))
+    data["body_contact"] = io.variable(
+        np.stack([np.asarray(f["body_contact"], np.int8) for f in frames]),
+        ("time", "body", "rbar"), "1", "node in contact with the body (penalty pressure above "
+        "contact_threshold)", flag_values=np.array([0, 1], np.int8),
+        flag_meanings="free in_contact")
+    data["body_state"] = io.variable(
+        np.stack([np.asarray(f["body_state"], np.int8) for f in frames]),
+        ("time", "body", "rbar"), "1", "contact and slip state of the node relative to the body",
+        flag_values=np.arange(len(BODY_STATE_MEANINGS), dtype=np.int8),
+        flag_meanings=" ".join(BODY_STATE_MEANINGS))
+    data["body_n_contact"] = io.variable(
+        np.stack([np.asarray(f["body_n_contact"], np.int32) for f in frames]), ("time", "body"),
+        "1", "number of nodes in contact with the body")
+    return data
+
+
+def body_index(ds: xr.Dataset, name: str) -> int:
+    """The index of held body ``name`` on the trajectory's ``body`` dimension; an unknown name
+    (or a run without held bodies) raises :class:`InputError` naming the allowed ones."""
+    names = [str(n) for n in ds["body"].values] if "body" in ds.coords else []
+    if name not in names:
+        allowed = ", ".join(repr(n) for n in names) if names else "none (the run has no held body)"
+        raise InputError(f"body: {name!r} is not a held body of this run; allowed: {allowed}")
+    return names.index(name)
 
 
 def open_trajectory(path) -> xr.Dataset:

@@ -1,5 +1,7 @@
 """A trajectory as 3D surfaces for ParaView (and VisIt, pyvista): the sheet's meridian revolved
-about the axis, the rigid ball as a sphere, with :mod:`meshio` meshes for each saved frame.
+about the axis, the rigid ball as a sphere (or its own outline revolved, :func:`revolved_mesh`)
+and each held body's outline revolved, with :mod:`meshio` meshes for each saved frame. The
+outlines come in as plain data (``dynslip.app.drawn``): this layer knows no body object.
 
 Physical units: points in mm (the ball centre on the axis, at ``ball_z``); the field names
 carry their units (``pressure [MPa]``). The sheet is ``n_phi`` meridians of the ``rbar``
@@ -90,11 +92,31 @@ def sheet_mesh(ds: xr.Dataset, k: int, n_phi: int = 48):
     )
 
 
-def ball_mesh(ds: xr.Dataset, k: int, n_theta: int = 24, n_phi: int = 48):
-    """The rigid ball at saved frame ``k``: a sphere of radius R about (0, 0, ball_z), quads."""
+def revolved_mesh(outline, scale: float, shift: float = 0.0, n_phi: int = 48):
+    """The surface of revolution of a meridian outline (M, 2) = (rho, z) (units of R, a closed
+    polyline), scaled by ``scale`` (mm per R) and displaced by ``shift`` (R) along the axis:
+    quads between consecutive outline points and meridians."""
+    import meshio
+
+    o = np.asarray(outline, float)
+    rho, z = o[:, 0] * scale, (o[:, 1] + shift) * scale
+    phi = 2.0 * np.pi * np.arange(n_phi) / n_phi
+    pts = np.stack(
+        [np.outer(np.cos(phi), rho).ravel(), np.outer(np.sin(phi), rho).ravel(), np.tile(z, n_phi)],
+        axis=1,
+    )
+    return meshio.Mesh(pts, [("quad", _quads(o.shape[0], n_phi))])
+
+
+def ball_mesh(ds: xr.Dataset, k: int, n_theta: int = 24, n_phi: int = 48, outline=None):
+    """The rigid ball at saved frame ``k``: a sphere of radius R about (0, 0, ball_z), quads;
+    ``outline`` (M, 2), units of R, at ``ball_z = 0``: that outline revolved instead (a ball
+    that is not the unit sphere, e.g. the coin's disc)."""
     import meshio
 
     r = scales(ds)["R"]
+    if outline is not None:
+        return revolved_mesh(outline, r, float(ds["ball_z"].values[k]), n_phi)
     zc = float(ds["ball_z"].values[k]) * r
     th = np.linspace(0.0, np.pi, n_theta + 1)
     phi = 2.0 * np.pi * np.arange(n_phi) / n_phi

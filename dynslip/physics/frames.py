@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.physics.bodies.held import held_entries
+from dynslip.physics.bodies.observe import body_observables
 from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, place_state
 from dynslip.physics.sheet import SheetModel
 
@@ -16,7 +17,8 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 
 @eqx.filter_jit
 def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
-    """Everything saved per frame: per-node fields and per-time scalars (jnp)."""
+    """Everything saved per frame: per-node fields and per-time scalars (jnp), and per held
+    body (:mod:`dynslip.physics.bodies.observe`)."""
     dy, aux = evaluate(model, layout, t, y, args)
     model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
@@ -32,6 +34,10 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     theta_max = jnp.where(any_c, jnp.max(jnp.where(contact, theta_all, -jnp.inf)), jnp.nan)
     rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
     slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
+    # per held body (none without: the ball's frame as before)
+    g_rho, g_z, _ = aux["kin"]["grads"]
+    per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
+                                args.drag, args.eps, contact_threshold)
     return {
         "rho": rho,
         "z": z,
@@ -59,6 +65,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         if model.bodies
         else jnp.zeros(0),
         "n_contact": jnp.sum(contact),
+        **per_body,
     }
 
 

@@ -76,6 +76,7 @@ class _Renderer:
         size,
         map_frames=None,
         outcome=None,
+        bodies=None,
     ):
         import matplotlib
 
@@ -83,7 +84,7 @@ class _Renderer:
         import matplotlib.pyplot as plt
         from matplotlib.collections import LineCollection
         from matplotlib.lines import Line2D
-        from matplotlib.patches import Circle
+        from matplotlib.patches import Circle, Polygon
 
         self.ds, self.fronts = ds, fronts
         self.plt = plt
@@ -122,8 +123,26 @@ class _Renderer:
         self.ax.set_xlabel(r"$\rho / R$")
         self.ax.set_ylabel(r"$z / R$")
         self.ax.axvline(0, color="0.8", lw=0.6, zorder=0)
-        self.ball = Circle((0.0, 0.0), 1.0, facecolor="#f4efe1", edgecolor="0.35", lw=1.0, zorder=1)
-        self.ax.add_patch(self.ball)
+        # the ball: the unit circle, or its own outline (both halves), moved by ball_z; each
+        # held body's outline, drawn once, or moved with the ball (``bodies``: dynslip.app.drawn)
+        bodies = bodies or {}
+        style = dict(facecolor="#f4efe1", edgecolor="0.35", lw=1.0, zorder=1)
+        if bodies.get("ball") is None:
+            self.ball_parts = [(Circle((0.0, 0.0), 1.0, **style), None)]
+        else:
+            self.ball_parts = [(Polygon(h, closed=True, **style), h)
+                               for h in _halves(bodies["ball"])]
+        self.moving = []
+        for _, outline, with_ball in bodies.get("held", ()):
+            for h in _halves(outline):
+                patch = Polygon(h, closed=True, facecolor="#cfd6dc", edgecolor="0.45", lw=0.8,
+                                zorder=1)
+                self.ax.add_patch(patch)
+                if with_ball:
+                    self.moving.append((patch, h))
+        for patch, _ in self.ball_parts:
+            self.ax.add_patch(patch)
+        self.ball = self.ball_parts[0][0]
         self.sheet = LineCollection([], linewidths=2.6, capstyle="round", zorder=3)
         self.ax.add_collection(self.sheet)
         (self.front_pts,) = self.ax.plot(
@@ -153,7 +172,8 @@ class _Renderer:
         )
         self.cursor = self.ax_map.axhline(self.t[sel[0]], color="#2ca02c", lw=1.8)
         # blitting: the static parts are drawn once, the moving artists on top for each frame
-        self.dynamic = [self.ball, self.sheet, self.clamp, self.front_pts, self.cursor, self.title]
+        self.dynamic = [*(p for p, _ in self.moving + self.ball_parts), self.sheet, self.clamp,
+                        self.front_pts, self.cursor, self.title]
         for a in self.dynamic:
             a.set_animated(True)
         self.fig.canvas.draw()
@@ -176,7 +196,12 @@ class _Renderer:
         segs, cols = self._segments(k)
         self.sheet.set_segments(segs)
         self.sheet.set_color(cols)
-        self.ball.set_center((0.0, float(ds["ball_z"].values[k])))
+        zb = float(ds["ball_z"].values[k])
+        for patch, h in self.ball_parts + self.moving:
+            if h is None:
+                patch.set_center((0.0, zb))
+            else:
+                patch.set_xy(h + np.array([0.0, zb]))
         nodes = self.front_node[:, k]
         nodes = nodes[nodes >= 0].astype(int)
         fx = 0.5 * (self.rho[k, nodes] + self.rho[k, nodes + 1])
@@ -209,6 +234,12 @@ class _Renderer:
         self.plt.close(self.fig)
 
 
+def _halves(outline) -> list[np.ndarray]:
+    """A meridian outline (M, 2), rho >= 0, and its mirror image about the axis."""
+    o = np.asarray(outline, float)
+    return [o, o * np.array([-1.0, 1.0])]
+
+
 def _prepare(trajectory_path, t_range, size, max_frames):
     ds = open_trajectory(trajectory_path)
     size = _check_size(size)
@@ -225,6 +256,7 @@ def animate(
     fmt: str = "gif",
     max_frames: int | None = DEFAULT_MAX_FRAMES,
     rest_speed: float | None = None,
+    bodies: dict | None = None,
 ) -> Path:
     """Write an animation of a run; one frame per saved frame shown; returns its path.
 
@@ -233,7 +265,9 @@ def animate(
     or ``"mp4"``; ``out_path`` defaults to ``animation.<fmt>`` beside the trajectory;
     ``max_frames`` thins the saved frames evenly when the range holds more; ``rest_speed``
     (R/s, optional) colours slipping nodes slower than this as stuck
-    (:func:`dynslip.analysis.fronts.motion_state`; default: the state flags as saved). Bad options,
+    (:func:`dynslip.analysis.fronts.motion_state`; default: the state flags as saved);
+    ``bodies``: the outlines to draw (:func:`dynslip.app.drawn.drawn_bodies`: the ball's, None
+    for the unit circle, and each held body's; default: the unit circle only). Bad options,
     a
     file that is not a trajectory of this format version, or a range outside the run raise
     :class:`~dynslip.errors.InputError`.
@@ -253,7 +287,8 @@ def animate(
     out_path.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_path.with_name(f".{out_path.stem}.tmp{out_path.suffix}")
     fronts = fronts_dataset(ds, rest_speed)
-    renderer = _Renderer(ds, fronts, frames, size, map_frames=time_indices(ds, t_range))
+    renderer = _Renderer(ds, fronts, frames, size, map_frames=time_indices(ds, t_range),
+                         bodies=bodies)
     try:
         if fmt == "gif":
             _write_gif(renderer, frames, tmp, fps)
@@ -301,9 +336,11 @@ def save_frame_png(
     size=DEFAULT_SIZE,
     rest_speed: float | None = None,
     outcome: str | None = None,
+    bodies: dict | None = None,
 ) -> Path:
     """Write the animation frame at the saved frame nearest ``time`` (s; default the last)
-    as a PNG; ``outcome``: the run's answer in words for the map's title (summary.json's).
+    as a PNG; ``outcome``: the run's answer in words for the map's title (summary.json's);
+    ``bodies``: as :func:`animate`'s.
     :class:`InputError` for a time outside the run."""
     ds = open_trajectory(trajectory_path)
     size = _check_size(size)
@@ -315,7 +352,8 @@ def save_frame_png(
         k = int(np.argmin(np.abs(t - float(time))))
     fronts = fronts_dataset(ds, rest_speed)
     renderer = _Renderer(
-        ds, fronts, np.array([k]), size, map_frames=np.arange(t.size), outcome=outcome
+        ds, fronts, np.array([k]), size, map_frames=np.arange(t.size), outcome=outcome,
+        bodies=bodies,
     )
     try:
         from PIL import Image
