@@ -305,12 +305,12 @@ class FormingPhysics(Strict):
                              f"(radius {self.ball.widest_mm(self.ball_radius_mm)} mm)")
         moved = self.stage_moved_names()
         allowed = ", ".join(repr(n) for n in moved) or "none: no body has motion: stage"
-        for s in self.stages:
+        for i, s in enumerate(self.stages):
             for name in s.body_velocity_mm_s:
                 if name not in moved:
                     raise ValueError(
-                        f"stage {s.name!r}: body_velocity_mm_s names {name!r}, which is not a "
-                        f"body with motion: stage (allowed: {allowed})")
+                        f"'physics.stages.{i}.body_velocity_mm_s.{name}' (stage {s.name!r}) names "
+                        f"{name!r}, which is not a body with motion: stage (allowed: {allowed})")
         if self.tube is not None and not self.tube.wall_mm < self.rim_radius_mm:
             raise ValueError(f"tube.wall_mm = {self.tube.wall_mm}: the rim is thicker than the "
                              f"tube (allowed: below rim_radius_mm = {self.rim_radius_mm})")
