@@ -26,6 +26,7 @@ from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Settings, _stage_args, simulate
+from test_newton import _dense
 
 N = 24
 RIM, PRE, TAU, EPS = 2.54, 1.05, 0.1, 1e-3
@@ -122,18 +123,8 @@ def test_newton_matrix_with_a_free_body_equals_jacfwd():
                        args=args)
     res, blocks, _ = nw.free_system(MODEL, FRICTION, inc, zk0 - 0.01)
     w = jnp.concatenate([zb[None], zk0])
-    lower, diag, upper, b, c, d = blocks(q, w)
+    dense = _dense(*blocks(q, w))
     n = q.shape[0]
-    dense = np.zeros((2 * n + 2, 2 * n + 2))
-    for i in range(n):
-        dense[2 * i:2 * i + 2, 2 * i:2 * i + 2] = diag[i]
-        if i > 0:
-            dense[2 * i:2 * i + 2, 2 * i - 2:2 * i] = lower[i]
-        if i < n - 1:
-            dense[2 * i:2 * i + 2, 2 * i + 2:2 * i + 4] = upper[i]
-    dense[:2 * n, 2 * n:] = np.asarray(b).reshape(2 * n, 2)
-    dense[2 * n:, :2 * n] = np.asarray(c).reshape(2, 2 * n)
-    dense[2 * n:, 2 * n:] = d
 
     def flat(x):
         rq, rw = res(x[:2 * n].reshape(n, 2), x[2 * n:])
