@@ -96,3 +96,44 @@ def test_the_world_scenario_names_its_held_bodies_as_the_solver_holds_them():
                                         "bottle body"]
     assert [w for _, _, w in named] == [e.moves_with_ball for e in model.bodies]
     assert all(b == e.body for (_, b, _), e in zip(named, model.bodies, strict=True))
+
+
+def _with_bodies(ds, body_z):
+    """``ds`` with the per-body variables of ``len(body_z[0])`` held bodies, none touched, and
+    their saved displacements ``body_z`` (time, body)."""
+    body_z = np.asarray(body_z, float)
+    nt, k = body_z.shape
+    nan = np.full((nt, k), np.nan)
+    return ds.assign(
+        body_z=(("time", "body"), body_z), body_s_min=(("time", "body"), nan),
+        body_s_max=(("time", "body"), nan),
+        body_n_contact=(("time", "body"), np.zeros((nt, k), int)),
+        body_state=(("time", "body", "rbar"), np.zeros((nt, k, ds.sizes["rbar"]), np.int8)),
+    )
+
+
+def test_a_moving_body_is_met_at_its_saved_displacement_and_checked_against_the_ball():
+    """A body moved by the stages or free is at its saved ``body_z``: a bead (radius 0.5,
+    centred 2 below the ball's centre) raised by 0.8 reaches 0.3 past the flat sheet at z = -1
+    (closest approach -0.3; at rest it would stay 0.5 below) and 0.3 into the unit ball (1 + 0.5
+    - 1.2: the model has no contact between rigid bodies, so the summary has no answer); a post
+    far below, moved by 0.5, overlaps nothing; a body at rest is not checked."""
+    from dynslip.analysis.clearance import body_contacts, body_overlaps
+    from dynslip.physics.bodies import Sphere
+
+    ds = _flat_sheet(-1.0, [0.0, 0.0]).assign(ball_z=("time", np.zeros(2)))
+    ds = _with_bodies(ds, [[0.0, 0.0, 0.0], [0.8, 0.5, 0.0]])
+    bead, post, base = Sphere(0.5, centre_z=-2.0), Cylinder(1.0, -10.0, -9.0), Cylinder(
+        3.0, -30.0, -20.0)
+    entries = [("bead", bead, False), ("post", post, False), ("base", base, False)]
+    out = body_contacts(ds, entries, 20.0)
+    assert out[0]["touched"] and out[0]["time_s"] == 1.0
+    np.testing.assert_allclose(out[0]["closest_R"], -0.3, atol=1e-12)
+    np.testing.assert_allclose(out[1]["closest_R"], 7.5, atol=1e-12)  # its top at -8.5
+    np.testing.assert_allclose(out[2]["closest_R"], 19.0, atol=1e-12)
+    (o,) = body_overlaps(ds, entries, Sphere(), 20.0)
+    assert o["name"] == "bead" and o["into"] == "ball" and o["time_s"] == 1.0
+    np.testing.assert_allclose([o["depth_R"], o["depth_mm"]], [0.3, 6.0], atol=1e-9)
+    # raised by 0.45 only: 0.05 clear of the ball, no overlap
+    assert body_overlaps(_with_bodies(ds, [[0.0, 0.0, 0.0], [0.45, 0.5, 0.0]]), entries,
+                         Sphere(), 20.0) == []

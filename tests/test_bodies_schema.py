@@ -115,7 +115,13 @@ def _arc(c, r, a0, a1):
            "z_mm": 21.0},), ("bodies.0", "'ring'", "the flat sheet starts inside it")),
         # an unknown kind, a motion or friction law that is not built
         (({**POST, "kind": "box"},), ("physics.bodies.0.kind", "box", "'cylinder'", "'profile'")),
-        (({**POST, "motion": "free"},), ("physics.bodies.0.motion", "free", "'stage'")),
+        (({**POST, "motion": "orbit"},), ("physics.bodies.0.motion", "orbit", "'free'")),
+        # a free body: frictionless, its force in range, force and drag only with it
+        (({**POST, "motion": "free", "friction": {"law": "coulomb", "mu": 0.3}},),
+         ("bodies.0", "friction.law = coulomb", "frictionless", "allowed: none")),
+        (({**POST, "motion": "free", "force_N": 2e4},), ("physics.bodies.0.force_N", "20000")),
+        (({**POST, "motion": "free", "drag": 0.0},), ("physics.bodies.0.drag", "greater than 0")),
+        (({**POST, "force_N": 1.0},), ("bodies.0", "force_N goes with motion: free", "held")),
         (({**POST, "friction": {"law": "slip_weakening", "mu": 0.5}},),
          ("physics.bodies.0.friction.law", "slip_weakening", "'coulomb'")),
         (({**POST, "friction": {"law": "coulomb"}},), ("bodies.0.friction", "needs mu")),
@@ -150,6 +156,45 @@ def _moved(motion, velocities, stage=0):
 )
 def test_bad_stage_motion_input(tmp_path, capsys, motion, velocities, words):
     run_refused(tmp_path, capsys, LET_GO, _moved(motion, velocities), *words)
+
+
+@pytest.mark.parametrize(
+    "dotted, value, words",
+    [
+        ("numerics.solver", "kvaerno5", ("numerics.solver", "kvaerno5", "'post'",
+                                         "allowed: load_step")),
+        ("start_from", "formed.nc", ("start_from", "'post'", "no start_from")),
+    ],
+)
+def test_a_free_body_needs_load_stepping_and_no_start_state(tmp_path, capsys, dotted, value,
+                                                             words):
+    def edit(data):
+        data["physics"]["bodies"] = [{**POST, "motion": "free", "force_N": 0.5}]
+        set_field(dotted, value)(data)
+
+    run_refused(tmp_path, capsys, LET_GO, edit, *words)
+
+
+def test_a_free_body_builds_with_its_force_and_drag_in_core_units():
+    """motion: free makes the body's Held entry free: its force_N over G h0 R (2.0 N at the
+    defaults: E = 2 MPa, h0 = 150 um, R = 20 mm), its drag the ball's eta_b = tau 4 pi times
+    the multiple."""
+    from dynslip.app.forming import build_core
+    from dynslip.schema.base import load_data, validate_data
+
+    data = load_data(LET_GO)
+    data["physics"]["bodies"] = [{**POST, "motion": "free", "force_N": 0.5, "drag": 3.0},
+                                 {**POST, "name": "base", "z_mm": -120.0, "motion": "free"}]
+    sc = validate_data(data)
+    model, _, _ = build_core(sc)
+    post, base = model.bodies
+    assert post.free and base.free and post.friction is None and not post.stage
+    assert sc.physics.force_scale_N == pytest.approx(2.0, rel=1e-12)
+    np.testing.assert_allclose(float(post.force), 0.25, rtol=1e-12)
+    tau = sc.numerics.drag_time_s
+    np.testing.assert_allclose(float(post.drag), tau * 4 * np.pi * 3.0, rtol=1e-12)
+    np.testing.assert_allclose([float(base.force), float(base.drag)], [0.0, tau * 4 * np.pi],
+                               rtol=1e-12)
 
 
 def test_a_stage_moved_body_builds_with_its_velocities_in_r_per_s():

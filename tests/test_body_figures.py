@@ -59,7 +59,14 @@ def test_drawn_bodies_of_the_main_job_and_of_the_coin():
     d = drawn_bodies(ds)
     assert d["ball"] is None  # the unit sphere: drawn as the circle
     assert [n for n, _, _ in d["held"]] == NAMES
-    assert [w for _, _, w in d["held"]] == [False, True, True, True]
+    # the tube's wall at rest, the bottle displaced by the ball's height (a file without body_z)
+    assert [w is not None for _, _, w in d["held"]] == [False, True, True, True]
+    np.testing.assert_array_equal(d["held"][1][2], ds["ball_z"].values)
+    # a file with body_z: every body at its saved displacement (here the wall moved by a stage)
+    body_z = np.stack([np.linspace(0.0, -0.5, ds.sizes["time"])] + [ds["ball_z"].values] * 3, 1)
+    moved = drawn_bodies(ds.assign(body_z=(("time", "body"), body_z)))
+    for (_, _, shift), z in zip(moved["held"], body_z.T, strict=True):
+        np.testing.assert_array_equal(shift, z)
     sc = schema.load(ROOT / "scenarios" / "method2.yaml")
     wall = d["held"][0][1]
     # the tube's outer wall: the rim's radius (the sheet's clamp circle) over the ball's
@@ -103,7 +110,7 @@ def test_animation_draws_each_body_and_moves_those_carried_by_the_ball():
         r.draw(k)
         zb = float(ds["ball_z"].values[k])
         np.testing.assert_allclose(r.moving[0][0].get_xy()[: len(neck)], neck + [0.0, zb])
-        static = [p for p in r.ax.patches if all(p is not m for m, _ in r.moving)]
+        static = [p for p in r.ax.patches if all(p is not m for m, *_ in r.moving)]
         assert len(static) == 2 + 1  # the tube wall's halves, and the ball
     finally:
         r.close()

@@ -140,7 +140,8 @@ def _frames(bodies: bool, nt=3):
             f |= {"body_s": np.tile(np.linspace(0, 1, N), (2, 1)), "body_contact": contact,
                   "body_state": contact.copy(), "body_n_contact": contact.sum(1),
                   "body_s_min": np.array([2 / (N - 1), np.nan]),
-                  "body_s_max": np.array([(2 + i) / (N - 1), np.nan])}
+                  "body_s_max": np.array([(2 + i) / (N - 1), np.nan]),
+                  "body_z": np.array([0.0, 0.1 * i])}
         out.append(f)
     return out
 
@@ -160,8 +161,9 @@ def test_dataset_body_dimension_names_and_units_parse():
     assert ds["body_state"].dims == ("time", "body", "rbar")
     assert ds["body_n_contact"].dims == ("time", "body")
     check_units(ds)
-    for name in ("body_s", "body_s_min", "body_s_max"):
+    for name in ("body_s", "body_s_min", "body_s_max", "body_z"):
         assert ds[name].attrs["scale"] == "R"
+    np.testing.assert_array_equal(ds["body_z"].values[:, 1], [0.0, 0.1, 0.2])
     assert len(ds["body_state"].attrs["flag_meanings"].split()) == 5
     plain = _dataset(_frames(False))
     assert "body" not in plain.dims and not [v for v in plain.data_vars if v.startswith("body")]

@@ -20,7 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
-__all__ = ["body_contacts", "clearance", "contact_extent"]
+from dynslip.data.trajectory import body_shift
+
+__all__ = ["body_contacts", "body_overlaps", "clearance", "contact_extent", "overlap_tolerance"]
 
 
 @functools.lru_cache(maxsize=64)
@@ -55,16 +57,18 @@ def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
 
 def body_contacts(ds: xr.Dataset, entries, length_mm: float) -> list[dict]:
     """Per held body of a run, from its saved path: ``entries`` are ``(name, body,
-    moves_with_ball)`` (a body that moves with the ball is displaced by ``ball_z`` at each
-    frame). For each: the closest approach of a sheet node over the path (``closest_R``, units
-    of R, and ``closest_mm``; negative: inside), its time and material radius, and
+    moves_with_ball)`` (a body that moves, with the ball, by the stages or free, is displaced by
+    :func:`~dynslip.data.trajectory.body_shift` at each frame). For each: the closest approach
+    of a sheet node over the path (``closest_R``, units of R, and ``closest_mm``; negative:
+    inside), its time and material radius, and
     ``touched`` (a node reached the surface: the penalty, which acts only inside, pressed it).
     Nodes are points, as in :func:`clearance`. A trajectory with the per-body observables (its
     ``body`` dimension, in ``entries``' order) adds :func:`contact_extent`'s."""
     out = []
     for k, (name, body, with_ball) in enumerate(entries):
-        d = ds.assign(clamp_z=ds["ball_z"]) if with_ball else ds
-        c = clearance(d, (body,), moves_with_clamp=with_ball)
+        shift = body_shift(ds, k, with_ball)
+        d = ds if shift is None else ds.assign(clamp_z=("time", shift))
+        c = clearance(d, (body,), moves_with_clamp=shift is not None)
         out.append({
             "name": name,
             "moves_with_ball": bool(with_ball),
@@ -114,3 +118,68 @@ def contact_extent(ds: xr.Dataset, k: int, length_mm: float) -> dict:
         "stuck_fraction_end": float(np.mean(state[touching] == 1)) if frictional else None,
     }
 
+
+
+@functools.lru_cache(maxsize=64)
+def _depth_fn(a, b, n: int = 2001):
+    """The jitted depth by which solids ``a`` and ``b``, displaced by ``za`` and ``zb`` (arrays
+    of frames), intersect: the deepest of ``n`` points along either profile inside the other
+    (:func:`~dynslip.physics.bodies.penetration` without its local refinement: to about the
+    sampling's sagitta), 0 when apart."""
+    pa = jnp.asarray(a.point_at(np.linspace(0.0, a.length, n), 0.0))
+    pb = jnp.asarray(b.point_at(np.linspace(0.0, b.length, n), 0.0))
+    up = jnp.array([0.0, 1.0])
+
+    def depth(za, zb):
+        da = jnp.min(b.distance(pa + za * up, zb))
+        db = jnp.min(a.distance(pb + zb * up, za))
+        return jnp.maximum(0.0, -jnp.minimum(da, db))
+
+    return jax.jit(jax.vmap(depth))
+
+
+#: default depth (R) above which a moving body is said to pass into another solid (the test's
+#: sampling resolves about 1e-7 R); a run's summary passes its own (:func:`overlap_tolerance`)
+OVERLAP_TOL = 1e-6
+
+
+def overlap_tolerance(h0_over_r: float, penalty_width: float) -> float:
+    """The depth (R) two bodies pressing the sheet between them reach without passing into each
+    other: the real sheet's thickness ``h0_over_r`` keeps them apart, the model's sheet (a
+    surface) lets each press it in by about its penalty's ``penalty_width``."""
+    return h0_over_r + 2.0 * penalty_width
+
+
+def body_overlaps(ds: xr.Dataset, entries, ball, length_mm: float, tol: float = OVERLAP_TOL,
+                  max_frames: int = 200):
+    """Where a body that moves on its own (by the stages, or free along the axis) passes into
+    the ball or another held body on a saved path: the model has no contact between rigid
+    bodies (only between each and the sheet), so from such a frame on the run is not a world
+    of solids. ``entries``: ``(name, body, moves_with_ball)`` (:func:`body_contacts`'); ``ball``
+    the ball's body (displaced by ``ball_z``). Returns one dict per moving body with an overlap
+    deeper than ``tol`` (R): ``name``, ``into`` (``"ball"`` or the body's name), the
+    largest depth over at most ``max_frames`` evenly spread frames (``depth_R``, ``depth_mm``)
+    and its time (``time_s``); empty when none overlaps (bodies carried with the ball keep
+    their start's clearance from it and are not checked)."""
+    nt = ds.sizes["time"]
+    frames = np.unique(np.linspace(0, nt - 1, min(nt, max_frames)).round().astype(int))
+    zb = np.asarray(ds["ball_z"].values, float)
+    shifts = [body_shift(ds, k, w) for k, (_, _, w) in enumerate(entries)]
+    shifts = [np.zeros(nt) if s is None else s for s in shifts]
+    out = []
+    for k, (name, body, with_ball) in enumerate(entries):
+        if with_ball or not np.any(shifts[k] != 0.0):
+            continue
+        others = [("ball", ball, zb)] + [(f"body {n!r}", b, shifts[j]) for j, (n, b, _) in
+                                         enumerate(entries) if j != k]
+        depth, into, when = 0.0, None, None
+        for other, b, z in others:
+            d = np.asarray(_depth_fn(body, b)(jnp.asarray(shifts[k][frames]),
+                                              jnp.asarray(z[frames])))
+            i = int(np.argmax(d))
+            if d[i] > depth:
+                depth, into, when = float(d[i]), other, float(ds["time"].values[frames[i]])
+        if depth > tol:
+            out.append({"name": name, "into": into, "depth_R": depth,
+                        "depth_mm": depth * length_mm, "time_s": when})
+    return out

@@ -139,6 +139,20 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "the profile's start) at the end and its longest over the path, and the fraction "
             "of the nodes in contact at the end stuck relative to the body (frictional bodies)"
         )
+        from dynslip.analysis.clearance import body_overlaps, overlap_tolerance
+
+        tol = overlap_tolerance(p.thickness_um * 1e-3 / p.ball_radius_mm,
+                                sc.numerics.penalty_width)
+        overlaps = body_overlaps(ds, entries, p.ball_body(), p.ball_radius_mm, tol)
+        if overlaps:
+            # the model has no contact between rigid bodies: no answer from such a path
+            summary["bodies_overlap"] = overlaps
+            summary["bodies_overlap_means"] = (
+                "a body moved by the stages or free passes into the ball or another body "
+                "(into) deeper than the sheet's thickness plus twice the penalty's width "
+                f"({tol * p.ball_radius_mm:.3g} mm): the model has no contact between rigid "
+                "bodies, so the path is not a world of solids and trapped has no answer")
+            summary["trapped"] = None
     summary["outcome"] = outcome_words(summary)
     return summary
 
@@ -222,6 +236,11 @@ def outcome_words(s: dict) -> str:
                if np.isfinite(theta) else "no contact at the end")
     if s["status"] != "ok":
         return f"failed: no answer ({contact})"
+    if s.get("bodies_overlap"):
+        o = s["bodies_overlap"][0]
+        return (f"no answer: body {o['name']!r} passes into the {o['into']} by "
+                f"{o['depth_mm']:.3g} mm at t = {o['time_s']:.4g} s (the model has no contact "
+                f"between rigid bodies; {contact})")
     if s["trapped"] is None:
         return f"no answer: the mesh does not resolve the contact ({contact})"
     if s["trapped"]:

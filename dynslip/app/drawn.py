@@ -16,11 +16,14 @@ __all__ = ["drawn_bodies", "drawn_bodies_at"]
 
 
 def drawn_bodies(ds) -> dict | None:
-    """``{"ball": outline or None, "held": [(name, outline, moves_with_ball), ...]}`` of the
+    """``{"ball": outline or None, "held": [(name, outline, shift), ...]}`` of the
     trajectory ``ds``'s world: ``ball`` the ball's closed outline (M, 2) at ``ball_z = 0`` (None
     for the unit sphere, drawn as a circle), ``held`` each held body's (``physics.named_bodies()``
-    order; displaced by ``ball_z`` when it moves with the ball). None when the trajectory
+    order) at its placement, displaced at frame k by ``shift[k]``
+    (:func:`~dynslip.data.trajectory.body_shift`: with the ball, by the stages or free; None
+    for a body at rest). None when the trajectory
     carries no scenario this version validates (an older file: the unit sphere only)."""
+    from dynslip.data.trajectory import body_shift
     from dynslip.physics.bodies import Sphere
     from dynslip.schema.base import validate_data
 
@@ -28,8 +31,8 @@ def drawn_bodies(ds) -> dict | None:
         sc = validate_data(json.loads(ds.attrs["scenario"]), "trajectory scenario")
         p = sc.physics
         ball = p.ball_body()
-        held = [(name, np.asarray(body.outline()), bool(with_ball))
-                for name, body, with_ball in p.named_bodies()]
+        held = [(name, np.asarray(body.outline()), body_shift(ds, k, bool(with_ball)))
+                for k, (name, body, with_ball) in enumerate(p.named_bodies())]
     except (KeyError, TypeError, ValueError, AttributeError):  # an older file: drawn as before
         return None
     unit = isinstance(ball, Sphere) and ball.is_unit

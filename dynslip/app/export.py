@@ -45,9 +45,9 @@ def _parts(ds) -> list[tuple[str, str, object]]:
     r = scales(ds)["R"]
     parts = [("sheet", "sheet", sheet_mesh),
              ("ball", "ball", lambda d, k: ball_mesh(d, k, outline=drawn["ball"]))]
-    for i, (name, outline, with_ball) in enumerate(drawn["held"]):
-        def make(d, k, outline=outline, with_ball=with_ball):
-            return revolved_mesh(outline, r, float(d["ball_z"].values[k]) if with_ball else 0.0)
+    for i, (name, outline, shift) in enumerate(drawn["held"]):
+        def make(d, k, outline=outline, shift=shift):
+            return revolved_mesh(outline, r, 0.0 if shift is None else float(shift[k]))
 
         parts.append((f"body{i}", name, make))
     return parts

@@ -41,9 +41,16 @@ def build_core(sc):
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
     eps = jnp.asarray(nu.friction_smoothing)
     moved = set(p.stage_moved_names())
+    # a free body: its applied force in G h0 R, its drag as the ball's (eta_b of its multiple)
+    free = {
+        b.name: dict(free=True, force=jnp.asarray((b.force_N or 0.0) / p.force_scale_N),
+                     drag=jnp.asarray(ball_drag_coefficient(nu.drag_time_s,
+                                                            1.0 if b.drag is None else b.drag)))
+        for b in p.bodies if b.motion == "free"
+    }
     bodies = tuple(
         Held(body, None if mu is None else Coulomb(mu=jnp.asarray(mu), eps=eps),
-             moves_with_ball=with_ball, stage=name in moved)
+             moves_with_ball=with_ball, stage=name in moved, **free.get(name, {}))
         for name, body, with_ball, mu in p.held_specs()
     )
     g_h0 = p.force_scale_N / r  # N/mm
@@ -275,13 +282,16 @@ def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
     from dynslip.plot.world import plot_world
 
     entries = held_entries(model.bodies)
-    held = [e.body for e in entries if not e.moves_with_ball]
-    with_ball = [e.body for e in entries if e.moves_with_ball]
+    moves = [e.moves_with_ball or e.stage or e.free for e in entries]
+    held = [e.body for e, m in zip(entries, moves, strict=True) if not m]
+    # every moving body at its saved displacement (the ball's height for the bottle)
+    moved = [(e.body, ds["body_z"].values[:, k]) for k, (e, m) in
+             enumerate(zip(entries, moves, strict=True)) if m]
     theta = ds["theta_max"].values
     widest = int(np.nanargmax(theta)) if np.isfinite(theta).any() else 0
     frames = {"widest contact": widest, "end": ds.sizes["time"] - 1}
     end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
-    fig = plot_world(ds, frames, held=held, with_ball=with_ball, limits=None,
+    fig = plot_world(ds, frames, held=held, moved=moved, limits=None,
                      ball=_drawn_ball(model.ball),
                      title=f"{sc.name} (N = {ds.sizes['rbar']})\n{end}")
     save_figure(fig, outs.folder / "world.png", dpi=120)
@@ -308,6 +318,9 @@ def _print_summary(console, s: dict) -> None:
     ]
     if "bodies" in s:
         rows.append(("held bodies touched", _touched_words(s["bodies"])))
+    for o in s.get("bodies_overlap", ()):  # the model has no contact between rigid bodies
+        rows.append((f"{o['name']} passes into", f"{o['into']}: {o['depth_mm']:.3g} mm at "
+                                                 f"t = {o['time_s']:.4g} s"))
     if "release" in s:
         rows += [("release: peak force (N)", s["release"]["peak_force_N"]),
                  ("release: opening reached R", s["release"]["opening_reached_R"])]

@@ -103,6 +103,8 @@ PER_BODY_NODE = {
 }
 """Per held body and node (time, body, rbar), floats: name -> (units, long_name, scale)."""
 PER_BODY = {
+    "body_z": ("1", "the body's axial displacement from its placement in the scenario, + up "
+               "(the ball's height for a body carried with it; 0 for one at rest)", "R"),
     "body_s_min": ("1", "lowest surface coordinate s in contact with the body (NaN: none)", "R"),
     "body_s_max": ("1", "highest surface coordinate s in contact with the body (NaN: none)", "R"),
 }
@@ -213,6 +215,16 @@ def _per_body(frames) -> dict:
         np.stack([np.asarray(f["body_n_contact"], np.int32) for f in frames]), ("time", "body"),
         "1", "number of nodes in contact with the body")
     return data
+
+
+def body_shift(ds: xr.Dataset, k: int, moves_with_ball: bool):
+    """The per-frame axial displacement (time,) of held body ``k`` (R), or None for a body at
+    rest: the saved ``body_z`` (a body carried with the ball, moved by the stages or free),
+    else, for a file without it, the ball's height for one carried with the ball."""
+    if "body_z" in ds and k < ds.sizes.get("body", 0):
+        shift = np.asarray(ds["body_z"].values[:, k], float)
+        return shift if moves_with_ball or np.any(shift != 0.0) else None
+    return np.asarray(ds["ball_z"].values, float) if moves_with_ball else None
 
 
 def body_index(ds: xr.Dataset, name: str) -> int:

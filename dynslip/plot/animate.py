@@ -124,7 +124,7 @@ class _Renderer:
         self.ax.set_ylabel(r"$z / R$")
         self.ax.axvline(0, color="0.8", lw=0.6, zorder=0)
         # the ball: the unit circle, or its own outline (both halves), moved by ball_z; each
-        # held body's outline, drawn once, or moved with the ball (``bodies``: dynslip.app.drawn)
+        # held body's outline, drawn once, or moved by its shift (``bodies``: dynslip.app.drawn)
         bodies = bodies or {}
         style = dict(facecolor="#f4efe1", edgecolor="0.35", lw=1.0, zorder=1)
         if bodies.get("ball") is None:
@@ -133,13 +133,13 @@ class _Renderer:
             self.ball_parts = [(Polygon(h, closed=True, **style), h)
                                for h in _halves(bodies["ball"])]
         self.moving = []
-        for _, outline, with_ball in bodies.get("held", ()):
+        for _, outline, shift in bodies.get("held", ()):
             for h in _halves(outline):
                 patch = Polygon(h, closed=True, facecolor="#cfd6dc", edgecolor="0.45", lw=0.8,
                                 zorder=1)
                 self.ax.add_patch(patch)
-                if with_ball:
-                    self.moving.append((patch, h))
+                if shift is not None:
+                    self.moving.append((patch, h, shift))
         for patch, _ in self.ball_parts:
             self.ax.add_patch(patch)
         self.ball = self.ball_parts[0][0]
@@ -172,7 +172,7 @@ class _Renderer:
         )
         self.cursor = self.ax_map.axhline(self.t[sel[0]], color="#2ca02c", lw=1.8)
         # blitting: the static parts are drawn once, the moving artists on top for each frame
-        self.dynamic = [*(p for p, _ in self.moving + self.ball_parts), self.sheet, self.clamp,
+        self.dynamic = [*(p for p, *_ in self.moving + self.ball_parts), self.sheet, self.clamp,
                         self.front_pts, self.cursor, self.title]
         for a in self.dynamic:
             a.set_animated(True)
@@ -197,11 +197,13 @@ class _Renderer:
         self.sheet.set_segments(segs)
         self.sheet.set_color(cols)
         zb = float(ds["ball_z"].values[k])
-        for patch, h in self.ball_parts + self.moving:
+        for patch, h in self.ball_parts:
             if h is None:
                 patch.set_center((0.0, zb))
             else:
                 patch.set_xy(h + np.array([0.0, zb]))
+        for patch, h, shift in self.moving:
+            patch.set_xy(h + np.array([0.0, float(shift[k])]))
         nodes = self.front_node[:, k]
         nodes = nodes[nodes >= 0].astype(int)
         fx = 0.5 * (self.rho[k, nodes] + self.rho[k, nodes + 1])

@@ -22,9 +22,12 @@ def plot_world(
     with_ball=(),
     limits=((0, 3.2), (-6.5, 2.0)),
     ball=None,
+    moved=(),
 ) -> Figure:
     """``frames``: label -> time index. ``held``: bodies in the frame of the run; ``with_clamp``
-    and ``with_ball``: bodies displaced by the clamp's or the ball's height of each frame.
+    and ``with_ball``: bodies displaced by the clamp's or the ball's height of each frame;
+    ``moved``: ``(body, shift)`` pairs, displaced by ``shift[i]`` at frame i (the trajectory's
+    ``body_z``).
     ``limits``: the axes' ``((rho0, rho1), (z0, z1))``, or None to fit the frames and bodies.
     ``ball``: the ball's body, its outline dotted (None: the unit sphere). Units of R on both
     axes."""
@@ -44,6 +47,7 @@ def plot_world(
             ax.plot(o[:, 0], o[:, 1], color=col, lw=0.8, ls=":", zorder=2)
         moving = [(b, float(ds["clamp_z"].values[i])) for b in with_clamp]
         moving += [(b, zb) for b in with_ball]
+        moving += [(b, float(shift[i])) for b, shift in moved]
         for body, dz in moving:
             o = body.outline(dz)
             ax.fill(o[:, 0], o[:, 1], color=col, alpha=0.15, ec=col, lw=0.8, zorder=1)

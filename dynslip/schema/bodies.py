@@ -190,15 +190,33 @@ class BodySpec(_Shape):
         ..., description="sphere (radius_mm), disc (radius_mm, thickness_mm, edge_radius_mm), "
         "cylinder (radius_mm, height_mm; inner_radius_mm, edge_radius_mm), cone (radius_mm, "
         "apex_mm), torus (ring_radius_mm, minor_radius_mm), profile (segments)")
-    motion: Literal["held", "with_ball", "stage"] = F(
+    motion: Literal["held", "with_ball", "stage", "free"] = F(
         "held", description="held: at rest; with_ball: carried with the ball (as the bottle); "
         "stage: moved by the stages (each stage's body_velocity_mm_s gives its velocity by "
-        "name; 0 where not named); a body free along the axis is not built")
+        "name; 0 where not named); free: moves along the axis under the sheet's pressure and "
+        "force_N against its drag (frictionless; numerics.solver load_step)")
+    force_N: float | None = F(None, unit="N", ge=-1e4, le=1e4,
+                              description="motion: free: the axial force applied to the body, + "
+                                          "up (its weight, a spring's preload: give it here; "
+                                          "gravity is not added), in [-1e4, 1e4] N; default 0")
+    drag: float | None = F(None, gt=0, le=1e6,
+                           description="motion: free: the body's drag as a multiple of the "
+                                       "sheet's drag over 4 pi R^2 (as numerics.ball_drag), in "
+                                       "(0, 1e6]; default 1")
     friction: BodyFrictionSpec = BodyFrictionSpec()
 
     @model_validator(mode="after")
     def _sizes(self):
         self._check_sizes(self.kind, f"body {self.name!r}")
+        if self.motion != "free":
+            given = [k for k in ("force_N", "drag") if getattr(self, k) is not None]
+            if given:
+                raise ValueError(f"body {self.name!r}: {given[0]} goes with motion: free (its "
+                                 f"motion is {self.motion})")
+        elif self.friction.law != "none":
+            raise ValueError(f"body {self.name!r}: friction.law = {self.friction.law}: a free "
+                             f"body is frictionless (friction on a free body is not built); "
+                             f"allowed: none")
         return self
 
 

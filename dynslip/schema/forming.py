@@ -415,6 +415,10 @@ class FormingPhysics(Strict):
                  s.friction.mu if s.friction.law == "coulomb" else None) for s in self.bodies]
         return out
 
+    def free_names(self) -> list:
+        """The names of ``physics.bodies`` free along the axis (motion: free)."""
+        return [b.name for b in self.bodies if b.motion == "free"]
+
     def stage_moved_names(self) -> list:
         """The names of ``physics.bodies`` moved by the stages (motion: stage)."""
         return [b.name for b in self.bodies if b.motion == "stage"]
@@ -594,6 +598,15 @@ class FormingScenario(ScenarioBase):
         if self.start_from is None and _clamp_enters_ball(prot, self.physics.ball_body()):
             raise ValueError("physics.stages: the clamp path enters the ball")
         assert isinstance(prot, Protocol)
+        free = self.physics.free_names()
+        if free and self.numerics.solver != "load_step":
+            raise ValueError(f"numerics.solver = {self.numerics.solver}: the free body "
+                             f"{free[0]!r} (physics.bodies, motion: free) needs load stepping; "
+                             f"allowed: load_step")
+        if free and self.start_from is not None:
+            raise ValueError(f"start_from = {self.start_from!r}: a start state does not carry "
+                             f"the free body {free[0]!r}'s height (not built); allowed: no "
+                             f"start_from with a body of motion: free")
         frames = sum(s.max_duration for s in prot.stages) / self.numerics.save_interval_s
         if frames > MAX_FRAMES:  # every saved frame is held in memory
             raise ValueError(f"numerics.save_interval_s = {self.numerics.save_interval_s}: the "
