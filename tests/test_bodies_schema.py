@@ -116,9 +116,7 @@ def _arc(c, r, a0, a1):
         # an unknown kind, a motion or friction law that is not built
         (({**POST, "kind": "box"},), ("physics.bodies.0.kind", "box", "'cylinder'", "'profile'")),
         (({**POST, "motion": "orbit"},), ("physics.bodies.0.motion", "orbit", "'free'")),
-        # a free body: frictionless, its force in range, force and drag only with it
-        (({**POST, "motion": "free", "friction": {"law": "coulomb", "mu": 0.3}},),
-         ("bodies.0", "friction.law = coulomb", "frictionless", "allowed: none")),
+        # a free body: its force in range, force and drag only with it
         (({**POST, "motion": "free", "force_N": 2e4},), ("physics.bodies.0.force_N", "20000")),
         (({**POST, "motion": "free", "drag": 0.0},), ("physics.bodies.0.drag", "greater than 0")),
         (({**POST, "force_N": 1.0},), ("bodies.0", "force_N goes with motion: free", "held")),
@@ -178,17 +176,19 @@ def test_a_free_body_needs_load_stepping_and_no_start_state(tmp_path, capsys, do
 def test_a_free_body_builds_with_its_force_and_drag_in_core_units():
     """motion: free makes the body's Held entry free: its force_N over G h0 R (2.0 N at the
     defaults: E = 2 MPa, h0 = 150 um, R = 20 mm), its drag the ball's eta_b = tau 4 pi times
-    the multiple."""
+    the multiple, its friction as given."""
     from dynslip.app.forming import build_core
     from dynslip.schema.base import load_data, validate_data
 
     data = load_data(LET_GO)
     data["physics"]["bodies"] = [{**POST, "motion": "free", "force_N": 0.5, "drag": 3.0},
-                                 {**POST, "name": "base", "z_mm": -120.0, "motion": "free"}]
+                                 {**POST, "name": "base", "z_mm": -120.0, "motion": "free",
+                                  "friction": {"law": "coulomb", "mu": 0.4}}]
     sc = validate_data(data)
     model, _, _ = build_core(sc)
     post, base = model.bodies
     assert post.free and base.free and post.friction is None and not post.stage
+    np.testing.assert_allclose(float(base.friction.mu), 0.4)
     assert sc.physics.force_scale_N == pytest.approx(2.0, rel=1e-12)
     np.testing.assert_allclose(float(post.force), 0.25, rtol=1e-12)
     tau = sc.numerics.drag_time_s

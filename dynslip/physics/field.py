@@ -220,7 +220,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     v_free = None
     w_bodies = jnp.zeros(())
     if layout.n_free:
-        v_free, f_free, eta_free = free_body_rates(model, rho, z, zb)
+        v_free, f_free, eta_free = free_body_rates(model, rho, z, zb, hf, vb)
         d_drag = d_drag + jnp.sum(eta_free * v_free**2)
         w_bodies = w_bodies + jnp.sum(f_free * v_free)  # the applied forces' work
     parts = [w_clamp, w_ball, d_drag, d_fric]
@@ -259,18 +259,63 @@ def body_load(model: SheetModel, entry, rho, z, zb):
     return jnp.sum(jax.grad(one.held_penalty_energy, argnums=1)(rho, z, zb))
 
 
-def free_body_rates(model: SheetModel, rho, z, zb):
-    r"""The free bodies' velocities $v_k = (L_k + F_k)/\eta_k$ (R/s; frictionless: the
-    sheet's pressure $L_k$ and the applied force $F_k$ against the body's drag $\eta_k$), with
-    $F_k$ and $\eta_k$: three (K,) arrays in held order."""
+def free_body_rates(model: SheetModel, rho, z, zb, hf=None, vb=None):
+    r"""The free bodies' velocities $v_k = (L_k - A_k + F_k)/\eta_k$ (R/s: the sheet's
+    pressure $L_k$, the reaction of its friction $A_k = \sum_i f_{ik} t_{k,z}$ and the applied
+    force $F_k$ against the body's drag $\eta_k$), with $F_k$ and $\eta_k$: three (K,) arrays
+    in held order. ``hf`` (the held friction's frame, :class:`~dynslip.physics.bodies.held.
+    HeldFrame`) and ``vb`` (the ball's velocity) give $A_k$ of a frictional free body, its
+    slip relative to the body at the body's own ``velocity`` (the model's entry: the load
+    step's increment; it is the unknown $v_k$ itself, so $v_k$ is exact where the increment is
+    converged); without them (or frictionless) $A_k = 0$."""
+    entries = held_entries(model.bodies)
+    fric = [k for k, e in enumerate(entries) if e.friction is not None]
+    axial = hf.axial_per_body(vb) if hf is not None and fric else None
     v, f, eta = [], [], []
-    for e in held_entries(model.bodies):
+    for k, e in enumerate(entries):
         if e.free:
             load = body_load(model, e, rho, z, zb)
+            if e.friction is not None and axial is not None:
+                load = load - axial[fric.index(k)]
             v.append((load + e.force) / e.drag)
             f.append(e.force)
             eta.append(e.drag)
     return jnp.stack(v), jnp.stack(f), jnp.stack(eta)
+
+
+def place_free_moving(model: SheetModel, layout: Layout, t, y, args: StageArgs,
+                      iterations: int = 60):
+    r"""``model`` with its free bodies at the state's heights, moving at their own velocities
+    $v_k = (L_k - A_k(v_k) + F_k)/\eta_k$ (a frame's record: the slip relative to a frictional
+    free body, and its friction, read its velocity; load stepping solves it as the increment's
+    unknown). The root is found by bisection, one body per component ($v - v_{free}(v)$ is
+    increasing: a faster body drags the sheet more), in $v^0_k \pm (B/\eta_k + 1)$ ($v^0$
+    frictionless, $B = \sum\mu N|t_z|$ the largest axial friction); exact for bodies that do
+    not share a node. Unchanged without a frictional free body."""
+    entries = held_entries(model.bodies)
+    if not any(e.free and e.friction is not None for e in entries):
+        return model
+    zk = layout.free(y)
+    placed = place_state(model, layout, y, args, t)
+
+    def v_free(v):
+        return layout.free(evaluate(place_free(placed, zk, v), layout, t, y, args)[0])
+
+    rho, z, zb, _ = layout.unpack(y)
+    v0, _, eta = free_body_rates(placed, rho, z, zb)
+    g_rho, g_z, _ = placed.kinematics(rho, z, zb, args.friction, args.eps, args.drag,
+                                      layout.internal(y))["grads"]
+    hf = placed.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb)
+    half = hf.bound() / eta + 1.0
+
+    def step(_, bracket):
+        lo, hi = bracket
+        mid = 0.5 * (lo + hi)
+        up = mid - v_free(mid) > 0.0  # past the root: it lies below
+        return jnp.where(up, lo, mid), jnp.where(up, mid, hi)
+
+    lo, hi = jax.lax.fori_loop(0, iterations, step, (v0 - half, v0 + half))
+    return place_free(placed, zk, 0.5 * (lo + hi))
 
 
 def bodies_power(model: SheetModel, rho, z, zb, vb, hf):

@@ -9,7 +9,16 @@ import numpy as np
 
 from dynslip.physics.bodies.held import held_entries
 from dynslip.physics.bodies.observe import body_observables
-from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, evaluate, heal, place_state
+from dynslip.physics.field import (
+    N_ACC,
+    Layout,
+    StageArgs,
+    _f,
+    evaluate,
+    heal,
+    place_free_moving,
+    place_state,
+)
 from dynslip.physics.sheet import SheetModel
 
 __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
@@ -19,6 +28,7 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
     """Everything saved per frame: per-node fields and per-time scalars (jnp), and per held
     body (:mod:`dynslip.physics.bodies.observe`)."""
+    model = place_free_moving(model, layout, t, y, args)  # a frictional free body's velocity
     dy, aux = evaluate(model, layout, t, y, args)
     model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]

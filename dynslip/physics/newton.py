@@ -510,10 +510,21 @@ def free_system(model, friction, inc: Increment, zk0):
     from dynslip.physics.field import free_body_rates
 
     def placed(zk):
-        return place_free(model, zk)
+        # at the increment's end, moving at the increment's velocity (the slip relative to a
+        # frictional free body)
+        return place_free(model, zk, (zk - zk0) / inc.h)
 
     def body_res(q, zb, zk):
-        v, _, _ = free_body_rates(placed(zk), q[:, 0], q[:, 1] + zb, zb)
+        m = placed(zk)
+        hf = vb = None
+        if frictional(m.bodies):
+            g, load = forces(m, q, zb)
+            n = q.shape[0]
+            idx = jnp.arange(n)
+            x = q + jnp.stack([jnp.zeros(()), zb])
+            hf = _held_frame(m, x, -g, m.mesh.area, inc.args, (idx > 0) & (idx < n - 1), zb)
+            vb = ball_velocity(m, inc, q, zb, g, load)
+        v, _, _ = free_body_rates(m, q[:, 0], q[:, 1] + zb, zb, hf, vb)
         return zk - zk0 - inc.h * v
 
     def res(q, w):

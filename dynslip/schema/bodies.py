@@ -194,7 +194,7 @@ class BodySpec(_Shape):
         "held", description="held: at rest; with_ball: carried with the ball (as the bottle); "
         "stage: moved by the stages (each stage's body_velocity_mm_s gives its velocity by "
         "name; 0 where not named); free: moves along the axis under the sheet's pressure and "
-        "force_N against its drag (frictionless; numerics.solver load_step)")
+        "friction and force_N against its drag (numerics.solver load_step)")
     force_N: float | None = F(None, unit="N", ge=-1e4, le=1e4,
                               description="motion: free: the axial force applied to the body, + "
                                           "up (its weight, a spring's preload: give it here; "
@@ -213,10 +213,6 @@ class BodySpec(_Shape):
             if given:
                 raise ValueError(f"body {self.name!r}: {given[0]} goes with motion: free (its "
                                  f"motion is {self.motion})")
-        elif self.friction.law != "none":
-            raise ValueError(f"body {self.name!r}: friction.law = {self.friction.law}: a free "
-                             f"body is frictionless (friction on a free body is not built); "
-                             f"allowed: none")
         return self
 
 

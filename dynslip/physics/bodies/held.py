@@ -84,10 +84,12 @@ class Held(eqx.Module):
     placed at ``offset`` (R) moving at ``velocity`` (R/s) by :func:`place_bodies`; the slip
     is relative to it, and the work it does on the sheet is the run's ``work_bodies``.
 
-    ``free`` (static): the body moves along the axis under the sheet's pressure and the applied
-    axial ``force`` (G h0 R, + up) against its drag ``drag`` (G h0 R s / R), frictionless; its
-    height is a state unknown (load stepping: a border unknown of Newton's system beside the
-    ball's), placed by :func:`place_free`."""
+    ``free`` (static): the body moves along the axis under the sheet's pressure, the reaction of
+    the sheet's friction on it (when it has a law) and the applied axial ``force`` (G h0 R,
+    + up) against its drag ``drag`` (G h0 R s / R); its height is a state unknown (load
+    stepping: a border unknown of Newton's system beside the ball's), placed by
+    :func:`place_free` at the increment's end, moving at the increment's velocity (the slip
+    relative to it)."""
 
     body: AbstractBody
     friction: AbstractFriction | None = None
@@ -109,8 +111,8 @@ class Held(eqx.Module):
         return vb if self.moves_with_ball else self.velocity
 
     def __check_init__(self):
-        if self.free and (self.friction is not None or self.moves_with_ball or self.stage):
-            raise ValueError("a free held body is frictionless and has no other motion")
+        if self.free and (self.moves_with_ball or self.stage):
+            raise ValueError("a free held body has no other motion")
         if self.friction is not None and self.friction.n_internal() != 0:
             raise ValueError(
                 "a held body's friction law must be memoryless (Coulomb, or a law of the "
@@ -152,15 +154,18 @@ def n_free(bodies) -> int:
     return sum(e.free for e in held_entries(bodies))
 
 
-def place_free(model, zk):
-    """``model`` with its free bodies at the heights ``zk`` (n_free,) (R, in held order);
-    unchanged when ``zk`` is None."""
+def place_free(model, zk, vk=None):
+    """``model`` with its free bodies at the heights ``zk`` (n_free,) (R, in held order) and,
+    when given, moving at ``vk`` (R/s: the slip relative to a frictional one); unchanged when
+    ``zk`` is None."""
     if zk is None:
         return model
     entries, j = [], 0
     for e in held_entries(model.bodies):
         if e.free:
             e = eqx.tree_at(lambda h: h.offset, e, zk[j])
+            if vk is not None:
+                e = eqx.tree_at(lambda h: h.velocity, e, vk[j])
             j += 1
         entries.append(e)
     return eqx.tree_at(lambda m: m.bodies, model, tuple(entries))
@@ -266,7 +271,8 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFr
         live=live,
         laws=tuple(laws),
         moving=tuple(moving) if any(moving) else (),
-        speeds=tuple(speeds) if any(e.stage for e in held_entries(bodies)) else (),
+        # the bodies' own velocities where one moves on its own (by the stages, or free)
+        speeds=tuple(speeds) if any(e.stage or e.free for e in held_entries(bodies)) else (),
     )
 
 
