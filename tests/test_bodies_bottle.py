@@ -31,6 +31,9 @@ from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressu
 from dynslip.physics.simulate import Settings, simulate
 from helpers import run_refused, set_field
 
+# the quick loop (-m 'not slow') leaves these out: each test runs the sheet over the bottle (N = 24)
+pytestmark = pytest.mark.slow
+
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "method2.yaml"
 N = 24
 RIM, PRE, TAU = 2.54, 1.05, 0.1

@@ -83,6 +83,7 @@ def test_at_rest_the_sheet_balances_the_applied_force(run):
     assert abs(float(end["clamp_force"]) + F_UP) < 1e-5 * F_UP, float(end["clamp_force"])
 
 
+@pytest.mark.slow
 def test_with_friction_the_clamp_still_carries_the_applied_force(run, run_friction):
     """The post with friction (mu = 0.5) against the sheet: the friction acts (it dissipates,
     and the sheet comes to rest elsewhere than on the frictionless post), yet at rest the
@@ -101,6 +102,7 @@ def test_with_friction_the_clamp_still_carries_the_applied_force(run, run_fricti
     assert abs(z1 - z0) < 1e-6, (z1, z0)
 
 
+@pytest.mark.slow
 def test_power_balance_with_a_frictional_free_body_is_exact(run_friction):
     """At saved states of the frictional post's rise (pressing the sheet, friction acting), with
     the post moving at its own velocity v (the root of v = (L - A(v) + F)/eta, as the load

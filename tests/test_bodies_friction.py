@@ -109,6 +109,7 @@ def _held_state(model, frame):
     return normal, np.where(live, np.asarray(s - g), 0.0), np.asarray(s), e, mu
 
 
+@pytest.mark.slow
 def test_each_body_slips_at_its_own_limit(frictional_run):
     """While the clamp pulls the sheet over both bodies, the nodes slipping on the post carry
     |f| = 0.15 N and those on the ring |f| = 0.6 N (exactly, past the smoothing), no node more
@@ -129,6 +130,7 @@ def test_each_body_slips_at_its_own_limit(frictional_run):
         assert np.all(fric[k][slipping] * s[k][slipping] < 0)
 
 
+@pytest.mark.slow
 def test_at_rest_every_node_is_inside_its_cone(frictional_run):
     """After the hold the sheet has stopped on both bodies: every node inside its body's cone
     (|f| <= mu N), and on the ring (mu 0.6) nodes hold a friction force well above the post's
@@ -224,6 +226,7 @@ def _args(ball_mode):
     )
 
 
+@pytest.mark.slow
 def test_free_ball_velocity_solves_its_equation():
     """The force-controlled ball's velocity with held friction is the root of
     eta_b v - A0 - sum f_z(v) = 0 (the friction's axial part depends on v), to rounding; it
@@ -247,6 +250,7 @@ def test_free_ball_velocity_solves_its_equation():
     np.testing.assert_allclose(dv, 1.0 / float(dg), rtol=1e-10)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE])
 def test_newton_blocks_with_held_friction_equal_jacfwd(ball_mode):
     """Newton's matrix with a frictional held body against jax.jacfwd of the residual: exact

@@ -174,6 +174,7 @@ SMALL = SheetModel(
 )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE])
 def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
     """Newton's matrix with a held body (the node's force moves with z_b, the body's load

@@ -26,6 +26,9 @@ from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Settings, simulate
 
+# the quick loop (-m 'not slow') leaves these out: two runs of the moving world (N = 24)
+pytestmark = pytest.mark.slow
+
 N = 24
 RIM, PRE, TAU, EPS = 2.54, 1.05, 0.1, 1e-3
 MAT = make_material("gent", jm=50.0)

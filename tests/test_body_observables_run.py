@@ -29,6 +29,9 @@ from test_bodies_friction import (
     _run,
 )
 
+# the quick loop (-m 'not slow') leaves these out: runs over held bodies (N = 24)
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def frames():

@@ -65,6 +65,7 @@ def post_run():
     return _run(_push_and_hold(data, -50.0, 4.0))
 
 
+@pytest.mark.slow
 def test_coin_top_face_stretches_the_sheet_uniformly_and_equibiaxially(coin_run):
     """On the coin's frictionless flat top the in-plane equilibrium d(rho T_r)/d rho = T_phi holds
     with T_r = T_phi: lambda_theta = lambda_phi, the same at every node on the face (the stretch
@@ -85,6 +86,7 @@ def test_coin_top_face_stretches_the_sheet_uniformly_and_equibiaxially(coin_run)
     np.testing.assert_allclose(lp[face], lp[0], rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_coin_hold_carries_the_clamp_pull_at_rest(coin_run):
     """No held bodies: at rest the clamp's axial pull on the sheet is the hold's force on the
     coin (C_z = -F_h), which is the coin's pressure load sum_i A_i p_i (-n_z), none at a gap."""
@@ -102,6 +104,7 @@ def test_coin_hold_carries_the_clamp_pull_at_rest(coin_run):
     assert load < -1.0
 
 
+@pytest.mark.slow
 def test_held_cylinder_from_the_schema_shares_the_clamp_pull(post_run):
     """The schema's cylinder (mm over R) is a held body the sheet lies on: at rest the clamp's
     pull is the hold's plus its load, C_z = L - F_h; its pressure only where the sheet

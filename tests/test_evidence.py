@@ -39,6 +39,7 @@ def _penalty_run(k):
     return res.frames[-1]
 
 
+@pytest.mark.slow
 def test_end_state_converges_as_the_penalty_stiffness_doubles():
     """The held push-down end state (N = 40, Kvaerno5) at penalty stiffness k = 1e4, 2e4,
     4e4, 8e4 G h0/R^3, penalty width w = 1e-3 R. The penetration stays inside the penalty's

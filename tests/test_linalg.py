@@ -29,6 +29,7 @@ def field(y):
 Y0 = jnp.asarray(np.random.default_rng(0).normal(size=S.size))
 
 
+@pytest.mark.slow
 def test_blocks_equal_jacfwd():
     jac = jax.jacfwd(field)(Y0)
     mv = lambda v: jax.jvp(field, (Y0,), (v,))[1]  # noqa: E731
@@ -108,6 +109,7 @@ def sheet_field(y):
     return jnp.concatenate([-g[1:, 0], -g[:, 1], jnp.stack([jnp.sum(z) - zb, energy - e])])
 
 
+@pytest.mark.slow
 def test_permuted_layout_blocks_equal_jacfwd():
     y0 = jnp.asarray(np.random.default_rng(1).normal(size=SHEET.size))
     jac = jax.jacfwd(sheet_field)(y0)

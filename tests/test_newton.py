@@ -95,6 +95,7 @@ def _dense(lower, diag, upper, B, C, D):
     return j
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("modes", MODES)
 def test_blocks_from_element_derivatives_equal_jacfwd(modes):
     """The assembled Newton matrix (element Hessians, node Jacobians, the slip update's
@@ -151,6 +152,7 @@ def test_cyclic_reduction_equals_dense_solve(n):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("modes", MODES)
 def test_motion_newton_increment_is_the_full_state_increment(modes):
     """With a memoryless law both solve the same implicit Euler equations in different

@@ -77,6 +77,7 @@ def test_f_m_matches_the_exact_derivative():
     assert np.polyfit(np.log(hs), np.log(ends), 1)[0] > 0.9
 
 
+@pytest.mark.slow
 def test_f_v_identity_converges_at_second_order(members):
     """F_v (eq. Fz, F_f = -F_m) minus 2 pi T_theta(theta_max) sin^2 theta_max -> 0 at order >=
     1.5."""

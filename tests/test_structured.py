@@ -56,6 +56,7 @@ def _solve(linear_solver, y, t1):
     return out.y, int(out.steps)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stage", ["held", "force_controlled"])
 def test_structured_jacobian_equals_jacfwd_on_sampled_states(stage):
     """The declared pattern holds the whole Jacobian, with the ball held and with it
@@ -81,6 +82,7 @@ def test_structured_jacobian_equals_jacfwd_on_sampled_states(stage):
         assert float(jnp.max(jnp.abs(dense - jac))) <= 1e-10 * scale
 
 
+@pytest.mark.slow
 def test_structured_segment_matches_dense_within_tolerance():
     ys, _ = _solve("structured", Y0, 4.0)
     yd, _ = _solve("dense", Y0, 4.0)

@@ -58,6 +58,7 @@ def test_support_force_is_unilateral_closed_form():
     assert np.all(np.asarray(_args(0.0).support_force(zb)) == 0.0)  # no support, no force
 
 
+@pytest.mark.slow
 def test_ball_on_support_carries_the_pull_and_lifts_off():
     speed, depth = 0.2, -1.5
     pull_up = 20.0  # G h0 R, more than the sheet's pull at the end of the push (about 8.8)

@@ -218,6 +218,7 @@ def _contact_dtheta(a, b):
     return float(np.max(np.abs(ta[both] - tb[both])))
 
 
+@pytest.mark.slow
 def test_equal_coefficients_reproduce_ideal_coulomb():
     """mu_s = mu_k = 0.8 through the driver (slip-distance state, resets) against the ideal
     law at mu = 0.8: the same end state within solver tolerance."""
