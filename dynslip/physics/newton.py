@@ -317,16 +317,22 @@ def _held_frame(model: SheetModel, x, f, area, args, live, zb):
     )
 
 
+def _sheet_held_frame(model: SheetModel, args, q, zb, g):
+    """The held bodies' friction frame of the whole sheet at relative positions ``q`` under the
+    energy gradient ``g`` (not the pole nor the clamped edge), the ball at ``zb``."""
+    n = q.shape[0]
+    idx = jnp.arange(n)
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb)
+
+
 def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
     """The ball's velocity: :func:`ball_rate`, with the held bodies' friction (its axial part
     depends on the velocity itself: :func:`dynslip.physics.bodies.held.free_ball_velocity`)."""
     if not frictional(model.bodies):
         return ball_rate(inc, g[-1], zb, load)
     args = inc.args
-    n = q.shape[0]
-    idx = jnp.arange(n)
-    x = q + jnp.stack([jnp.zeros(()), zb])
-    hf = _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb)
+    hf = _sheet_held_frame(model, args, q, zb, g)
     pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
     cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
     fb = args.ball_force(inc.t1) + args.support_force(zb)
@@ -519,10 +525,7 @@ def free_system(model, friction, inc: Increment, zk0):
         hf = vb = None
         if frictional(m.bodies):
             g, load = forces(m, q, zb)
-            n = q.shape[0]
-            idx = jnp.arange(n)
-            x = q + jnp.stack([jnp.zeros(()), zb])
-            hf = _held_frame(m, x, -g, m.mesh.area, inc.args, (idx > 0) & (idx < n - 1), zb)
+            hf = _sheet_held_frame(m, inc.args, q, zb, g)
             vb = ball_velocity(m, inc, q, zb, g, load)
         v, _, _ = free_body_rates(m, q[:, 0], q[:, 1] + zb, zb, hf, vb)
         return zk - zk0 - inc.h * v
