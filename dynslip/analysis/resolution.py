@@ -15,6 +15,13 @@ segment between two nodes, and it revolves into a conical band whose distance to
 ball's centre (on the axis) equals the segment's. Its depth is one minus that distance.
 A ball of another kind (a coin, ``physics.ball``) is checked with its own geometry
 (:mod:`dynslip.physics.bodies.chords`: the deepest point of each chord inside the body).
+
+Every held body is checked the same way (:func:`body_chord_check`, ``mesh_check`` ``bodies``
+in ``summary.json``), each placed where it is in each saved frame (the trajectory's
+``body_z``: a body carried with the ball, moved by the stages or free). The pole's crossing
+stays the ball's check: the ball's centre is on the axis the pole moves along, and a runaway
+pole passes through it; a held body is off the axis or pressed by the pole from one side
+(:mod:`dynslip.physics.bodies.chords`).
 """
 
 from __future__ import annotations
@@ -22,9 +29,11 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from dynslip.data.trajectory import body_shift
+from dynslip.physics.bodies.chords import deepest_chord_in
 from dynslip.physics.sheet import chord_depths, deepest_chord
 
-__all__ = ["chord_depths", "chord_check"]
+__all__ = ["body_chord_check", "chord_check", "chord_depths"]
 
 
 def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:
@@ -59,3 +68,31 @@ def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:
             "the ball and trapped is then unknown"
         ),
     }
+
+
+def body_chord_check(ds: xr.Dataset, entries, limit: float, length_mm: float) -> dict:
+    """Per held body, the largest chord depth into it over the saved frames of a trajectory,
+    with the body placed where it is in each frame (:func:`~dynslip.data.trajectory.body_shift`,
+    the trajectory's ``body_z``). ``entries``: ``(name, body, moves_with_ball)`` in held order
+    (``physics.named_bodies()``). Returns ``{name: {max_chord_depth, max_chord_depth_mm,
+    time_s, element_rbar, end_max_chord_depth, resolved}}``: depths in R (negative: every chord
+    outside the body by that much at the least), the first frame of the deepest, the element's
+    material radii, and whether every depth is at most ``limit``. No pole crossing: that is the
+    ball's (:func:`chord_check`)."""
+    rho, z, times, rbar = (ds[v].values for v in ("rho", "z", "time", "rbar"))
+    out = {}
+    for k, (name, body, with_ball) in enumerate(entries):
+        shift = body_shift(ds, k, with_ball)
+        shift = np.zeros(times.shape) if shift is None else shift
+        depth, el = deepest_chord_in(body, rho, z, shift)
+        f = int(np.argmax(depth))
+        worst = float(depth[f])
+        out[name] = {
+            "max_chord_depth": worst,
+            "max_chord_depth_mm": worst * length_mm,
+            "time_s": float(times[f]),
+            "element_rbar": [float(rbar[el[f]]), float(rbar[el[f] + 1])],
+            "end_max_chord_depth": float(depth[-1]),
+            "resolved": bool(worst <= limit),
+        }
+    return out

@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.analysis.paper import ROUGH_END_STATE
-from dynslip.analysis.resolution import chord_check
+from dynslip.analysis.resolution import body_chord_check, chord_check
 
 
 def summarize(sc, ds: xr.Dataset, result) -> dict:
@@ -46,6 +46,15 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     reaction = float(end["ball_reaction"])
     ball = p.ball_body()
     mesh_check = chord_check(ds, sc.numerics.max_chord_depth, ball)
+    if p.named_bodies():  # every held body at its height in each frame (analysis.resolution)
+        mesh_check["bodies"] = body_chord_check(ds, p.named_bodies(), sc.numerics.max_chord_depth,
+                                                p.ball_radius_mm)
+        mesh_check["bodies_means"] = (
+            "per held body (name): the largest depth (R, and mm) that a straight element between "
+            "two nodes reaches inside the body placed where it is in each saved frame, when and on "
+            "which element; negative: every chord outside it by that much; the run stops as failed "
+            "past the limit, as for the ball (no pole crossing: that is the ball's)"
+        )
     trap = trap_check(ball, end, theta_max)
     if failed or not mesh_check["resolved"]:
         trapped = None  # a failed run, or sheet through the ball: no answer (analysis.resolution)

@@ -80,6 +80,7 @@ def build_core(sc):
         newton_max_iter=nu.newton_max_iter,
         newton_backtrack=nu.newton_backtrack,
         max_chord_depth=nu.max_chord_depth,
+        body_names=tuple(name for name, *_ in p.named_bodies()),
     )
     kwargs = dict(
         friction=p.friction.core(r, nu.friction_smoothing, 1e3 * p.force_scale_N / r**2),
@@ -316,6 +317,9 @@ def _print_summary(console, s: dict) -> None:
         ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
         ("energy residual / work", s["energy_balance"]["relative_residual"]),
     ]
+    if s["mesh_check"].get("bodies"):
+        name, c = max(s["mesh_check"]["bodies"].items(), key=lambda kv: kv[1]["max_chord_depth"])
+        rows.append((f"deepest chord in a held body ({name}, R)", c["max_chord_depth"]))
     if "bodies" in s:
         rows.append(("held bodies touched", _touched_words(s["bodies"])))
     for o in s.get("bodies_overlap", ()):  # the model has no contact between rigid bodies

@@ -40,24 +40,28 @@ class NonFinite(RunFailure):
 
 class ContactUnresolved(RunFailure):
     """The mesh no longer resolves the contact: an element chord ``depth`` (R) inside the ball,
-    beyond ``limit`` (R), on the element of material radii ``element`` (R), or the pole passed
-    through the ball (``pole_crossed``, depth 1)."""
+    or inside the held body named ``body`` (None: the ball), beyond ``limit`` (R), on the element
+    of material radii ``element`` (R), or the pole passed through the ball (``pole_crossed``,
+    depth 1; the ball's check only)."""
 
     def __init__(
-        self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool
+        self, stage: str, t: float, depth: float, limit: float, element: tuple, pole_crossed: bool,
+        body: str | None = None,
     ):
-        self.depth, self.limit, self.element, self.pole_crossed = (
+        self.depth, self.limit, self.element, self.pole_crossed, self.body = (
             depth,
             limit,
             element,
             pole_crossed,
+            body,
         )
+        inside = "the ball" if body is None else f"the held body {body!r}"
         why = (
             "the pole passed through the ball"
             if pole_crossed
             else f"the chord of the element on rbar [{element[0]:.4g}, {element[1]:.4g}] R "
             f"lies {depth:.3g} R "
-            f"inside the ball (limit {limit:g} R)"
+            f"inside {inside} (limit {limit:g} R)"
         )
         super().__init__(
             stage,

@@ -48,7 +48,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.bodies.held import n_free, stage_moved
+from dynslip.physics.bodies.chords import deepest_chord_in
+from dynslip.physics.bodies.held import held_entries, n_free, stage_moved
 from dynslip.physics.failures import (
     ContactUnresolved,
     NonFinite,
@@ -394,17 +395,26 @@ class MemberRun:
 
     def _unresolved(self, rec: dict) -> ContactUnresolved | None:
         """Why the frame ``rec`` is past what the mesh resolves, or None
-        (``Settings.max_chord_depth``)."""
+        (``Settings.max_chord_depth``): an element chord deeper than the limit inside the ball
+        or the pole through it (:func:`~dynslip.physics.sheet.deepest_chord`), else a chord
+        deeper than the limit inside a held body, each placed at its height in the frame
+        (``rec["body_z"]``; :func:`~dynslip.physics.bodies.chords.deepest_chord_in`). The pole's
+        crossing is the ball's only: a held body is off the axis or pressed by the pole from one
+        side (docs/bodies.md, "The mesh check against every body"). One limit for every body,
+        in R. No shipped scenario reaches it against a held body at its default mesh, nor the
+        main job at N = 30 (the same page), so the rule stops a run on any body; a chord straight
+        across a body thinner than twice the limit reads its half thickness and passes (the
+        tube's 3 mm wall: 0.075 R)."""
         limit = self.settings.max_chord_depth
         if limit is None:
             return None
         first = self.frames[0]
+        rbar = np.asarray(self.model.mesh.rbar)
         depth, k, crossed = deepest_chord(
             rec["rho"], rec["z"], rec["ball_z"], np.sign(first["z"][0] - first["ball_z"]),
             self.model.ball,
         )
         if crossed or depth > limit:
-            rbar = np.asarray(self.model.mesh.rbar)
             return ContactUnresolved(
                 self.stage.name,
                 self.t,
@@ -413,6 +423,19 @@ class MemberRun:
                 (float(rbar[k]), float(rbar[k + 1])),
                 bool(crossed),
             )
+        names = self.settings.body_names
+        for j, e in enumerate(held_entries(self.model.bodies)):
+            depth, k = deepest_chord_in(e.body, rec["rho"], rec["z"], rec["body_z"][j])
+            if depth > limit:
+                return ContactUnresolved(
+                    self.stage.name,
+                    self.t,
+                    float(depth),
+                    float(limit),
+                    (float(rbar[k]), float(rbar[k + 1])),
+                    False,
+                    body=names[j] if j < len(names) else f"held body {j}",
+                )
         return None
 
     def _end_stage(self) -> None:

@@ -49,9 +49,12 @@ class Settings:
     )
     max_increment: float = 20.0
     max_increment_free: float = 5.0
-    # a run stops as failed when an element chord dips deeper than this into the ball, or the
-    # pole passes through it (the mesh no longer resolves the contact); None: never checked
+    # a run stops as failed when an element chord dips deeper than this into the ball or a held
+    # body, or the pole passes through the ball (the mesh no longer resolves the contact);
+    # None: never checked
     max_chord_depth: float | None = None
+    # the held bodies' names (in held order), for the failure's message; () : "held body k"
+    body_names: tuple = ()
 
 
 class TimeStepping(eqx.Module):

@@ -9,6 +9,15 @@ chord, from 17 samples and then golden-section search on the bracket of the deep
 chord has one maximum in the bracket (a convex body, or a chord short against the profile's
 radii of curvature). Positive inside, units of R.
 
+:func:`deepest_chord_in` gives the deepest chord per frame into any body (a held body at the
+height it has in each frame). The pole's crossing (a pole found on the other side of the
+body's centre: passed through it between two saved frames) is the ball's check only
+(:func:`dynslip.physics.sheet.deepest_chord`): the ball is the body the sheet is drawn round,
+whose centre lies on the axis the pole moves along, and the runaway pole of a coarse mesh
+passes through it. A held body is off the axis (a tube's wall, the bottle's neck: the pole
+cannot reach it) or, on it, pressed by the pole from one side (a weight set on the sheet);
+it is checked at the saved frames only.
+
 Example::
 
     >>> import numpy as np
@@ -28,7 +37,7 @@ import numpy as np
 
 from dynslip.physics.bodies.base import AbstractBody
 
-__all__ = ["chord_depths"]
+__all__ = ["chord_depths", "deepest_chord_in"]
 
 _SAMPLES = 17
 _GOLDEN_STEPS = 60
@@ -65,3 +74,14 @@ def chord_depths(body: AbstractBody, rho, z, zpos) -> np.ndarray:
     zp = jnp.broadcast_to(zp, x.shape[:-2] + (x.shape[-2] - 1,))
     return np.asarray(_depths(body, x[..., :-1, :], x[..., 1:, :], zp))
 
+
+def deepest_chord_in(body: AbstractBody, rho, z, zpos) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame (frames leading, shape (...)) ``(depth, element)`` of the deepest element chord
+    inside ``body`` displaced along the axis by ``zpos`` (shape (...): a held body's height in
+    each frame), for node positions ``rho, z`` of shape (..., N): depth in R (positive inside,
+    a non-finite chord counts as -inf), ``element`` the index of its element (nodes ``element``
+    and ``element + 1``). No pole crossing (the module's docstring: the ball's check only)."""
+    depth = chord_depths(body, rho, z, zpos)
+    depth = np.where(np.isfinite(depth), depth, -np.inf)
+    k = np.argmax(depth, axis=-1)
+    return np.take_along_axis(depth, k[..., None], axis=-1)[..., 0], k
