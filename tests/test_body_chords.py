@@ -8,6 +8,11 @@ at its reference height and displaced along the axis. The summary's check places
 where it is in each saved frame (``body_z``, or the ball's height for one carried with it). A
 run whose chord dips past ``max_chord_depth`` into a held body stops there as failed, naming the
 body. Small meshes (N <= 24).
+
+The relative test: the profile's local radius of curvature (every kind, closed forms), a chord's
+depth relative to the radius of the part it cuts off: on the unit ball the absolute depth, on
+any arc 1 - cos a; a chord straight across a thin wall with a rounded rim (or a thin torus)
+flagged by it but not by the absolute limit.
 """
 
 from __future__ import annotations
@@ -20,8 +25,13 @@ import pytest
 import xarray as xr
 
 from dynslip.analysis.resolution import body_chord_check
-from dynslip.physics.bodies import Cylinder, Torus
-from dynslip.physics.bodies.chords import chord_depths, deepest_chord_in
+from dynslip.physics.bodies import Arc, Cone, Cylinder, Disc, Line, Profile, Sphere, Torus
+from dynslip.physics.bodies.chords import (
+    chord_depths,
+    deepest_chord_in,
+    deepest_relative_chord_in,
+    relative_chord_depths,
+)
 from dynslip.physics.failures import ContactUnresolved
 
 EDGE = 0.25
@@ -128,6 +138,15 @@ def test_the_summary_places_each_held_body_at_its_height_in_each_frame():
     # sheet's highest point under it)
     assert c["post"]["max_chord_depth"] == pytest.approx(-(-3.0 + 5.0 - z[0]), rel=1e-12)
     assert c["post"]["resolved"]
+    # relative to the rim's radius: 1 - cos a; the post, never entered, reads its depth, no radius
+    assert ring["max_relative_chord_depth"] == pytest.approx(1 - math.cos(a), rel=1e-9)
+    assert ring["radius_R"] == pytest.approx(0.35) and ring["radius_mm"] == pytest.approx(7.0)
+    assert ring["span_rad"] == pytest.approx(2 * a, rel=1e-9)
+    assert ring["relative_time_s"] == 0.0
+    assert ring["relative_element_rbar"] == [pytest.approx(2 / 3), pytest.approx(1.0)]
+    post = c["post"]
+    assert post["max_relative_chord_depth"] == post["max_chord_depth"]
+    assert post["radius_R"] is None and post["span_rad"] is None
     assert not body_chord_check(ds, entries, limit=0.5 * sagitta, length_mm=20.0)["ring"][
         "resolved"]
     # a file without body_z: the post carried with the ball still placed at the ball's height
@@ -168,3 +187,117 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
     rbar = np.asarray(model.mesh.rbar)
     assert f.element == (pytest.approx(rbar[k]), pytest.approx(rbar[k + 1]))
     assert float(deepest_chord_in(POST, before["rho"], before["z"], 0.0)[0]) <= limit
+
+
+def test_the_local_radius_of_each_kind_of_profile():
+    """``curvature_radius`` in closed form: a sphere its radius everywhere, a torus its tube's
+    radius, a coin its edge radius on the rounded corners and inf on its flat faces and edge;
+    at a joint of a line and an arc the arc's; a cone's apex (a point on the axis) 0. Between two
+    arc lengths: the smallest over the part between them, a ring the shorter way round."""
+    s = np.linspace(0.0, 1.0, 7)
+    np.testing.assert_array_equal(Sphere(radius=0.7).curvature_radius(s * 0.7 * math.pi), 0.7)
+    ring = Torus(ring_radius=2.0, minor_radius=0.3)
+    np.testing.assert_array_equal(ring.curvature_radius(s * ring.length), 0.3)
+    a, h, e = 2.0, 0.4, 0.1
+    coin = Disc(radius=a, thickness=h, edge_radius=e)
+    corner = math.pi * e / 2
+    top, upper, edge = 0.5 * (a - e), a - e + 0.5 * corner, a - e + corner + 0.5 * (h - 2 * e)
+    lower, bottom = a - e + 1.5 * corner + h - 2 * e, coin.length - 0.5 * (a - e)
+    got = coin.curvature_radius(np.array([top, upper, edge, lower, bottom]))
+    np.testing.assert_array_equal(got, [np.inf, e, np.inf, e, np.inf])
+    assert coin.curvature_radius(a - e) == e  # where the flat top meets the corner's arc
+    assert coin.curvature_radius(top, edge) == e  # from the top face over the corner
+    assert coin.curvature_radius(0.1, top) == np.inf  # on the flat top alone
+    cone = Cone(radius=1.0, z_base=0.0, z_apex=1.0)
+    np.testing.assert_array_equal(cone.curvature_radius(np.array([0.0, 0.5, 2.0])),
+                                  [0.0, np.inf, np.inf])
+    assert cone.curvature_radius(1.0, 2.0) == 0.0  # over the base's sharp rim
+    # a capsule: a quarter ball, a cylinder of length 1 and a quarter ball, joined C1
+    capsule = Profile([Arc((0.0, 0.0), 1.0, math.pi / 2, 0.0), Line((1.0, 0.0), (1.0, -1.0)),
+                       Arc((0.0, -1.0), 1.0, 0.0, -math.pi / 2)])
+    q = math.pi / 2
+    np.testing.assert_array_equal(capsule.curvature_radius(np.array([0.5, q, q + 0.5, q + 1.0])),
+                                  [1.0, 1.0, np.inf, 1.0])
+    sharp = Cylinder(radius=1.0, z_bottom=-1.0, z_top=0.0)  # sharp corners
+    np.testing.assert_array_equal(sharp.curvature_radius(np.array([0.5, 1.0, 1.5])),
+                                  [np.inf, 0.0, np.inf])
+    # a tube wall's ring: from the inner wall to the outer over the rounded rim, the rim's
+    # radius; along the outer wall alone, inf; the inner wall's top to the outer wall's foot,
+    # the shorter way round, through the rim
+    tube = Cylinder(radius=1.0, z_bottom=-4.0, z_top=0.0, inner_radius=0.9, edge_radius=0.05)
+    outer_mid = math.pi * 0.05 / 2 + 2.0  # the profile starts at the rim's top
+    inner_mid = tube.length - math.pi * 0.05 / 2 - 2.0
+    assert tube.curvature_radius(inner_mid, outer_mid) == pytest.approx(0.05)
+    assert tube.curvature_radius(outer_mid - 1.0, outer_mid + 1.0) == np.inf
+    assert tube.curvature_radius(tube.length - 0.01, outer_mid) == pytest.approx(0.05)
+
+
+def test_a_chord_across_a_thin_rounded_wall_is_flagged_only_by_the_relative_test():
+    """A tube's wall 0.15 R thick with a fully rounded rim (radius 0.075 R, the main job's):
+    an element with one node on the inner face and the next on the outer, below the rim's
+    centre, runs straight through the wall: depth 0.075 R, its half thickness, under the
+    absolute limit 0.1 R; relative to the rim's radius it cuts off, 1: flagged. The same across
+    a torus 0.1 R thick through its centre. A chord over the same rim two nodes a half-angle 0.3
+    apart: 1 - cos 0.3 relative, under the limit either way."""
+    limit, e = 0.1, 0.075
+    tube = Cylinder(radius=2.54, z_bottom=-5.0, z_top=0.0, inner_radius=2.54 - 2 * e,
+                    edge_radius=e)
+    rho = np.array([2.54 - 2 * e - 1e-3, 2.54 + 1e-3])
+    z = np.array([-0.2, -0.12])  # below the rim's centre (-e), the faces straight there
+    depth, radius, rel = relative_chord_depths(tube, rho, z, 0.0)
+    assert depth[0] == pytest.approx(e, rel=1e-9) and depth[0] <= limit  # passes in R
+    assert radius[0] == pytest.approx(e) and rel[0] == pytest.approx(1.0, rel=1e-9)  # flagged
+    # the tube lowered by 0.5 R with the nodes: the same
+    d2, r2, rel2 = relative_chord_depths(tube, rho, z - 0.5, -0.5)
+    assert rel2[0] == pytest.approx(1.0, rel=1e-9) and r2[0] == pytest.approx(e)
+    ring = Torus(ring_radius=1.5, minor_radius=0.05, centre_z=-0.5)
+    depth, radius, rel = relative_chord_depths(ring, np.array([1.4, 1.6]),
+                                               np.array([-0.5, -0.5]), 0.0)
+    assert depth[0] == pytest.approx(0.05) and depth[0] <= limit
+    assert radius[0] == pytest.approx(0.05) and rel[0] == pytest.approx(1.0)
+    # over the rim's top, a half-angle 0.3 either side of it: resolved both ways
+    r_rim, z_rim = _on_arc((2.54 - e, -e), e, np.array([math.pi / 2 + 0.3, math.pi / 2 - 0.3]))
+    depth, radius, rel = relative_chord_depths(tube, r_rim, z_rim, 0.0)
+    assert rel[0] == pytest.approx(1 - math.cos(0.3), rel=1e-9)
+    assert rel[0] < limit and depth[0] < limit
+    # per frame: the crossing element found, the two frames stacked
+    # (a node before each pair, clear of the wall: in the tube's bore, then above the rim)
+    frames_rho = np.stack([np.concatenate([[2.3], rho]),
+                           np.concatenate([[r_rim[1]], r_rim[::-1]])])
+    frames_z = np.stack([np.concatenate([[-0.3], z]), np.concatenate([[0.3], z_rim[::-1]])])
+    worst, r, k = deepest_relative_chord_in(tube, frames_rho, frames_z, np.zeros(2))
+    np.testing.assert_allclose(worst, [1.0, 1 - math.cos(0.3)], rtol=1e-9)
+    np.testing.assert_allclose(r, e)
+    np.testing.assert_array_equal(k, [1, 1])
+
+
+@pytest.mark.parametrize("a", [0.2, 0.4, 0.5, 0.8])
+def test_on_the_unit_ball_the_relative_test_is_the_absolute_one(a):
+    """Two nodes on the unit ball a half-angle a apart (either side of arccos(1 - 0.1) =
+    0.451): relative depth = depth = 1 - cos a, the sheet's closed form, the same verdict."""
+    from dynslip.physics.sheet import chord_depths as sheet_chord_depths
+
+    th = np.array([0.3, 0.3 + 2 * a])
+    depth, radius, rel = relative_chord_depths(Sphere(), np.sin(th), np.cos(th), 0.0)
+    exact = sheet_chord_depths(np.sin(th), np.cos(th), 0.0)
+    np.testing.assert_allclose(depth, exact, rtol=1e-12)
+    np.testing.assert_allclose(rel, depth, rtol=0, atol=0)
+    assert radius[0] == 1.0
+    assert (rel[0] <= 0.1) == (depth[0] <= 0.1) == (a < math.acos(0.9))
+
+
+def test_the_end_table_warns_of_a_held_body_not_resolved():
+    """The end table's line for a held body the relative test flags: its radius, the span, the
+    mesh needed (N times the span over 2 arccos(1 - limit)); at relative depth 1 the span is a
+    lower bound ("at least"); a resolved body gets no line."""
+    from dynslip.app.forming import _unresolved_body_words
+
+    c = {"resolved": False, "max_relative_chord_depth": 0.25, "radius_mm": 1.5,
+         "span_rad": 2 * math.acos(0.75), "relative_time_s": 55.2}
+    line = _unresolved_body_words("tube wall", c, 0.1, 50)
+    need = math.ceil(50 * 2 * math.acos(0.75) / (2 * math.acos(0.9)))
+    assert line.startswith("tube wall: profile not resolved by the mesh where it curves to 1.5 mm")
+    assert "spans 1.45 rad" in line and f"N >= about {need} needed" in line
+    crossed = dict(c, max_relative_chord_depth=1.0, span_rad=math.pi)
+    assert "spans at least 3.14 rad" in _unresolved_body_words("tube wall", crossed, 0.1, 30)
+    assert _unresolved_body_words("tube wall", dict(c, resolved=True), 0.1, 50) is None

@@ -21,7 +21,10 @@ in ``summary.json``), each placed where it is in each saved frame (the trajector
 ``body_z``: a body carried with the ball, moved by the stages or free). The pole's crossing
 stays the ball's check: the ball's centre is on the axis the pole moves along, and a runaway
 pole passes through it; a held body is off the axis or pressed by the pole from one side
-(:mod:`dynslip.physics.bodies.chords`).
+(:mod:`dynslip.physics.bodies.chords`). A held body is judged (``resolved``) on the depth
+relative to the local radius of its profile where the chord cuts it, the scale-free form of the
+ball's test: reported, while the run's stop rule stays on the absolute depth
+(:func:`body_chord_check`).
 """
 
 from __future__ import annotations
@@ -30,10 +33,10 @@ import numpy as np
 import xarray as xr
 
 from dynslip.data.trajectory import body_shift
-from dynslip.physics.bodies.chords import deepest_chord_in
+from dynslip.physics.bodies.chords import deepest_chord_in, deepest_relative_chord_in
 from dynslip.physics.sheet import chord_depths, deepest_chord
 
-__all__ = ["body_chord_check", "chord_check", "chord_depths"]
+__all__ = ["body_chord_check", "chord_check", "chord_depths", "span_of"]
 
 
 def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:
@@ -70,15 +73,34 @@ def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:
     }
 
 
+def span_of(relative: float) -> float:
+    """The arc (rad) that one element spans on a circle when its chord dips ``relative`` times
+    the circle's radius: 2 arccos(1 - relative), at most pi (a chord through the centre; a
+    relative depth of 1 or more says the element spans at least a half circle)."""
+    return float(2.0 * np.arccos(1.0 - np.clip(relative, 0.0, 1.0)))
+
+
 def body_chord_check(ds: xr.Dataset, entries, limit: float, length_mm: float) -> dict:
     """Per held body, the largest chord depth into it over the saved frames of a trajectory,
     with the body placed where it is in each frame (:func:`~dynslip.data.trajectory.body_shift`,
     the trajectory's ``body_z``). ``entries``: ``(name, body, moves_with_ball)`` in held order
     (``physics.named_bodies()``). Returns ``{name: {max_chord_depth, max_chord_depth_mm,
-    time_s, element_rbar, end_max_chord_depth, resolved}}``: depths in R (negative: every chord
-    outside the body by that much at the least), the first frame of the deepest, the element's
-    material radii, and whether every depth is at most ``limit``. No pole crossing: that is the
-    ball's (:func:`chord_check`)."""
+    time_s, element_rbar, end_max_chord_depth, max_relative_chord_depth, radius_R, radius_mm,
+    span_rad, relative_time_s, relative_element_rbar, resolved}}``: depths in R (negative: every
+    chord outside the body by that much at the least), the first frame of the deepest, the
+    element's material radii; the largest depth relative to the local radius of curvature of
+    the part of the profile the chord cuts off
+    (:func:`~dynslip.physics.bodies.chords.relative_chord_depths`: on the unit ball the
+    absolute depth), that radius (R and mm; null where no chord enters the body, 0 at a sharp
+    corner), the arc one element spans on it (:func:`span_of`), when and on which element.
+
+    ``resolved``: every *relative* depth at most ``limit``, the scale-free form of the ball's
+    test (an element spans at most 2 arccos(1 - limit) of any arc): a rim thinner than twice
+    the limit is judged on its own radius. Reported, not enforced: the run's stop rule
+    (``simulate.MemberRun._unresolved``) stays on the absolute depth, because the main job at
+    its default mesh (N = 50) crosses the tube's rounded rim with one element (relative depth
+    1) and would stop (docs/bodies.md, "The mesh check against every body"). No pole crossing:
+    that is the ball's (:func:`chord_check`)."""
     rho, z, times, rbar = (ds[v].values for v in ("rho", "z", "time", "rbar"))
     out = {}
     for k, (name, body, with_ball) in enumerate(entries):
@@ -87,12 +109,23 @@ def body_chord_check(ds: xr.Dataset, entries, limit: float, length_mm: float) ->
         depth, el = deepest_chord_in(body, rho, z, shift)
         f = int(np.argmax(depth))
         worst = float(depth[f])
+        rel, radius, rel_el = deepest_relative_chord_in(body, rho, z, shift)
+        g = int(np.argmax(rel))
+        r = float(radius[g])
+        rel_worst = float(rel[g])
+        r_out = None if not np.isfinite(r) else r  # null: no chord enters, or a line's inf
         out[name] = {
             "max_chord_depth": worst,
             "max_chord_depth_mm": worst * length_mm,
             "time_s": float(times[f]),
             "element_rbar": [float(rbar[el[f]]), float(rbar[el[f] + 1])],
             "end_max_chord_depth": float(depth[-1]),
-            "resolved": bool(worst <= limit),
+            "max_relative_chord_depth": rel_worst,
+            "radius_R": r_out,
+            "radius_mm": None if r_out is None else r_out * length_mm,
+            "span_rad": span_of(rel_worst) if r_out is not None and r_out > 0 else None,
+            "relative_time_s": float(times[g]),
+            "relative_element_rbar": [float(rbar[rel_el[g]]), float(rbar[rel_el[g] + 1])],
+            "resolved": bool(rel_worst <= limit),
         }
     return out

@@ -53,7 +53,12 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "per held body (name): the largest depth (R, and mm) that a straight element between "
             "two nodes reaches inside the body placed where it is in each saved frame, when and on "
             "which element; negative: every chord outside it by that much; the run stops as failed "
-            "past the limit, as for the ball (no pole crossing: that is the ball's)"
+            "past the limit, as for the ball (no pole crossing: that is the ball's). "
+            "max_relative_chord_depth: the largest depth relative to the local radius of curvature "
+            "(radius_R, radius_mm) of the part of the body's profile the chord cuts off (on the "
+            "unit ball the same number), the arc one element spans on it (span_rad), when and on "
+            "which element; resolved: every relative depth at most the limit. The relative test "
+            "is reported, not enforced (the run stops on the absolute depth)"
         )
     trap = trap_check(ball, end, theta_max)
     if failed or not mesh_check["resolved"]:

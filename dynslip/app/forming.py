@@ -9,6 +9,8 @@ run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit
 
 from __future__ import annotations
 
+import math
+
 import jax.numpy as jnp
 import numpy as np
 
@@ -341,4 +343,31 @@ def _print_summary(console, s: dict) -> None:
     console.print(f"outcome: {s['outcome']}", highlight=False)
     if not s["end_at_rest"]:
         console.print(f"[bold]{s['end_at_rest_says']}[/bold]", highlight=False)
+    limit = s["mesh_check"].get("limit")
+    for name, c in s["mesh_check"].get("bodies", {}).items():
+        line = _unresolved_body_words(name, c, limit, s.get("nodes"))
+        if line:
+            console.print(f"[yellow]warning: {line}[/yellow]", highlight=False)
+
+
+def _unresolved_body_words(name: str, c: dict, limit, nodes) -> str | None:
+    """The end table's warning for a held body the mesh does not resolve (``resolved`` false:
+    a chord deeper than ``limit`` relative to the radius it cuts off;
+    :func:`~dynslip.analysis.resolution.body_chord_check`), or None. A warning, not a failure:
+    the run's stop rule is on the absolute depth. The mesh needed is estimated from the elements'
+    length falling as 1/N: N times the arc spanned over the largest one allowed,
+    2 arccos(1 - limit)."""
+    if c.get("resolved", True) or limit is None:
+        return None
+    r_mm, span = c.get("radius_mm"), c.get("span_rad")
+    rel = c["max_relative_chord_depth"]
+    if not r_mm or span is None:  # a sharp corner: judged on the absolute depth
+        return (f"{name}: a sharp corner not resolved by the mesh: a chord {rel:.3g} R deep "
+                f"(limit {limit:g} R)")
+    allowed = 2.0 * math.acos(1.0 - limit)
+    at_least = "at least " if rel >= 1.0 - 1e-9 else ""
+    need = f"; N >= about {math.ceil(nodes * span / allowed)} needed" if nodes else ""
+    return (f"{name}: profile not resolved by the mesh where it curves to {r_mm:.3g} mm: an "
+            f"element spans {at_least}{span:.2f} rad of it (chord {rel:.2f} of the radius deep, "
+            f"limit {limit:g}: {allowed:.2f} rad) at t = {c['relative_time_s']:.4g} s{need}")
 

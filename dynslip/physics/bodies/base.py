@@ -90,6 +90,44 @@ class AbstractBody(eqx.Module):
         a, b = self.segments[0].start, self.segments[-1].end
         return math.hypot(a[0] - b[0], a[1] - b[1]) <= JOINT_TOL
 
+    def curvature_radius(self, s, s_end=None) -> np.ndarray:
+        """Radius of curvature (units of R) of the profile at arc length ``s`` (numpy, any
+        shape): an arc's radius, a line's ``inf``, a sharp corner's 0 (a joint whose tangent
+        turns, or an end on the axis that is a point: :func:`~.segments._corners`). At a joint
+        (within 1e-9 of it) the smaller of the two sides': where a line meets an arc, the arc's.
+
+        With ``s_end`` (the same shape): the smallest radius of the part of the profile between
+        ``s`` and ``s_end``, joints included; for a closed profile (a ring) the shorter way
+        round. The mesh check's scale: a chord's depth relative to the radius of the part of the
+        profile it cuts off (:func:`~dynslip.physics.bodies.chords.relative_chord_depths`)."""
+        s = np.asarray(s, float)
+        e = s if s_end is None else np.asarray(s_end, float)
+        a, b = np.minimum(s, e), np.maximum(s, e)
+        total, tol = self.length, 1e-9
+        if self.closed:
+            a, b = np.mod(a, total), np.mod(b, total)
+            a, b = np.minimum(a, b), np.maximum(a, b)
+            around = (b - a) > 0.5 * total  # the shorter way: through s = 0 (= total)
+
+            def hit(lo, hi):  # whether [lo, hi] meets the profile's part between s and s_end
+                inside = (lo <= b + tol) & (hi >= a - tol)
+                wrap = (hi >= b - tol) | (lo <= a + tol)
+                return np.where(around, wrap, inside)
+        else:
+            def hit(lo, hi):
+                return (lo <= b + tol) & (hi >= a - tol)
+        out = np.full(np.broadcast(a, b).shape, np.inf)
+        acc = 0.0
+        for seg in self.segments:
+            r = seg.radius if isinstance(seg, Arc) else np.inf
+            out = np.where(hit(acc, acc + seg.length), np.minimum(out, r), out)
+            acc += seg.length
+        for sc in segment_arrays(self.segments)[2][1]:  # the sharp corners' arc lengths
+            cs = [sc, sc + total] if self.closed and sc <= tol else [sc]
+            for c in cs:
+                out = np.where(hit(c, c), 0.0, out)
+        return out
+
     def point_at(self, s, z=0.0):
         """Profile points (..., 2) at arc lengths ``s`` (numpy), the body displaced by z."""
         s = np.asarray(s, float)
