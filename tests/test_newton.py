@@ -224,3 +224,47 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
     print(f"motion-only vs full-state Newton, slip weakening: max |dx| = {d:.2e} R")
     assert d < 1e-6
     assert np.max(fb["slip_distance"]) > 0.02  # the push-down weakens the contact
+
+
+def test_frozen_branches_equal_the_law_on_them():
+    """The active-set pass's branches: stuck gives S = 0 and slipping gives F_t -+ T, which is
+    the law itself wherever the law is on that branch (|F_t| <= T - e, |F_t| >= T + e)."""
+    normal, eps, area = jnp.asarray(2.0), 1e-3, jnp.asarray(0.5)
+    delta = jnp.asarray(0.01)
+    thr = float(WEAK.threshold(normal, delta, area))
+    for ft, mode in [(1.5 * thr, nw.SLIP_UP), (-1.5 * thr, nw.SLIP_DOWN), (0.5 * thr, nw.STICK)]:
+        ft = jnp.asarray(ft)
+        law = WEAK.slip_force(ft, normal, delta, eps=eps, area=area)
+        held = nw.frozen_slip(WEAK, jnp.asarray(mode), law, ft, normal, delta, area)
+        assert float(held) == pytest.approx(float(law), abs=1e-14)
+        assert float(nw.frozen_slip(WEAK, jnp.asarray(nw.FREE), law, ft, normal, delta, area)) == (
+            float(law)
+        )
+    # held slipping across its stick boundary, the branch stays linear in F_t
+    ft = jnp.asarray(0.5 * thr)
+    held = nw.frozen_slip(WEAK, jnp.asarray(nw.SLIP_UP), 0.0, ft, normal, delta, area)
+    assert float(held) == pytest.approx(-0.5 * thr, rel=1e-12)
+
+
+@pytest.mark.parametrize("modes", MODES[:2])
+def test_active_set_pass_ends_on_the_laws_own_root(modes):
+    """With nodes held on their branch after one or two stick/slip flips (``freeze`` 1, 2),
+    Newton converges on the held branches, gives the law back and ends on the law's own root:
+    the increment equals plain Newton's to the tolerance, slip distances included. (The pass
+    does run here: it takes 16-19 iterations where plain Newton takes 12.)"""
+    layout = Layout(N, 1)
+    y0 = _state(layout, seed=3)
+    args = _args(WEAK, *modes)
+    zero = (jnp.zeros((N, 2)), jnp.zeros(()))
+    out = []
+    for freeze in (0, 1, 2):
+        solver = nw.MotionNewton(max_iter=60, freeze=freeze)
+        y1, ok, it, _ = solver.increment(
+            MODEL, layout, jnp.asarray(0.0), jnp.asarray(0.05), y0, args, zero, 1e-12, 1e-12
+        )
+        assert bool(ok)
+        out.append((np.asarray(y1), int(it)))
+    print("iterations (freeze 0, 1, 2):", [it for _, it in out])
+    assert len({it for _, it in out}) > 1  # the pass changed Newton's path
+    for held, _ in out[1:]:
+        np.testing.assert_allclose(held, out[0][0], rtol=0, atol=1e-9)

@@ -271,6 +271,51 @@ class Increment(eqx.Module):
     t1: jax.Array
     h: jax.Array
     args: StageArgs
+    # per node, the friction branch held by the active-set pass (FREE: the law itself)
+    frozen: jax.Array | None = None
+
+
+FREE, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # the active-set pass's branches per node
+
+
+def _node_contact(model: SheetModel, i, q, g):
+    """Node ``i``'s normal and tangential driving forces against the ball, its normal and
+    tangent, the penalty's normal force and the node's area."""
+    f = -g
+    d, n, t = contact_gap(model.ball, q)
+    pole = i == 0
+    fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
+    ft = jnp.where(pole, 0.0, f @ t)
+    area = model.mesh.area[i]
+    return fn, ft, n, t, area * penalty_pressure(model.penalty, d), area
+
+
+def frozen_slip(friction, mode, s, ft, normal, delta_mu, area):
+    r"""The slip force on the branch ``mode`` holds: the law's own ``s`` (FREE), stuck (0), or
+    slipping either way along the tangent at the threshold, $F_t \mp T$ (smooth in $F_t$, so
+    Newton does not flip the node across its stick boundary)."""
+    thr = friction.threshold(normal, delta_mu, area)
+    return jnp.where(
+        mode == STICK,
+        0.0,
+        jnp.where(mode == SLIP_UP, ft - thr, jnp.where(mode == SLIP_DOWN, ft + thr, s)),
+    )
+
+
+def slip_signs(model: SheetModel, friction, inc: Increment, q, g):
+    """Per node, the sign of the law's own slip force against the ball (0: stuck) at relative
+    positions ``q`` under the energy gradient ``g``: the state the active-set pass counts
+    flips of."""
+
+    def one(i, qi, gi, di):
+        _, ft, _, _, normal, area = _node_contact(model, i, qi, gi)
+        eps = inc.args.eps * area
+        return jnp.sign(friction.slip_force(ft, normal, di, eps=eps, area=area))
+
+    idx = jnp.arange(q.shape[0])
+    if inc.delta0 is None:
+        return jax.vmap(lambda i, qi, gi: one(i, qi, gi, None))(idx, q, g).astype(jnp.int32)
+    return jax.vmap(one)(idx, q, g, inc.delta0).astype(jnp.int32)
 
 
 def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None):
@@ -280,18 +325,16 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     (:mod:`dynslip.physics.bodies.held`), needed only when one has friction."""
     args = inc.args
     f = -g
-    d, n, t = contact_gap(model.ball, q)
     pole = i == 0
-    fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
-    ft = jnp.where(pole, 0.0, f @ t)
-    area = model.mesh.area[i]
-    normal = area * penalty_pressure(model.penalty, d)
+    fn, ft, n, t, normal, area = _node_contact(model, i, q, g)
     eta_a = args.drag * area
     eps = args.eps * area
     delta1, delta_mu = None, None
     if delta0 is not None:
         delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
     s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
+    if inc.frozen is not None:
+        s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
     if frictional(model.bodies):
         live = (i > 0) & (i < model.mesh.n - 1)
@@ -394,6 +437,13 @@ def residual(model, friction, inc: Increment, q, zb):
     g, load = forces(model, q, zb)
     u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
     return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb
+
+
+def residual_and_signs(model, friction, inc: Increment, q, zb):
+    """:func:`residual` and :func:`slip_signs` from one evaluation of the forces."""
+    g, load = forces(model, q, zb)
+    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, slip_signs(model, friction, inc, q, g)
 
 
 def newton_blocks(model, friction, inc: Increment, q, zb):
@@ -570,6 +620,7 @@ class MotionNewton(eqx.Module):
     max_increment_free: float = eqx.field(static=True, default=5.0)
     heal_rate: float = eqx.field(static=True, default=0.0)
     max_steps: int = eqx.field(static=True, default=20000)
+    freeze: int = eqx.field(static=True, default=0)
 
     def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
@@ -586,61 +637,101 @@ class MotionNewton(eqx.Module):
         rq, rz = rate
         q = q0 + h * rq
         nf = layout.n_free
+        # the active-set pass (``freeze``): not with free bodies, whose border it would not see
+        active = self.freeze > 0 and not nf
+        n = q0.shape[0]
         if nf:
             # free bodies: the border is (zb, z_1 .. z_K), placed into the model by res/blocks
-            res, blocks, placed = free_system(model, friction, inc, layout.free(y0))
+            res0, blocks0, placed = free_system(model, friction, inc, layout.free(y0))
             zb = jnp.concatenate([jnp.reshape(zb0 + h * rz, (1,)), layout.free(y0)])
+
+            def res(q, zb, mode):
+                return (*res0(q, zb), jnp.zeros(n, jnp.int32))
+
+            def blocks(q, zb, mode):
+                return blocks0(q, zb)
         else:
             zb = zb0 + h * rz
 
-            def res(q, zb):
-                return residual(model, friction, inc, q, zb)
+            def held(mode):
+                return Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args, frozen=mode)
 
-            def blocks(q, zb):
-                return newton_blocks(model, friction, inc, q, zb)
+            def res(q, zb, mode):
+                if not active:
+                    return (*residual(model, friction, inc, q, zb), jnp.zeros(n, jnp.int32))
+                return residual_and_signs(model, friction, held(mode), q, zb)
+
+            def blocks(q, zb, mode):
+                return newton_blocks(model, friction, held(mode) if active else inc, q, zb)
 
         def size(rq, rz):
             return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))
 
-        r_q, r_z = res(q, zb)
+        free_mode = jnp.zeros(n, jnp.int32)
+        r_q, r_z, sgn = res(q, zb, free_mode)
 
         def cond(c):
-            _, _, _, _, it, done, bad = c
+            it, done, bad = c[4], c[5], c[6]
             return (~done) & (~bad) & (it < self.max_iter)
 
         def body(c):
-            q, zb, r_q, r_z, it, _, _ = c
-            dq, dz = bordered_solve(*blocks(q, zb), r_q, r_z, self.linear)
+            q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final = c
+            dq, dz = bordered_solve(*blocks(q, zb, mode), r_q, r_z, self.linear)
             f0 = size(r_q, r_z)
 
             def bt_cond(b):
-                _alpha, tq, tz, k = b
+                _alpha, tq, tz, _, k = b
                 f1 = size(tq, tz)
                 return ~((f1 <= f0) | (f1 <= atol)) & (k < self.backtrack)
 
             def bt_body(b):
-                alpha, _, _, k = b
+                alpha, _, _, _, k = b
                 alpha = 0.5 * alpha
-                tq, tz = res(q - alpha * dq, zb - alpha * dz)
-                return alpha, tq, tz, k + 1
+                tq, tz, ts = res(q - alpha * dq, zb - alpha * dz, mode)
+                return alpha, tq, tz, ts, k + 1
 
-            tq, tz = res(q - dq, zb - dz)
-            alpha, tq, tz, _ = jax.lax.while_loop(
-                bt_cond, bt_body, (jnp.array(1.0), tq, tz, jnp.array(0))
+            tq, tz, ts = res(q - dq, zb - dz, mode)
+            alpha, tq, tz, ts, _ = jax.lax.while_loop(
+                bt_cond, bt_body, (jnp.array(1.0), tq, tz, ts, jnp.array(0))
             )
             qn, zbn = q - alpha * dq, zb - alpha * dz
+            if active:
+                # a node whose law flipped between stick and slip ``freeze`` times is held on
+                # the branch it is on; once Newton converges so, the law is given back to every
+                # node and Newton goes on to the law's own root (``final``: no more freezing)
+                flips = flips + ((ts != sgn) & (mode == FREE)).astype(jnp.int32)
+                hold = (~final) & (mode == FREE) & (flips >= self.freeze)
+                branch = jnp.where(ts == 0, STICK, jnp.where(ts > 0, SLIP_UP, SLIP_DOWN))
+                new_mode = jnp.where(hold, branch, mode)
+                tq, tz, ts = jax.lax.cond(
+                    jnp.any(new_mode != mode),
+                    lambda: res(qn, zbn, new_mode),
+                    lambda: (tq, tz, ts),
+                )
+                mode = new_mode
             step = jnp.maximum(
                 jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
                 jnp.max(jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn))),
             )
             done = (step < 1.0) & (size(tq, tz) <= atol)
+            if active:
+                release = done & jnp.any(mode != FREE)
+                tq, tz, ts = jax.lax.cond(
+                    release, lambda: res(qn, zbn, free_mode), lambda: (tq, tz, ts)
+                )
+                mode = jnp.where(release, free_mode, mode)
+                final = final | release
+                done = done & ~release
             bad = ~(
                 jnp.all(jnp.isfinite(qn)) & jnp.all(jnp.isfinite(zbn)) & jnp.isfinite(size(tq, tz))
             )
-            return qn, zbn, tq, tz, it + 1, done, bad
+            return qn, zbn, tq, tz, it + 1, done, bad, mode, flips, ts, final
 
-        init = (q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False))
-        q, zb, _, _, it, done, bad = jax.lax.while_loop(cond, body, init)
+        init = (
+            q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False),
+            free_mode, jnp.zeros(n, jnp.int32), sgn, jnp.array(False),
+        )
+        q, zb, _, _, it, done, bad, *_ = jax.lax.while_loop(cond, body, init)
         zk = None
         if nf:
             zb, zk = zb[0], zb[1:]

@@ -47,6 +47,10 @@ class Settings:
     newton_backtrack: int = (
         4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
     )
+    # the active-set pass: a node whose friction flipped between stick and slip this many times
+    # within an increment is held on its branch until Newton converges, then the law is given
+    # back (0: off, the default; docs/speed.md measures it)
+    newton_freeze: int = 0
     max_increment: float = 20.0
     max_increment_free: float = 5.0
     # a run stops as failed when an element chord dips deeper than this into the ball or a held
@@ -121,7 +125,8 @@ def _from_settings(cls, settings: Settings, **given):
 def _motion_newton(s: Settings) -> MotionNewton:
     linear = "thomas" if s.linear_solver == "thomas" else "cyclic"
     return _from_settings(
-        MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear
+        MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear,
+        freeze=s.newton_freeze,
     )
 
 
