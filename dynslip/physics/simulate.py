@@ -404,7 +404,9 @@ class MemberRun:
         in R. No shipped scenario reaches it against a held body at its default mesh, nor the
         main job at N = 30 (the same page), so the rule stops a run on any body; a chord straight
         across a body thinner than twice the limit reads its half thickness and passes (the
-        tube's 3 mm wall: 0.075 R)."""
+        tube's 3 mm wall: 0.075 R at N = 30). The depth relative to the profile's local radius,
+        which catches that, is reported in ``summary.json`` and the end table, not enforced here
+        (docs/bodies.md, "The relative test")."""
         limit = self.settings.max_chord_depth
         if limit is None:
             return None
