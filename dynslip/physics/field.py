@@ -195,7 +195,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
         vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
         c_ball = c_pen
     else:
-        vb_free = free_ball_velocity(hf, fb + c_pen + args.weight, args.ball_drag)
+        vb_free = free_ball_velocity(hf, fb + c_pen + args.weight, args.ball_drag, held)
         vb = jnp.where(held, args.vzb, vb_free)
         c_ball = c_pen + hf.axial(vb)
         u = u + hf.force(vb).T / eta_a

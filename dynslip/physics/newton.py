@@ -375,12 +375,18 @@ def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
     if not frictional(model.bodies):
         return ball_rate(inc, g[-1], zb, load)
     args = inc.args
-    hf = _sheet_held_frame(model, args, q, zb, g)
-    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
-    cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
-    fb = args.ball_force(inc.t1) + args.support_force(zb)
-    free = free_ball_velocity(hf, fb + (cz - load) + args.weight, args.ball_drag)
-    return jnp.where(args.ball_mode == BALL_HOLD, args.vzb, free)
+
+    def free():
+        hf = _sheet_held_frame(model, args, q, zb, g)
+        pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
+        cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
+        fb = args.ball_force(inc.t1) + args.support_force(zb)
+        return free_ball_velocity(hf, fb + (cz - load) + args.weight, args.ball_drag)
+
+    # a held ball's velocity is prescribed: the sheet's held friction frame and the root search
+    # are skipped (lax.cond; under vmap both branches run)
+    vzb = jnp.asarray(args.vzb, dtype=jnp.result_type(float))
+    return jax.lax.cond(args.ball_mode == BALL_HOLD, lambda: vzb, free)
 
 
 def ball_rate(inc: Increment, g_edge, zb, load):
@@ -512,9 +518,19 @@ def _blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     n = q.shape[0]
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
     vb = ball_velocity(model, inc, q, zb, g, load)
-    vq, vz, vg, vl = jax.grad(
-        lambda q, zb, g, ld: ball_velocity(model, inc, q, zb, g, ld), argnums=(0, 1, 2, 3)
-    )(q, zb, g, load)
+
+    def grads():
+        return jax.grad(
+            lambda q, zb, g, ld: ball_velocity(model, inc, q, zb, g, ld), argnums=(0, 1, 2, 3)
+        )(q, zb, g, load)
+
+    # a held ball's velocity is prescribed: its derivatives are zero, and the reverse pass
+    # through the held friction is skipped (lax.cond; under vmap both branches run)
+    vq, vz, vg, vl = jax.lax.cond(
+        inc.args.ball_mode == BALL_HOLD,
+        lambda: jax.tree_util.tree_map(jnp.zeros_like, (q, zb, g, load)),
+        grads,
+    )
     idx = jnp.arange(n)
     mem = inc.delta0 is not None
     d0 = inc.delta0 if mem else jnp.zeros(n)

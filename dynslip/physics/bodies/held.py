@@ -276,10 +276,11 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFr
     )
 
 
-def free_ball_velocity(frame: HeldFrame | None, a0, ball_drag):
+def free_ball_velocity(frame: HeldFrame | None, a0, ball_drag, held=None):
     r"""The force-controlled ball's velocity: the root of $\eta_b v - A_0 - \sum f t_z(v) = 0$
     (module docstring), ``a0`` $= F_h + F_s + C_z - L_{pen} + F_g$. Without frictional held
-    bodies, $A_0/\eta_b$."""
+    bodies, $A_0/\eta_b$. ``held`` (a traced bool): the ball is held and the caller discards
+    this value, so the root search is skipped (``lax.cond``; under ``vmap`` both branches run)."""
     if frame is None:
         return a0 / ball_drag
 
@@ -307,7 +308,23 @@ def free_ball_velocity(frame: HeldFrame | None, a0, ball_drag):
         return vn, lo, hi
 
     v0 = jnp.clip(a0s / ball_drag, lo0, hi0)
-    root = jax.lax.stop_gradient(jax.lax.fori_loop(0, BALL_ITERATIONS, step, (v0, lo0, hi0))[0])
+
+    def search():
+        # safeguarded Newton until the iterate stops moving (round-off), at most
+        # BALL_ITERATIONS steps
+        def more(c):
+            k, (v, _, _), moved = c
+            return (k < BALL_ITERATIONS) & moved
+
+        def once(c):
+            k, (v, lo, hi), _ = c
+            vn, lo, hi = step(k, (v, lo, hi))
+            return k + 1, (vn, lo, hi), jnp.abs(vn - v) > 4 * jnp.finfo(v.dtype).eps * jnp.abs(v)
+
+        return jax.lax.while_loop(more, once, (0, (v0, lo0, hi0), jnp.array(True)))[1][0]
+
+    root = search() if held is None else jax.lax.cond(held, lambda: v0, search)
+    root = jax.lax.stop_gradient(root)
     # one Newton step from the stopped root: its value is the root, its derivative the implicit
     # function theorem's -g_x / g_v
     gv, dg = jax.jvp(g, (root,), (jnp.ones_like(root),))
