@@ -625,6 +625,11 @@ class MotionNewton(eqx.Module):
     per increment, ``backtrack`` halvings of a correction that raises the residual,
     ``linear``: ``"cyclic"`` (block cyclic reduction) or ``"thomas"``. Increments grow by 1.5
     after at most ``grow_below`` iterations and shrink by 0.7 after at least ``shrink_above``.
+    ``freeze`` (0: off, the default): the active-set pass, a node whose friction against the
+    ball flipped between stick and slip ``freeze`` times within an increment is held on its
+    branch (:func:`frozen_slip`) until Newton converges, then the law is given back and Newton
+    goes on to the law's own root (not with free bodies); docs/speed.md measures it (more
+    iterations on the let-go path, hence off).
     """
 
     max_iter: int = eqx.field(static=True, default=20)
