@@ -412,32 +412,24 @@ class MemberRun:
             return None
         first = self.frames[0]
         rbar = np.asarray(self.model.mesh.rbar)
+
+        def unresolved(depth, k, crossed, body=None):
+            return ContactUnresolved(
+                self.stage.name, self.t, float(depth), float(limit),
+                (float(rbar[k]), float(rbar[k + 1])), bool(crossed), body=body,
+            )
+
         depth, k, crossed = deepest_chord(
             rec["rho"], rec["z"], rec["ball_z"], np.sign(first["z"][0] - first["ball_z"]),
             self.model.ball,
         )
         if crossed or depth > limit:
-            return ContactUnresolved(
-                self.stage.name,
-                self.t,
-                float(depth),
-                float(limit),
-                (float(rbar[k]), float(rbar[k + 1])),
-                bool(crossed),
-            )
+            return unresolved(depth, k, crossed)
         names = self.settings.body_names
         for j, e in enumerate(held_entries(self.model.bodies)):
             depth, k = deepest_chord_in(e.body, rec["rho"], rec["z"], rec["body_z"][j])
             if depth > limit:
-                return ContactUnresolved(
-                    self.stage.name,
-                    self.t,
-                    float(depth),
-                    float(limit),
-                    (float(rbar[k]), float(rbar[k + 1])),
-                    False,
-                    body=names[j] if j < len(names) else f"held body {j}",
-                )
+                return unresolved(depth, k, False, names[j] if j < len(names) else f"held body {j}")
         return None
 
     def _end_stage(self) -> None:
