@@ -174,9 +174,13 @@ def test_energy_balance_with_frictional_bodies():
     assert r < 1e-6, r
 
 
-def test_held_body_law_must_be_memoryless():
-    with pytest.raises(ValueError, match="memoryless"):
-        Held(RING, SlipWeakening(mu_s=0.9, mu_k=0.8, d_c=0.1, eps=0.0))
+def test_held_body_law_may_carry_a_slip_distance():
+    """A held body's law may have memory (slip weakening: one slip distance per node, in the
+    state; tests/test_bodies_weakening.py)."""
+    from dynslip.physics.bodies.held import n_memory
+
+    held = Held(RING, SlipWeakening(mu_s=0.9, mu_k=0.8, d_c=0.1, eps=0.0))
+    assert n_memory((held, Held(POST, _coulomb(0.3)), RING)) == 1
 
 
 # ----------------------------------------------------------------------------- the free ball

@@ -26,10 +26,21 @@ __all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset",
 FLUSH_FRAMES = 25
 
 
+def _held_law(mu, eps):
+    """A held body's core friction law from :meth:`held_specs`' ``mu``: None (frictionless), a
+    Coulomb coefficient, or a dict ``{mu_s, mu_k, d_c}`` (slip weakening, d_c in R)."""
+    from dynslip.physics.friction import Coulomb, SlipWeakening
+
+    if mu is None:
+        return None
+    if isinstance(mu, dict):
+        return SlipWeakening(**{k: jnp.asarray(v, dtype=float) for k, v in mu.items()}, eps=eps)
+    return Coulomb(mu=jnp.asarray(mu), eps=eps)
+
+
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
     from dynslip.physics.bodies.held import Held
-    from dynslip.physics.friction import Coulomb
     from dynslip.physics.protocols import ball_drag_coefficient
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import Settings
@@ -51,7 +62,7 @@ def build_core(sc):
         for b in p.bodies if b.motion == "free"
     }
     bodies = tuple(
-        Held(body, None if mu is None else Coulomb(mu=jnp.asarray(mu), eps=eps),
+        Held(body, _held_law(mu, eps),
              moves_with_ball=with_ball, stage=name in moved, **free.get(name, {}))
         for name, body, with_ball, mu in p.held_specs()
     )

@@ -53,17 +53,23 @@ class Layout(eqx.Module):
     of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
     ``n_acc``: 4 accumulators (:data:`N_ACC`), 5 when bodies are moved by the stages or free
     (their work on the sheet, :data:`N_ACC_MOVED`). ``n_free``: the heights of the held bodies
-    free along the axis (R, relative to their reference placements), last.
+    free along the axis (R, relative to their reference placements), last. ``n_held_int``:
+    the slip distances of the held bodies whose friction law has memory
+    (:func:`dynslip.physics.bodies.held.n_memory`, in held order), ``n_held_int * n`` values
+    after ``internal`` (body by body), before the free bodies' heights; absent (0) without such
+    a body, so the state is then unchanged.
     """
 
     n: int = eqx.field(static=True)
     n_int: int = eqx.field(static=True, default=0)
     n_acc: int = eqx.field(static=True, default=N_ACC)
     n_free: int = eqx.field(static=True, default=0)
+    n_held_int: int = eqx.field(static=True, default=0)
 
     @property
     def size(self) -> int:
-        return (self.n - 1) + self.n + 1 + self.n_acc + self.n_int * self.n + self.n_free
+        return ((self.n - 1) + self.n + 1 + self.n_acc + (self.n_int + self.n_held_int) * self.n
+                + self.n_free)
 
     def free(self, y):
         """The free bodies' heights (n_free,), or None without any."""
@@ -96,6 +102,25 @@ class Layout(eqx.Module):
             return y
         return y.at[self.internal_start : self.internal_start + self.n].set(internal)
 
+    @property
+    def held_start(self) -> int:
+        """Where the held bodies' slip distances start in the state."""
+        return self.internal_start + self.n_int * self.n
+
+    def held_internal(self, y):
+        """The held bodies' slip distances, (n_held_int, n), or None without a held law with
+        memory."""
+        if self.n_held_int == 0:
+            return None
+        k = self.n_held_int * self.n
+        return jnp.reshape(y[self.held_start : self.held_start + k], (self.n_held_int, self.n))
+
+    def with_held_internal(self, y, delta):
+        if self.n_held_int == 0:
+            return y
+        k = self.n_held_int * self.n
+        return y.at[self.held_start : self.held_start + k].set(jnp.reshape(delta, (k,)))
+
     def unpack(self, y):
         n = self.n
         rho = jnp.concatenate([jnp.zeros(1), y[: n - 1]])
@@ -104,10 +129,13 @@ class Layout(eqx.Module):
         acc = y[self.accumulators]
         return rho, z, zb, acc
 
-    def pack(self, rho, z, zb, acc, internal=None, free=None):
+    def pack(self, rho, z, zb, acc, internal=None, free=None, held=None):
         parts = [rho[1:], z, jnp.reshape(zb, (1,)), acc]
         if self.n_int:
             parts.append(jnp.zeros(self.n) if internal is None else internal)
+        if self.n_held_int:
+            k = self.n_held_int * self.n
+            parts.append(jnp.zeros(k) if held is None else jnp.reshape(held, (k,)))
         if self.n_free:
             parts.append(jnp.zeros(self.n_free) if free is None else free)
         return jnp.concatenate(parts)
@@ -190,7 +218,8 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     # by friction (its axial part, which depends on the ball's velocity: bodies.held); a body
     # that moves with the ball (the bottle) is displaced by zb, and its load goes to the lab
     c_pen = cz - model.held_load(rho, z, zb)
-    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb)
+    hdelta = layout.held_internal(y)
+    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb, hdelta)
     if hf is None:
         vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
         c_ball = c_pen
@@ -230,7 +259,8 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
     dint = None
     if internal is not None:
         dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
-    dy = layout.pack(v[0], v[1], vb, dacc, dint, v_free)
+    dheld = None if hdelta is None else hf.internal_rates(vb)  # held slip distances' rates
+    dy = layout.pack(v[0], v[1], vb, dacc, dint, v_free, dheld)
     return dy, {
         "clamp_force": cz,
         "clamp_force_rho": crho,
@@ -305,7 +335,8 @@ def place_free_moving(model: SheetModel, layout: Layout, t, y, args: StageArgs,
     v0, _, eta = free_body_rates(placed, rho, z, zb)
     g_rho, g_z, _ = placed.kinematics(rho, z, zb, args.friction, args.eps, args.drag,
                                       layout.internal(y))["grads"]
-    hf = placed.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb)
+    hf = placed.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb,
+                              layout.held_internal(y))
     half = hf.bound() / eta + 1.0
 
     def step(_, bracket):
@@ -367,31 +398,46 @@ def sheet_structure(layout: Layout) -> Structure:
     n_core = n - EDGE_NODES
 
     def node(i):
-        return [-1 if i == 0 else i - 1, n - 1 + i] + (
-            [layout.internal_start + i] if layout.n_int else []
+        return (
+            [-1 if i == 0 else i - 1, n - 1 + i]
+            + ([layout.internal_start + i] if layout.n_int else [])
+            + [layout.held_start + k * n + i for k in range(layout.n_held_int)]
         )
 
     core = [j for i in range(n_core) for j in node(i)]
     edge = [j for i in range(n_core, n) for j in node(i)]
     border = tuple(edge + list(range(2 * n - 1, 2 * n + N_ACC)))
     return Structure(
-        n=n_core, b=2 + layout.n_int, m=len(border), core_index=tuple(core), border_index=border
+        n=n_core, b=2 + layout.n_int + layout.n_held_int, m=len(border), core_index=tuple(core),
+        border_index=border,
     )
 
 
-def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=None):
-    """The friction law's reset of the per-node state where a node is stuck again: slip rate
+def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=None, vb=None):
+    """The friction laws' reset of the per-node state where a node is stuck again: slip rate
     $|S|/(\\eta A) \\le$ ``heal_rate`` (R/s) or out of contact
-    (:func:`dynslip.physics.friction.heals`, the one criterion of both solvers). Unchanged for
-    memoryless laws. ``t``: the time of ``y``, where the stage-moved bodies are placed (None:
-    ``model`` is placed already)."""
-    if layout.n_int == 0:
+    (:func:`dynslip.physics.friction.heals`, the one criterion of both solvers): the ball's
+    law's, and each held body's with memory, its slip relative to that body
+    (:meth:`dynslip.physics.bodies.held.HeldFrame.reset`). Unchanged for memoryless laws.
+    ``t``: the time of ``y``, where the stage-moved bodies are placed (None: ``model`` is
+    placed already). ``vb``: the ball's velocity, which the slip relative to a held body reads
+    (None: :func:`evaluate`'s at ``t``, or at the stage's start when ``t`` is None)."""
+    if layout.n_int == 0 and layout.n_held_int == 0:
         return y
+    if layout.n_held_int and vb is None:
+        vb = evaluate(model, layout, args.t0 if t is None else t, y, args)[1]["ball_v"]
     if t is not None:
         model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
-    return layout.with_internal(
-        y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate)
-    )
+    if layout.n_int:
+        y = layout.with_internal(
+            y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate)
+        )
+    if layout.n_held_int:
+        g_rho, g_z, _ = k["grads"]
+        hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb,
+                                 layout.held_internal(y))
+        y = layout.with_held_internal(y, hf.reset(vb, heal_rate))
+    return y

@@ -47,7 +47,8 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     # per held body (none without: the ball's frame as before)
     g_rho, g_z, _ = aux["kin"]["grads"]
     per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
-                                args.drag, args.eps, contact_threshold)
+                                args.drag, args.eps, contact_threshold,
+                                layout.held_internal(y))
     return {
         "rho": rho,
         "z": z,

@@ -273,6 +273,9 @@ class Increment(eqx.Module):
     args: StageArgs
     # per node, the friction branch held by the active-set pass (FREE: the law itself)
     frozen: jax.Array | None = None
+    # the held bodies' slip distances at the start (K_mem, n): mu of a held law with memory is
+    # taken at them (the return map's delta0); None without such a body
+    held_delta0: jax.Array | None = None
 
 
 FREE, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # the active-set pass's branches per node
@@ -338,15 +341,16 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     u = (fn * n + s * t) / eta_a
     if frictional(model.bodies):
         live = (i > 0) & (i < model.mesh.n - 1)
-        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live, zb)
+        hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
+        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live, zb, hd)
         u = u + hf.force(vb) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1
 
 
-def _held_frame(model: SheetModel, x, f, area, args, live, zb):
+def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None):
     """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
-    ball at ``zb``."""
+    ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory)."""
     return held_frame(
         model.bodies,
         x,
@@ -357,16 +361,19 @@ def _held_frame(model: SheetModel, x, f, area, args, live, zb):
         args.eps,
         live,
         zb,
+        delta,
     )
 
 
-def _sheet_held_frame(model: SheetModel, args, q, zb, g):
+def _sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None):
     """The held bodies' friction frame of the whole sheet at relative positions ``q`` under the
-    energy gradient ``g`` (not the pole nor the clamped edge), the ball at ``zb``."""
+    energy gradient ``g`` (not the pole nor the clamped edge), the ball at ``zb``, the held slip
+    distances ``delta`` (K_mem, n)."""
     n = q.shape[0]
     idx = jnp.arange(n)
     x = q + jnp.stack([jnp.zeros(()), zb])
-    return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb)
+    return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb,
+                       delta)
 
 
 def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
@@ -377,7 +384,7 @@ def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
     args = inc.args
 
     def free():
-        hf = _sheet_held_frame(model, args, q, zb, g)
+        hf = _sheet_held_frame(model, args, q, zb, g, inc.held_delta0)
         pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
         cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
         fb = args.ball_force(inc.t1) + args.support_force(zb)
@@ -591,7 +598,7 @@ def free_system(model, friction, inc: Increment, zk0):
         hf = vb = None
         if frictional(m.bodies):
             g, load = forces(m, q, zb)
-            hf = _sheet_held_frame(m, inc.args, q, zb, g)
+            hf = _sheet_held_frame(m, inc.args, q, zb, g, inc.held_delta0)
             vb = ball_velocity(m, inc, q, zb, g, load)
         v, _, _ = free_body_rates(m, q[:, 0], q[:, 1] + zb, zb, hf, vb)
         return zk - zk0 - inc.h * v
@@ -654,7 +661,9 @@ class MotionNewton(eqx.Module):
         rho, z, zb0, acc0 = layout.unpack(y0)
         q0 = jnp.stack([rho, z - zb0], axis=1)
         delta0 = layout.internal(y0)
-        inc = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args)
+        hdelta0 = layout.held_internal(y0)
+        inc = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
+                        held_delta0=hdelta0)
         rq, rz = rate
         q = q0 + h * rq
         nf = layout.n_free
@@ -675,7 +684,8 @@ class MotionNewton(eqx.Module):
             zb = zb0 + h * rz
 
             def held(mode):
-                return Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args, frozen=mode)
+                return Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args, frozen=mode,
+                                 held_delta0=hdelta0)
 
             def res(q, zb, mode):
                 if not active:
@@ -758,16 +768,21 @@ class MotionNewton(eqx.Module):
             zb, zk = zb[0], zb[1:]
             model = placed(zk)
         g, load = forces(model, q, zb)
-        _, _, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
-        y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1, zk)
+        _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
+        hdelta1 = None
+        if hdelta0 is not None:
+            # the held bodies' return map: delta1 = delta0 + h |S(G, mu(delta0) N)|/(eta A) in
+            # contact with the body, the slip relative to it at the converged motion
+            hdelta1 = _sheet_held_frame(model, args, q, zb, g, hdelta0).advance(vb1, h)
+        y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1, zk, hdelta1)
         # the accumulators by the rectangle rule at x1, with the friction law the motion used: the
         # return map's coefficient at the increment's start, mu(delta0) (with mu(delta1) the
         # friction power of fully mobilised nodes is counted at the weakened threshold, which
         # the motion never saw: 5x the work on the let-go path)
-        y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk)
+        y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk, hdelta0)
         dy, _ = evaluate(model, layout, t1, y_rates, args)
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
-        y1 = heal(model, layout, y1, args, self.heal_rate)
+        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1)
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
         return y1, ok, it, (q - q0, zb - zb0)
 

@@ -260,11 +260,12 @@ class SheetModel(eqx.Module):
             return jnp.zeros(())
         return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z, zb))
 
-    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0, zb=0.0):
+    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0, zb=0.0, delta=None):
         """The friction of the held bodies at the nodes (:mod:`dynslip.physics.bodies.held`): a
         :class:`~dynslip.physics.bodies.held.HeldFrame` for node positions ``rho, z`` (N,) and
         driving forces ``f`` (2, N) (``zb``: the ball's height), or None when no held body has
-        friction. Not on the pole node (no tangential motion) nor the clamped edge."""
+        friction. Not on the pole node (no tangential motion) nor the clamped edge. ``delta``
+        (K_mem, N): the slip distances of the held bodies whose law has memory (None: 0)."""
         from dynslip.physics.bodies.held import held_frame
 
         idx = jnp.arange(rho.shape[0])
@@ -272,7 +273,7 @@ class SheetModel(eqx.Module):
         x, area = jnp.stack([rho, z], axis=-1), self.mesh.area
         pen = self.penalty
         return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
-                          eps_density, live, zb)  # fmt: skip
+                          eps_density, live, zb, delta)  # fmt: skip
 
     def penalty_energy(self, rho, z, zb):
         d = self.penetration(rho, z, zb)

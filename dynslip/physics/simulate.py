@@ -49,7 +49,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.physics.bodies.chords import deepest_chord_in
-from dynslip.physics.bodies.held import held_entries, n_free, stage_moved
+from dynslip.physics.bodies.held import held_entries, n_free, n_memory, stage_moved
 from dynslip.physics.failures import (
     ContactUnresolved,
     NonFinite,
@@ -248,7 +248,10 @@ class MemberRun:
         # bodies free along the axis: their heights are state unknowns (load stepping only)
         nf = n_free(model.bodies)
         n_acc = N_ACC_MOVED if self.body_z is not None or nf else N_ACC
-        self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf)
+        # the slip distances of the held bodies whose friction law has memory (none: 0, the
+        # state unchanged)
+        self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf,
+                             n_memory(model.bodies))
         self.solver = solver_for(settings)
         if nf and not _counts_newton(self.solver):
             raise ValueError(

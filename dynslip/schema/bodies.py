@@ -89,22 +89,49 @@ class SegmentSpec(Strict):
 
 
 class BodyFrictionSpec(Strict):
-    """The friction of the sheet on a held body: none (frictionless, the default) or Coulomb
-    with its own mu (memoryless, each body its own; docs/bodies.md)."""
+    """The friction of the sheet on a held body: none (frictionless, the default), Coulomb with
+    its own mu, or slip weakening with healing (mu falls from mu_s to mu_k over the slip
+    distance d_c_mm relative to the body, reset where the node heals; each body its own;
+    docs/bodies.md)."""
 
-    law: Literal["none", "coulomb"] = F("none", description="none (frictionless) or coulomb; "
-                                        "a body's law is memoryless (no slip weakening)")
+    law: Literal["none", "coulomb", "slip_weakening"] = F(
+        "none", description="none (frictionless), coulomb (mu), or slip_weakening (mu_s, mu_k, "
+        "d_c_mm: mu falls from mu_s to mu_k over the slip distance relative to the body, reset "
+        "where the node heals, numerics.heal_rate_mm_s)")
     mu: float | None = F(None, ge=0, le=10, description="law: coulomb: the Coulomb coefficient "
                          "of the sheet on this body, in [0, 10]")
+    mu_s: float | None = F(None, ge=0, le=10, description="law: slip_weakening: the static "
+                           "coefficient, in [0, 10]")
+    mu_k: float | None = F(None, ge=0, le=10, description="law: slip_weakening: the kinetic "
+                           "coefficient, in [0, mu_s]")
+    d_c_mm: float | None = F(None, unit="mm", gt=0, le=1e4, description="law: slip_weakening: "
+                             "the weakening slip distance, in (0, 1e4] mm (divided by "
+                             "ball_radius_mm in the core)")
 
     @model_validator(mode="after")
-    def _mu_with_coulomb(self):
-        if self.law == "coulomb" and self.mu is None:
-            raise ValueError("law: coulomb needs mu")
-        if self.law == "none" and self.mu is not None:
-            raise ValueError(f"mu = {self.mu}: goes with law: coulomb (law: none is "
-                             f"frictionless)")
+    def _params_with_law(self):
+        need = {"none": (), "coulomb": ("mu",), "slip_weakening": ("mu_s", "mu_k", "d_c_mm")}
+        for law, fields in need.items():
+            for k in fields:
+                v = getattr(self, k)
+                if law == self.law and v is None:
+                    raise ValueError(f"law: {law} needs {k}")
+                if law != self.law and v is not None:
+                    raise ValueError(f"{k} = {v}: goes with law: {law} (the law is "
+                                     f"{self.law})")
+        if self.law == "slip_weakening" and self.mu_k > self.mu_s:
+            raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction "
+                             f"must not exceed static)")
         return self
+
+    def core_params(self, r: float):
+        """The law in the core's units (lengths by ``r``, the ball's radius in mm): None
+        (frictionless), mu (Coulomb), or ``{"mu_s", "mu_k", "d_c"}`` (slip weakening)."""
+        if self.law == "coulomb":
+            return self.mu
+        if self.law == "slip_weakening":
+            return {"mu_s": self.mu_s, "mu_k": self.mu_k, "d_c": self.d_c_mm / r}
+        return None
 
 
 class _Shape(Strict):

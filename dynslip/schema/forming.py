@@ -194,7 +194,9 @@ class FormingPhysics(Strict):
 
     def held_specs(self) -> list:
         """Every held body of the world, ``(name, core body, moves_with_ball, mu)`` (mu None:
-        frictionless): the tube's wall, the bottle's parts and each of ``physics.bodies``, in
+        frictionless; a dict ``{mu_s, mu_k, d_c}`` (d_c in R): slip weakening,
+        :meth:`~dynslip.schema.bodies.BodyFrictionSpec.core_params`): the tube's
+        wall, the bottle's parts and each of ``physics.bodies``, in
         the order the solver holds them (``build_core`` makes each a ``Held`` entry)."""
         from dynslip.schema.bodies import body_core
 
@@ -205,7 +207,7 @@ class FormingPhysics(Strict):
             out += [(n, part, True, b.mu)
                     for n, part in zip(names, self.bottle_parts(), strict=True)]
         out += [(s.name, body_core(s, self.ball_radius_mm), s.motion == "with_ball",
-                 s.friction.mu if s.friction.law == "coulomb" else None) for s in self.bodies]
+                 s.friction.core_params(self.ball_radius_mm)) for s in self.bodies]
         return out
 
     def free_names(self) -> list:

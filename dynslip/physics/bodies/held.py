@@ -61,6 +61,7 @@ __all__ = [
     "held_entries",
     "held_frame",
     "n_free",
+    "n_memory",
     "place_bodies",
     "place_free",
     "stage_moved",
@@ -113,10 +114,11 @@ class Held(eqx.Module):
     def __check_init__(self):
         if self.free and (self.moves_with_ball or self.stage):
             raise ValueError("a free held body has no other motion")
-        if self.friction is not None and self.friction.n_internal() != 0:
+        if self.friction is not None and self.friction.n_internal() > 1:
             raise ValueError(
-                "a held body's friction law must be memoryless (Coulomb, or a law of the "
-                f"contact pressure); {type(self.friction).__name__} carries a per-node state"
+                "a held body's friction law carries at most one value per node (the slip "
+                f"distance); {type(self.friction).__name__} carries "
+                f"{self.friction.n_internal()}"
             )
 
 
@@ -171,6 +173,14 @@ def place_free(model, zk, vk=None):
     return eqx.tree_at(lambda m: m.bodies, model, tuple(entries))
 
 
+def n_memory(bodies) -> int:
+    """How many held bodies have a friction law with memory (one slip distance per node, e.g.
+    :class:`~dynslip.physics.friction.SlipWeakening`; static): the rows of the state's
+    held-internal block (:meth:`dynslip.physics.field.Layout.held_internal`), in held order."""
+    return sum(e.friction is not None and e.friction.n_internal() == 1
+               for e in held_entries(bodies))
+
+
 def frictional(bodies) -> bool:
     """Whether any held body carries a friction law (static)."""
     return any(e.friction is not None for e in held_entries(bodies))
@@ -192,6 +202,12 @@ class HeldFrame(eqx.Module):
     laws: tuple
     moving: tuple = eqx.field(static=True, default=())
     speeds: tuple = ()  # the bodies' own axial velocities (R/s; empty: all at rest)
+    # per frictional body, its slip distances (...) at which mu is taken (a law with memory:
+    # the increment's start, delta0), None for a memoryless law; empty: no law has memory
+    delta: tuple = ()
+
+    def _delta(self, k):
+        return self.delta[k] if self.delta else None
 
     def _carried(self, k, vb):
         # the drag the ball's motion drags a node with, relative to the body: eta A (vb - v_k)
@@ -206,7 +222,8 @@ class HeldFrame(eqx.Module):
         g = jnp.stack([self.ft[k] + self._carried(k, vb) for k in range(len(self.laws))])
         s = jnp.stack(
             [
-                law.slip_force(g[k], self.normal[k], None, eps=self.eps, area=self.area)
+                law.slip_force(g[k], self.normal[k], self._delta(k), eps=self.eps,
+                               area=self.area)
                 for k, law in enumerate(self.laws)
             ]
         )
@@ -237,21 +254,77 @@ class HeldFrame(eqx.Module):
     def bound(self):
         """$B = \\sum \\mu N |t_z|$, the largest the axial friction can be."""
         thr = jnp.stack(
-            [law.threshold(self.normal[k], None, self.area) for k, law in enumerate(self.laws)]
+            [law.threshold(self.normal[k], self._delta(k), self.area)
+             for k, law in enumerate(self.laws)]
         )
         return jnp.sum(jnp.where(self.live, thr * jnp.abs(self.t[..., 1]), 0.0))
 
+    def _memory(self):
+        return [k for k in range(len(self.laws)) if self._delta(k) is not None]
 
-def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFrame | None:
+    def internal_rates(self, vb):
+        r"""The rates of the slip distances of the bodies with memory (K_mem, ...):
+        $|S_{ik}|/(\eta A_i)$ where node $i$ touches body $k$ (the law's ``internal_rate``),
+        0 where held friction does not act; None when no law has memory."""
+        mem = self._memory()
+        if not mem:
+            return None
+        _, s = self.slip(vb)
+        return jnp.stack([
+            jnp.where(self.live, self.laws[k].internal_rate(s[k] / self.eta_a, self.normal[k],
+                                                            self.delta[k]), 0.0)
+            for k in mem
+        ])
+
+    def advance(self, vb, h):
+        r"""The return map's new slip distances (K_mem, ...): $\delta_1 = \delta_0 + h\,
+        |S(G, \mu(\delta_0) N)|/(\eta A)$ where the node touches the body ($N > 0$, held
+        friction acting), else $\delta_0$; None when no law has memory."""
+        mem = self._memory()
+        if not mem:
+            return None
+        _, s = self.slip(vb)
+        return jnp.stack([
+            jnp.where(self.live & (self.normal[k] > 0),
+                      self.delta[k] + h * jnp.abs(s[k]) / self.eta_a, self.delta[k])
+            for k in mem
+        ])
+
+    def reset(self, vb, heal_rate):
+        """The slip distances after healing (K_mem, ...): 0 where the node's slip speed relative
+        to the body is at most ``heal_rate`` or it is out of contact with it
+        (:func:`dynslip.physics.friction.heals`), and where held friction does not act; None
+        when no law has memory."""
+        mem = self._memory()
+        if not mem:
+            return None
+        _, s = self.slip(vb)
+        return jnp.stack([
+            jnp.where(self.live, self.laws[k].reset(self.delta[k], s[k] / self.eta_a,
+                                                    self.normal[k], heal_rate), 0.0)
+            for k in mem
+        ])
+
+
+def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
+               delta=None) -> HeldFrame | None:
     """The :class:`HeldFrame` of the frictional held bodies at node positions ``x`` (..., 2)
     (absolute), driving forces ``f`` (..., 2), reference areas ``area`` (...); ``normal_of(d)``
     the penalty's normal force per reference area of a signed distance; ``live`` where held
     friction acts (not the pole, not the clamped edge); ``zb`` the ball's height (displaces a
-    body that moves with the ball). None when no held body has friction."""
-    laws, ts, ns, fts, moving, speeds = [], [], [], [], [], []
+    body that moves with the ball); ``delta`` (K_mem, ...) the slip distances of the bodies
+    whose law has memory (:func:`n_memory`, in held order; None: none has, or each at 0). None
+    when no held body has friction."""
+    laws, ts, ns, fts, moving, speeds, deltas = [], [], [], [], [], [], []
+    j = 0
     for e in held_entries(bodies):
         if e.friction is None:
             continue
+        if e.friction.n_internal() == 1:
+            deltas.append(jnp.zeros_like(area) if delta is None else delta[j])
+            j += 1
+        else:
+            deltas.append(None)
         p = e.body.project(x, e.shift(zb))
         laws.append(e.friction)
         moving.append(e.moves_with_ball)
@@ -273,6 +346,7 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0) -> HeldFr
         moving=tuple(moving) if any(moving) else (),
         # the bodies' own velocities where one moves on its own (by the stages, or free)
         speeds=tuple(speeds) if any(e.stage or e.free for e in held_entries(bodies)) else (),
+        delta=tuple(deltas) if j else (),
     )
 
 

@@ -15,6 +15,10 @@ $v_b$:
   tangential motion), else :data:`SLIP_BACK` / :data:`SLIP_ON` by the sign of $S$ (slip toward
   decreasing / increasing ``s``); :data:`TOUCHING` on a frictionless body.
 
+- ``body_slip_distance`` (only where a held body's law has memory, slip weakening): the
+  node's slip distance relative to the body (R; NaN for a body without memory); not written
+  to the trajectory file.
+
 Per body and frame: the extent of the contact in ``s`` (``body_s_min``, ``body_s_max``; NaN
 without contact) and ``body_n_contact``. Without held bodies :func:`body_observables` returns
 ``{}``, so a frame holds exactly the ball's fields.
@@ -49,11 +53,13 @@ STATE_MEANINGS = ("free", "stuck", "slipping_toward_decreasing_s",
                   "slipping_toward_increasing_s", "touching_frictionless")
 
 
-def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold) -> dict:
+def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
+                     delta=None) -> dict:
     """Per held body (leading axis K, :attr:`SheetModel.bodies` order) the fields of the module
     docstring, for node positions ``rho, z`` (N,), ball height ``zb``, driving forces ``f``
     (2, N), ball velocity ``vb``, the drag ``eta``, the smoothing ``eps`` (force density) and
-    ``contact_threshold`` (pressure, G h0 / R). ``{}`` without held bodies."""
+    ``contact_threshold`` (pressure, G h0 / R), ``delta`` (K_mem, N) the slip distances of the
+    held bodies whose law has memory (None: none has). ``{}`` without held bodies."""
     entries = held_entries(model.bodies)
     if not entries:
         return {}
@@ -62,7 +68,7 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold) -> 
     x = jnp.stack([rho, z], axis=-1)
     lt, lp = node_stretches(model.mesh, rho, z)
     def_area = model.mesh.area * lt * lp
-    hf = model.held_friction(rho, z, f, drag, eps, zb)
+    hf = model.held_friction(rho, z, f, drag, eps, zb, delta)
     slip = None if hf is None else hf.slip(vb)[1]  # (K_frictional, N)
     out = {"s": [], "contact": [], "state": []}
     j = 0
@@ -84,7 +90,19 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold) -> 
     some = jnp.any(contact, axis=1)
     lo = jnp.min(jnp.where(contact, s, jnp.inf), axis=1)
     hi = jnp.max(jnp.where(contact, s, -jnp.inf), axis=1)
+    extra = {}
+    if delta is not None:
+        # the slip distance relative to each body whose law has memory (NaN for the others)
+        rows, j = [], 0
+        for e in entries:
+            if e.friction is not None and e.friction.n_internal() == 1:
+                rows.append(delta[j])
+                j += 1
+            else:
+                rows.append(jnp.full(n, jnp.nan))
+        extra["body_slip_distance"] = jnp.stack(rows)
     return {
+        **extra,
         "body_s": s,
         "body_contact": contact.astype(jnp.int8),
         "body_state": jnp.stack(out["state"]),
