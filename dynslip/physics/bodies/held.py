@@ -2,8 +2,19 @@ r"""Friction on the held bodies (issue 21 item 3): each held body carries its ow
 
 A held body is an entry of :attr:`dynslip.physics.sheet.SheetModel.bodies`: a bare
 :class:`~.base.AbstractBody` (frictionless, the default) or a :class:`Held` pairing the body
-with a friction law (:mod:`dynslip.physics.friction`, memoryless: Coulomb, or any law with the
-interface ``threshold(fn, internal=None, area=None)``, e.g. a pressure-dependent one).
+with a friction law (:mod:`dynslip.physics.friction`: Coulomb, or any law with the interface
+``threshold(fn, internal=None, area=None)``, e.g. a pressure-dependent one, or slip weakening
+with healing).
+
+**Slip weakening** (a law with ``n_internal() == 1``): node $i$ carries a slip distance
+$\delta_{ik}$ relative to body $k$, in the state after the ball's own
+(:meth:`dynslip.physics.field.Layout.held_internal`, one row per such body, :func:`n_memory`),
+and its threshold is $\mu(\delta_{ik}) N_{ik}$ (:attr:`HeldFrame.delta`). Load stepping takes
+$\mu$ at the increment's start $\delta_0$ and advances $\delta_1 = \delta_0 + \Delta t\,
+|S_{ik}|/(\eta A_i)$ in contact (:meth:`HeldFrame.advance`, the ball's return map); the vector
+field's rate is $|S_{ik}|/(\eta A_i)$ in contact (:meth:`HeldFrame.internal_rates`); healing
+resets it where the node's slip speed relative to the body is at most the heal rate or it is out
+of contact (:meth:`HeldFrame.reset`).
 
 **The law.** Node $i$ touching held body $k$ (penalty normal force $N_{ik} > 0$, the body's
 tangent $t_k$ at the node) slips *relative to that body*, which is at rest. The sheet's drag
