@@ -1,10 +1,10 @@
 r"""The whole sheet's state vector and vector field (the physics the solvers integrate).
 
-:class:`Layout` names the slices of the flat state, :class:`StageArgs` carries a stage's
-loads, :func:`evaluate` is the overdamped law with the clamp and the ball (see
-:mod:`dynslip.physics.simulate` for the state's contents and the energy accumulators),
-:func:`vector_field` its diffrax form, and :func:`sheet_structure` the sparsity that
-:class:`dynslip.physics.linalg.BorderedBlockTridiagonal` exploits. Both solvers
+:class:`Layout` (:mod:`dynslip.physics.layout`) names the slices of the flat state,
+:class:`StageArgs` carries a stage's loads, :func:`evaluate` is the overdamped law with the
+clamp and the ball (see :mod:`dynslip.physics.simulate` for the state's contents and the
+energy accumulators), :func:`vector_field` its diffrax form, and :func:`sheet_structure` the
+sparsity that :class:`dynslip.physics.linalg.BorderedBlockTridiagonal` exploits. Both solvers
 (:mod:`dynslip.physics.simulate`'s time stepping and :mod:`dynslip.physics.loadstep`)
 import from here, and nothing here imports a solver.
 """
@@ -22,6 +22,7 @@ from dynslip.physics.bodies.held import (
     place_free,
 )
 from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.layout import N_ACC, N_ACC_MOVED, Layout
 from dynslip.physics.linalg import Structure
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
@@ -30,6 +31,7 @@ EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see 
 
 __all__ = [
     "N_ACC",
+    "N_ACC_MOVED",
     "EDGE_NODES",
     "Layout",
     "StageArgs",
@@ -38,107 +40,6 @@ __all__ = [
     "sheet_structure",
     "heal",
 ]
-
-N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
-#: with bodies moved by the stages, a fifth: work_bodies, their work on the sheet
-N_ACC_MOVED = 5
-
-
-class Layout(eqx.Module):
-    """Slices of the flat state vector for a sheet of ``n`` nodes.
-
-    ``[rho_1 .. rho_{n-1}, z_0 .. z_{n-1}, zb, acc(n_acc), internal(n_int * n)]``: node
-    ``n-1`` is the clamped edge (moved by the protocol, or free under a force when the
-    clamp lets go); ``internal`` is the friction law's per-node state (the slip distance
-    of :class:`dynslip.physics.friction.SlipWeakening`), absent for memoryless laws.
-    ``n_acc``: 4 accumulators (:data:`N_ACC`), 5 when bodies are moved by the stages or free
-    (their work on the sheet, :data:`N_ACC_MOVED`). ``n_free``: the heights of the held bodies
-    free along the axis (R, relative to their reference placements), last. ``n_held_int``:
-    the slip distances of the held bodies whose friction law has memory
-    (:func:`dynslip.physics.bodies.held.n_memory`, in held order), ``n_held_int * n`` values
-    after ``internal`` (body by body), before the free bodies' heights; absent (0) without such
-    a body, so the state is then unchanged.
-    """
-
-    n: int = eqx.field(static=True)
-    n_int: int = eqx.field(static=True, default=0)
-    n_acc: int = eqx.field(static=True, default=N_ACC)
-    n_free: int = eqx.field(static=True, default=0)
-    n_held_int: int = eqx.field(static=True, default=0)
-
-    @property
-    def size(self) -> int:
-        return ((self.n - 1) + self.n + 1 + self.n_acc + (self.n_int + self.n_held_int) * self.n
-                + self.n_free)
-
-    def free(self, y):
-        """The free bodies' heights (n_free,), or None without any."""
-        if self.n_free == 0:
-            return None
-        return y[self.size - self.n_free :]
-
-    def with_free(self, y, zk):
-        if self.n_free == 0:
-            return y
-        return y.at[self.size - self.n_free :].set(zk)
-
-    @property
-    def accumulators(self) -> slice:
-        """Where the energy accumulators sit in the state."""
-        return slice(2 * self.n, 2 * self.n + self.n_acc)
-
-    @property
-    def internal_start(self) -> int:
-        return self.accumulators.stop
-
-    def internal(self, y):
-        """The friction law's per-node state, (n,), or None for a memoryless law."""
-        if self.n_int == 0:
-            return None
-        return y[self.internal_start : self.internal_start + self.n]
-
-    def with_internal(self, y, internal):
-        if self.n_int == 0:
-            return y
-        return y.at[self.internal_start : self.internal_start + self.n].set(internal)
-
-    @property
-    def held_start(self) -> int:
-        """Where the held bodies' slip distances start in the state."""
-        return self.internal_start + self.n_int * self.n
-
-    def held_internal(self, y):
-        """The held bodies' slip distances, (n_held_int, n), or None without a held law with
-        memory."""
-        if self.n_held_int == 0:
-            return None
-        k = self.n_held_int * self.n
-        return jnp.reshape(y[self.held_start : self.held_start + k], (self.n_held_int, self.n))
-
-    def with_held_internal(self, y, delta):
-        if self.n_held_int == 0:
-            return y
-        k = self.n_held_int * self.n
-        return y.at[self.held_start : self.held_start + k].set(jnp.reshape(delta, (k,)))
-
-    def unpack(self, y):
-        n = self.n
-        rho = jnp.concatenate([jnp.zeros(1), y[: n - 1]])
-        z = y[n - 1 : 2 * n - 1]
-        zb = y[2 * n - 1]
-        acc = y[self.accumulators]
-        return rho, z, zb, acc
-
-    def pack(self, rho, z, zb, acc, internal=None, free=None, held=None):
-        parts = [rho[1:], z, jnp.reshape(zb, (1,)), acc]
-        if self.n_int:
-            parts.append(jnp.zeros(self.n) if internal is None else internal)
-        if self.n_held_int:
-            k = self.n_held_int * self.n
-            parts.append(jnp.zeros(k) if held is None else jnp.reshape(held, (k,)))
-        if self.n_free:
-            parts.append(jnp.zeros(self.n_free) if free is None else free)
-        return jnp.concatenate(parts)
 
 
 class StageArgs(eqx.Module):

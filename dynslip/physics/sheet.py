@@ -264,14 +264,13 @@ class SheetModel(eqx.Module):
         """The friction of the held bodies at the nodes (:mod:`dynslip.physics.bodies.held`): a
         :class:`~dynslip.physics.bodies.held.HeldFrame` for node positions ``rho, z`` (N,) and
         driving forces ``f`` (2, N) (``zb``: the ball's height), or None when no held body has
-        friction. Not on the pole node (no tangential motion) nor the clamped edge. ``delta``
-        (K_mem, N): the slip distances of the held bodies whose law has memory (None: 0)."""
+        friction. Not on the pole node nor the clamped edge. ``delta`` (K_mem, N): the held
+        slip distances."""
         from dynslip.physics.bodies.held import held_frame
 
         idx = jnp.arange(rho.shape[0])
         live = (idx > 0) & (idx < rho.shape[0] - 1)
-        x, area = jnp.stack([rho, z], axis=-1), self.mesh.area
-        pen = self.penalty
+        x, area, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
         return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
                           eps_density, live, zb, delta)  # fmt: skip
 

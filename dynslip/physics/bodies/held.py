@@ -6,15 +6,9 @@ with a friction law (:mod:`dynslip.physics.friction`: Coulomb, or any law with t
 ``threshold(fn, internal=None, area=None)``, e.g. a pressure-dependent one, or slip weakening
 with healing).
 
-**Slip weakening** (a law with ``n_internal() == 1``): node $i$ carries a slip distance
-$\delta_{ik}$ relative to body $k$, in the state after the ball's own
-(:meth:`dynslip.physics.field.Layout.held_internal`, one row per such body, :func:`n_memory`),
-and its threshold is $\mu(\delta_{ik}) N_{ik}$ (:attr:`HeldFrame.delta`). Load stepping takes
-$\mu$ at the increment's start $\delta_0$ and advances $\delta_1 = \delta_0 + \Delta t\,
-|S_{ik}|/(\eta A_i)$ in contact (:meth:`HeldFrame.advance`, the ball's return map); the vector
-field's rate is $|S_{ik}|/(\eta A_i)$ in contact (:meth:`HeldFrame.internal_rates`); healing
-resets it where the node's slip speed relative to the body is at most the heal rate or it is out
-of contact (:meth:`HeldFrame.reset`).
+**Slip weakening** (``n_internal() == 1``): a slip distance per node relative to each such body
+in the state (:func:`n_memory`, :attr:`HeldFrame.delta`); mu at the increment's start, advanced
+and healed as the ball's (docs/bodies.md, "Slip weakening on a held body").
 
 **The law.** Node $i$ touching held body $k$ (penalty normal force $N_{ik} > 0$, the body's
 tangent $t_k$ at the node) slips *relative to that body*, which is at rest. The sheet's drag
@@ -270,51 +264,34 @@ class HeldFrame(eqx.Module):
         )
         return jnp.sum(jnp.where(self.live, thr * jnp.abs(self.t[..., 1]), 0.0))
 
-    def _memory(self):
-        return [k for k in range(len(self.laws)) if self._delta(k) is not None]
+    def _each_memory(self, vb, fn):
+        # fn(k, S_k) for each body whose law has memory, stacked (K_mem, ...); None without any
+        mem = [k for k in range(len(self.laws)) if self._delta(k) is not None]
+        if not mem:
+            return None
+        _, s = self.slip(vb)
+        return jnp.stack([fn(k, s[k]) for k in mem])
 
     def internal_rates(self, vb):
-        r"""The rates of the slip distances of the bodies with memory (K_mem, ...):
-        $|S_{ik}|/(\eta A_i)$ where node $i$ touches body $k$ (the law's ``internal_rate``),
-        0 where held friction does not act; None when no law has memory."""
-        mem = self._memory()
-        if not mem:
-            return None
-        _, s = self.slip(vb)
-        return jnp.stack([
-            jnp.where(self.live, self.laws[k].internal_rate(s[k] / self.eta_a, self.normal[k],
-                                                            self.delta[k]), 0.0)
-            for k in mem
-        ])
+        r"""The slip distances' rates (K_mem, ...): $|S|/(\eta A)$ in contact (the law's
+        ``internal_rate``), 0 where held friction does not act; None without memory."""
+        return self._each_memory(vb, lambda k, s: jnp.where(
+            self.live, self.laws[k].internal_rate(s / self.eta_a, self.normal[k], self.delta[k]),
+            0.0))
 
     def advance(self, vb, h):
-        r"""The return map's new slip distances (K_mem, ...): $\delta_1 = \delta_0 + h\,
-        |S(G, \mu(\delta_0) N)|/(\eta A)$ where the node touches the body ($N > 0$, held
-        friction acting), else $\delta_0$; None when no law has memory."""
-        mem = self._memory()
-        if not mem:
-            return None
-        _, s = self.slip(vb)
-        return jnp.stack([
-            jnp.where(self.live & (self.normal[k] > 0),
-                      self.delta[k] + h * jnp.abs(s[k]) / self.eta_a, self.delta[k])
-            for k in mem
-        ])
+        r"""The return map (K_mem, ...): $\delta_0 + h|S(G, \mu(\delta_0) N)|/(\eta A)$ where
+        the node touches the body ($N > 0$, held friction acting), else $\delta_0$."""
+        return self._each_memory(vb, lambda k, s: jnp.where(
+            self.live & (self.normal[k] > 0), self.delta[k] + h * jnp.abs(s) / self.eta_a,
+            self.delta[k]))
 
     def reset(self, vb, heal_rate):
-        """The slip distances after healing (K_mem, ...): 0 where the node's slip speed relative
-        to the body is at most ``heal_rate`` or it is out of contact with it
-        (:func:`dynslip.physics.friction.heals`), and where held friction does not act; None
-        when no law has memory."""
-        mem = self._memory()
-        if not mem:
-            return None
-        _, s = self.slip(vb)
-        return jnp.stack([
-            jnp.where(self.live, self.laws[k].reset(self.delta[k], s[k] / self.eta_a,
-                                                    self.normal[k], heal_rate), 0.0)
-            for k in mem
-        ])
+        """The slip distances after healing (K_mem, ...): 0 where the slip speed relative to the
+        body is at most ``heal_rate``, out of contact, or held friction does not act."""
+        return self._each_memory(vb, lambda k, s: jnp.where(
+            self.live, self.laws[k].reset(self.delta[k], s / self.eta_a, self.normal[k],
+                                          heal_rate), 0.0))
 
 
 def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
