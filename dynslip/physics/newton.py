@@ -46,7 +46,11 @@ block Thomas, with the one-unknown border by a Schur complement).
 Longer than 400 lines: the increment's residual, its Newton matrix and the solver object
 share the node and element terms at the top, and the matrix is checked block by block
 against the residual (tests/test_newton.py, tests/test_bodies_sheet.py); split, the three
-would import each other's private terms.
+would import each other's private terms. The active-set pass (``MotionNewton.freeze``) lives in
+the increment's loop because it changes the residual and matrix that loop evaluates. Cuts worth
+making, not yet made: the free bodies' system (:func:`free_system`, which the increment calls
+and which calls the residual: a module of its own needs a local import) and the element and
+node terms (:func:`forces`, :func:`forces_and_hessians`), which nothing else shares.
 """
 
 from __future__ import annotations
