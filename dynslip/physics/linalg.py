@@ -148,17 +148,49 @@ def extract_blocks(mv, mvT, s: Structure):
     return lower, diag, upper, right[:nb], bottom[:, :nb], right[nb:]
 
 
+def small_matmul(a, b):
+    r"""``a @ b`` for stacks of small blocks, ``a`` (..., p, r), ``b`` (..., r, k): the sum over
+    the inner index unrolled into elementwise products. XLA on CPU runs a batched
+    ``dot_general`` of 2x2 blocks as a loop of tiny matrix products; written out, the products
+    fuse into one elementwise kernel (the block solves 5-8x faster at N = 50-800:
+    ``python benchmarks/run.py newton_parts``, docs/speed.md)."""
+    out = a[..., :, 0:1] * b[..., None, 0, :]
+    for k in range(1, a.shape[-1]):
+        out = out + a[..., :, k : k + 1] * b[..., None, k, :]
+    return out
+
+
+def small_inverse(a):
+    r"""Inverses of a stack of small blocks (..., b, b): the closed form (the adjugate over the
+    determinant) for b = 2, for which it is forward stable (Cramer's rule for 2x2 systems:
+    Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed., Section 1.10.1); LU
+    (``jnp.linalg.inv``) otherwise."""
+    if a.shape[-1] != 2:
+        return jnp.linalg.inv(a)
+    a00, a01, a10, a11 = a[..., 0, 0], a[..., 0, 1], a[..., 1, 0], a[..., 1, 1]
+    det = a00 * a11 - a01 * a10
+    adj = jnp.stack([jnp.stack([a11, -a01], axis=-1), jnp.stack([-a10, a00], axis=-1)], axis=-2)
+    return adj / det[..., None, None]
+
+
+def small_solve(a, f):
+    """Solve a stack of small systems ``a x = f``, ``a`` (..., b, b), ``f`` (..., b, k)."""
+    if a.shape[-1] != 2:
+        return jnp.linalg.solve(a, f)
+    return small_matmul(small_inverse(a), f)
+
+
 def _factor_tridiag(lower, diag, upper):
     """Block Thomas factorisation: inverses of the pivots S_i = D_i - L_i S_{i-1}^{-1} U_{i-1}."""
 
     def step(prev_inv, x):
         low, dia, up_prev = x
-        s = dia - low @ prev_inv @ up_prev
-        inv = jnp.linalg.inv(s)
+        s = dia - small_matmul(low, small_matmul(prev_inv, up_prev))
+        inv = small_inverse(s)
         return inv, inv
 
     up_prev = jnp.concatenate([jnp.zeros_like(upper[:1]), upper[:-1]])
-    first = jnp.linalg.inv(diag[0])
+    first = small_inverse(diag[0])
     _, invs = jax.lax.scan(step, first, (lower[1:], diag[1:], up_prev[1:]))
     return jnp.concatenate([first[None], invs])
 
@@ -168,7 +200,7 @@ def _solve_tridiag(lower, upper, invs, f):
 
     def fwd(g_prev, x):
         low, inv_prev, fi = x
-        g = fi - low @ (inv_prev @ g_prev)
+        g = fi - small_matmul(low, small_matmul(inv_prev, g_prev))
         return g, g
 
     inv_prev = jnp.concatenate([jnp.zeros_like(invs[:1]), invs[:-1]])
@@ -178,10 +210,10 @@ def _solve_tridiag(lower, upper, invs, f):
 
     def bwd(x_next, x):
         inv, up, gi = x
-        xi = inv @ (gi - up @ x_next)
+        xi = small_matmul(inv, gi - small_matmul(up, x_next))
         return xi, xi
 
-    x_last = invs[-1] @ g[-1]
+    x_last = small_matmul(invs[-1], g[-1])
     _, xs = jax.lax.scan(bwd, x_last, (invs[:-1], upper[:-1], g[:-1]), reverse=True)
     return jnp.concatenate([xs, x_last[None]])
 
@@ -290,7 +322,7 @@ def cyclic_reduction(lower, diag, upper, f):
     lower = lower.at[0].set(0.0)
     upper = upper.at[-1].set(0.0)
     if n == 1:
-        return jnp.linalg.solve(diag[0], f[0])[None]
+        return small_solve(diag[0], f[0])[None]
     if n % 2:  # pad with a decoupled identity row
         eye = jnp.eye(b, dtype=diag.dtype)[None]
         lower = jnp.concatenate([lower, jnp.zeros_like(lower[:1])])
@@ -300,7 +332,7 @@ def cyclic_reduction(lower, diag, upper, f):
     le, de, ue, fe = lower[0::2], diag[0::2], upper[0::2], f[0::2]
     lo, do, uo, fo = lower[1::2], diag[1::2], upper[1::2], f[1::2]
     # D_odd^{-1} applied to [L_odd, U_odd, f_odd] in one batched solve
-    sol = jnp.linalg.solve(do, jnp.concatenate([lo, uo, fo], axis=-1))
+    sol = small_solve(do, jnp.concatenate([lo, uo, fo], axis=-1))
     il, iu, if_ = sol[..., :b], sol[..., b : 2 * b], sol[..., 2 * b :]
 
     # even row i couples to odd rows i-1 (index i//2 - 1) and i+1 (index i//2)
@@ -308,13 +340,13 @@ def cyclic_reduction(lower, diag, upper, f):
         return jnp.concatenate([jnp.zeros_like(a[:1]), a[:-1]])
 
     il_p, iu_p, if_p = prev(il), prev(iu), prev(if_)
-    d2 = de - le @ iu_p - ue @ il
-    l2 = -le @ il_p
-    u2 = -ue @ iu
-    f2 = fe - le @ if_p - ue @ if_
+    d2 = de - small_matmul(le, iu_p) - small_matmul(ue, il)
+    l2 = -small_matmul(le, il_p)
+    u2 = -small_matmul(ue, iu)
+    f2 = fe - small_matmul(le, if_p) - small_matmul(ue, if_)
     xe = cyclic_reduction(l2, d2, u2, f2)
     xe_next = jnp.concatenate([xe[1:], jnp.zeros_like(xe[:1])])
-    xo = if_ - il @ xe - iu @ xe_next
+    xo = if_ - small_matmul(il, xe) - small_matmul(iu, xe_next)
     x = jnp.stack([xe, xo], axis=1).reshape((-1,) + xe.shape[1:])
     return x[:n]
 

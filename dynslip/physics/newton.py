@@ -69,7 +69,7 @@ from dynslip.physics.bodies.held import (
 )
 from dynslip.physics.field import Layout, StageArgs, evaluate, heal
 from dynslip.physics.friction import AbstractFriction
-from dynslip.physics.linalg import bordered_solve
+from dynslip.physics.linalg import bordered_solve, small_matmul
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
@@ -490,9 +490,9 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
     h_low = jnp.swapaxes(h_up, 1, 2)  # d2E/dx_{i+1} dx_i
     h = inc.h
     eye = jnp.eye(2)
-    diag = eye - h * (lq + lg @ h_diag)
-    upper = jnp.concatenate([-h * lg[:-1] @ h_up, jnp.zeros((1, 2, 2))])
-    lower = jnp.concatenate([jnp.zeros((1, 2, 2)), -h * lg[1:] @ h_low])
+    diag = eye - h * (lq + small_matmul(lg, h_diag))
+    upper = jnp.concatenate([-h * small_matmul(lg[:-1], h_up), jnp.zeros((1, 2, 2))])
+    lower = jnp.concatenate([jnp.zeros((1, 2, 2)), -h * small_matmul(lg[1:], h_low)])
     B = jnp.zeros((n, 2, 1)).at[-1, :, 0].set(-h * ez)
     C = jnp.zeros((1, n, 2))
     C = C.at[0, -1].set(-h * bg @ h_diag[-1]).at[0, -2].set(-h * bg @ h_low[-1])
@@ -570,9 +570,9 @@ def _blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     h = inc.h
     eye = jnp.eye(2)
     rank1 = jnp.einsum("ni,nj->nij", lv, big_v)
-    diag = eye - h * (lq + lg @ h_diag + rank1)
-    upper = -h * (lg[:-1] @ h_up + jnp.einsum("ni,nj->nij", lv[:-1], big_v[1:]))
-    lower = -h * (lg[1:] @ h_low + jnp.einsum("ni,nj->nij", lv[1:], big_v[:-1]))
+    diag = eye - h * (lq + small_matmul(lg, h_diag) + rank1)
+    upper = -h * (small_matmul(lg[:-1], h_up) + jnp.einsum("ni,nj->nij", lv[:-1], big_v[1:]))
+    lower = -h * (small_matmul(lg[1:], h_low) + jnp.einsum("ni,nj->nij", lv[1:], big_v[:-1]))
     upper = jnp.concatenate([upper, jnp.zeros((1, 2, 2))])
     lower = jnp.concatenate([jnp.zeros((1, 2, 2)), lower])
     col = jnp.einsum("nij,nj->ni", lg, dg_dz) + lz + lv * v_z
