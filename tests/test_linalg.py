@@ -121,3 +121,27 @@ def test_permuted_layout_blocks_equal_jacfwd():
     rhs = jnp.linspace(-1, 1, SHEET.size)
     x = lx.linear_solve(lx.MatrixLinearOperator(a), rhs, BorderedBlockTridiagonal(SHEET)).value
     np.testing.assert_allclose(x, jnp.linalg.solve(a, rhs), rtol=1e-9)
+
+
+@pytest.mark.parametrize("b", [2, 3])
+def test_small_block_ops_equal_numpy(b):
+    """The written-out block products, inverses and solves (2x2 closed form; LU for 3x3) equal
+    numpy's on random stacks, including ill-conditioned blocks (Cramer's rule for 2x2 is forward
+    stable: the error bound is the condition number times the round-off)."""
+    from dynslip.physics.linalg import small_inverse, small_matmul, small_solve
+
+    rng = np.random.default_rng(b)
+    a = rng.normal(size=(64, b, b))
+    a[:8] = a[:8] + 1e6 * np.eye(b)  # well-conditioned, scaled
+    a[8:16, 0] = a[8:16, 1] + 1e-9 * rng.normal(size=(8, b))  # nearly singular rows
+    f = rng.normal(size=(64, b, 5))
+    np.testing.assert_allclose(small_matmul(jnp.asarray(a), jnp.asarray(f)), a @ f, rtol=1e-13,
+                               atol=1e-13 * np.abs(a).max() * np.abs(f).max())
+    cond = np.linalg.cond(a)
+    x = np.asarray(small_solve(jnp.asarray(a), jnp.asarray(f)))
+    x_ref = np.linalg.solve(a, f)
+    err = np.abs(x - x_ref).max(axis=(1, 2)) / np.abs(x_ref).max(axis=(1, 2))
+    assert np.all(err <= 50 * cond * np.finfo(float).eps), (err / cond).max()
+    inv = np.asarray(small_inverse(jnp.asarray(a)))
+    err = np.abs(inv - np.linalg.inv(a)).max(axis=(1, 2)) / np.abs(np.linalg.inv(a)).max(axis=(1, 2))
+    assert np.all(err <= 50 * cond * np.finfo(float).eps)
