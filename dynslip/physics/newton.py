@@ -714,20 +714,23 @@ class MotionNewton(eqx.Module):
             dq, dz = bordered_solve(*blocks(q, zb, mode), r_q, r_z, self.linear)
             f0 = size(r_q, r_z)
 
+            # the full step, then up to ``backtrack`` halvings while the residual rises: one
+            # loop whose first pass is the full step, so the residual is traced once here (each
+            # call site of it is compiled anew: 2 s of the world's compile per copy)
             def bt_cond(b):
                 _alpha, tq, tz, _, k = b
                 f1 = size(tq, tz)
-                return ~((f1 <= f0) | (f1 <= atol)) & (k < self.backtrack)
+                return ~((f1 <= f0) | (f1 <= atol)) & (k <= self.backtrack)
 
             def bt_body(b):
                 alpha, _, _, _, k = b
-                alpha = 0.5 * alpha
+                alpha = jnp.where(k == 0, 1.0, 0.5 * alpha)
                 tq, tz, ts = res(q - alpha * dq, zb - alpha * dz, mode)
                 return alpha, tq, tz, ts, k + 1
 
-            tq, tz, ts = res(q - dq, zb - dz, mode)
+            unset = (jnp.full_like(r_q, jnp.inf), jnp.full_like(r_z, jnp.inf), sgn)
             alpha, tq, tz, ts, _ = jax.lax.while_loop(
-                bt_cond, bt_body, (jnp.array(1.0), tq, tz, ts, jnp.array(0))
+                bt_cond, bt_body, (jnp.array(1.0), *unset, jnp.array(0))
             )
             qn, zbn = q - alpha * dq, zb - alpha * dz
             if active:
