@@ -528,19 +528,21 @@ def _blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     exact; with the ball held $V = 0$ and the matrix is exact)."""
     n = q.shape[0]
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
-    vb = ball_velocity(model, inc, q, zb, g, load)
-
-    def grads():
-        return jax.grad(
+    def value_and_grads():
+        return jax.value_and_grad(
             lambda q, zb, g, ld: ball_velocity(model, inc, q, zb, g, ld), argnums=(0, 1, 2, 3)
         )(q, zb, g, load)
 
-    # a held ball's velocity is prescribed: its derivatives are zero, and the reverse pass
-    # through the held friction is skipped (lax.cond; under vmap both branches run)
-    vq, vz, vg, vl = jax.lax.cond(
-        inc.args.ball_mode == BALL_HOLD,
-        lambda: jax.tree_util.tree_map(jnp.zeros_like, (q, zb, g, load)),
-        grads,
+    def held():
+        vzb = jnp.asarray(inc.args.vzb, dtype=jnp.result_type(float))
+        return vzb, jax.tree_util.tree_map(jnp.zeros_like, (q, zb, g, load))
+
+    # a held ball's velocity is prescribed: its derivatives are zero, and the root search and
+    # the reverse pass through the held friction are skipped (lax.cond; under vmap both
+    # branches run); the free ball's velocity and its derivatives in one pass (the root search
+    # traced once here)
+    vb, (vq, vz, vg, vl) = jax.lax.cond(
+        inc.args.ball_mode == BALL_HOLD, held, value_and_grads
     )
     idx = jnp.arange(n)
     mem = inc.delta0 is not None
