@@ -4,6 +4,7 @@ cyclic reduction against a dense solve, and its increment against the full-state
 from __future__ import annotations
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -268,3 +269,38 @@ def test_active_set_pass_ends_on_the_laws_own_root(modes):
     assert len({it for _, it in out}) > 1  # the pass changed Newton's path
     for held, _ in out[1:]:
         np.testing.assert_allclose(held, out[0][0], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("law", ["slip_weakening", "coulomb"])
+def test_node_force_jacobian_equals_jacfwd(law):
+    """The closed form of d u_i / d g_i (the normal part, and the slip law's slope on the
+    tangent) is jacfwd of the node's rate in its force: at the pole, on stuck and slipping
+    nodes, and on every branch the active-set pass can hold a node on."""
+    friction = WEAK if law == "slip_weakening" else make_friction("coulomb", mu=0.3, eps=1e-3)
+    layout = Layout(N, friction.n_internal())
+    y0 = _state(layout)
+    inc = _increment(layout, y0, _args(friction, BALL_HOLD, CLAMP_POSITION), 0.5)
+    g = 50.0 * nw.forces(MODEL, inc.q0, inc.zb0)[0]  # the forces scaled: some nodes slip
+    idx = jnp.arange(N)
+    d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(N)
+    mem = inc.delta0 is not None
+    slopes = []
+    for frozen in (None, jnp.asarray(np.arange(N) % 4, jnp.int32)):
+        inc_f = eqx.tree_at(lambda i: i.frozen, inc, frozen, is_leaf=lambda x: x is None)
+
+        def rate(i, qi, gi, di, inc_f=inc_f):
+            return nw.node_rate(MODEL, friction, inc_f, i, qi, gi, di if mem else None)[0]
+
+        ref = jax.vmap(jax.jacfwd(rate, argnums=2))(idx, inc.q0, g, d0)
+        got = jax.vmap(
+            lambda i, qi, gi, di, inc_f=inc_f: nw.node_force_jacobian(
+                MODEL, friction, inc_f, i, qi, gi, di if mem else None)
+        )(idx, inc.q0, g, d0)
+        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * float(jnp.abs(ref).max()))
+        slopes.append(np.asarray(ref))
+    # both slopes of the law occur (stuck: the tangent's part 0; slipping: 1)
+    fn, ft, n, t, normal, area = jax.vmap(lambda i, qi, gi: nw._node_contact(MODEL, i, qi, gi))(
+        idx, inc.q0, g)
+    s = jax.vmap(lambda f, nn, di, a: friction.slip_force(f, nn, di if mem else None,
+                                                          eps=inc.args.eps * a, area=a))(ft, normal, d0, area)
+    assert np.any(np.asarray(s)[1:] == 0.0) and np.any(np.asarray(s)[1:] != 0.0)

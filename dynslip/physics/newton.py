@@ -352,6 +352,34 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     return u, delta1
 
 
+def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
+    r"""$\partial u_i/\partial g_i$ of :func:`node_rate` without held friction, in closed form:
+    the rate reads the force only through $F_n = f\cdot n$ and $F_t = f\cdot t$ ($f = -g$; at
+    the pole $F_n = f_z\,{\rm sign}\,n_z$, $F_t = 0$), so
+    $\partial u/\partial g = -(n\,\partial F_n/\partial f^T + S'(F_t)\,t\,\partial F_t/
+    \partial f^T)/(\eta A)$, with $S'$ the slip law's slope (one scalar forward pass, the
+    active-set pass's branch included; $\mu$ at the increment's start, as the return map takes
+    it). Two forward directions fewer than ``jacfwd`` in $g$ (the Newton matrix's largest part
+    at large N); checked against it in tests/test_newton.py."""
+    args = inc.args
+    pole = i == 0
+    _, ft, n, t, normal, area = _node_contact(model, i, q, g)
+    eta_a = args.drag * area
+    eps = args.eps * area
+
+    def slip(ft):
+        s = friction.slip_force(ft, normal, delta0, eps=eps, area=area)
+        if inc.frozen is not None:
+            s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta0, area)
+        return s
+
+    _, ds = jax.jvp(slip, (ft,), (jnp.ones_like(ft),))
+    dfn = jnp.where(pole, jnp.stack([jnp.zeros(()), jnp.sign(n[1])]), n)
+    dft = jnp.where(pole, jnp.zeros(2), t)
+    lg = -(jnp.outer(n, dfn) + ds * jnp.outer(t, dft)) / eta_a
+    return jnp.where(pole, jnp.stack([jnp.zeros(2), lg[1]]), lg)
+
+
 def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None):
     """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
     ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory)."""
@@ -477,7 +505,11 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
     def local(i, qi, gi, di):
         return node_rate(model, friction, inc, i, qi, gi, di if mem else None)[0]
 
-    lq, lg = jax.vmap(jax.jacfwd(local, argnums=(1, 2)))(idx, q, g, d0)  # (n, 2, 2) each
+    lq = jax.vmap(jax.jacfwd(local, argnums=1))(idx, q, g, d0)  # (n, 2, 2)
+    lg = jax.vmap(
+        lambda i, qi, gi, di: node_force_jacobian(model, friction, inc, i, qi, gi,
+                                                  di if mem else None)
+    )(idx, q, g, d0)
     # the clamped edge: rate from its force and the ball height only
     eg, ez, el, er = jax.jacfwd(
         lambda ge, z, ld, r: edge_rate(model, inc, ge, z, ld, None, r), argnums=(0, 1, 2, 3)
