@@ -26,8 +26,9 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   rectangle rule at the increment's end: exactly what the implicit accumulators gave).
 - **Jacobian from element and node derivatives.** Per element, the value, gradient and
   Hessian of its energy in its four coordinates (``vmap`` of ``jacfwd`` of ``grad``); per
-  node, the penalty's, and the Jacobian of the node's rate in its own position and force
-  (``vmap`` of ``jacfwd``); the chain rule assembles the $2\times 2$ blocks
+  node, the penalty's, and the Jacobian of the node's rate in its own position (``vmap`` of
+  ``jacfwd``) and force (closed form, :func:`node_force_jacobian`; ``jacfwd`` with held
+  friction); the chain rule assembles the $2\times 2$ blocks
   $\partial u_i/\partial q_j = L^q_i\delta_{ij} + L^g_i H_{ij}$. No pass over the whole field.
 - **Backtracking** as :class:`dynslip.physics.loadstep.DampedNewton` (a correction that
   raises the residual's max norm is halved, at most ``backtrack`` times); the residual of
