@@ -301,6 +301,8 @@ def test_node_force_jacobian_equals_jacfwd(law):
     # both slopes of the law occur (stuck: the tangent's part 0; slipping: 1)
     fn, ft, n, t, normal, area = jax.vmap(lambda i, qi, gi: nw._node_contact(MODEL, i, qi, gi))(
         idx, inc.q0, g)
-    s = jax.vmap(lambda f, nn, di, a: friction.slip_force(f, nn, di if mem else None,
-                                                          eps=inc.args.eps * a, area=a))(ft, normal, d0, area)
+    def slip(f, nn, di, a):
+        return friction.slip_force(f, nn, di if mem else None, eps=inc.args.eps * a, area=a)
+
+    s = jax.vmap(slip)(ft, normal, d0, area)
     assert np.any(np.asarray(s)[1:] == 0.0) and np.any(np.asarray(s)[1:] != 0.0)
