@@ -592,3 +592,21 @@ def test_sigterm_subprocess_exit_143(tmp_path):
     (kept,) = _incomplete(tmp_path, "res")
     assert "interrupted by SIGTERM" in (kept / INCOMPLETE).read_text()
     assert (kept / "partial.txt").read_text() == "partial"
+
+
+def test_signals_deferred_during_a_netcdf_write_are_delivered_after_it():
+    """A SIGTERM (or SIGINT) that arrives inside a netCDF write is held back to the write's end
+    (an exception inside xarray's locked sections can leave the HDF5 lock held) and then raised
+    by the handler in force: the write is whole, the interruption not lost."""
+    from dynslip.data.files import signals_deferred
+    from dynslip.data.folders import Terminated, sigterm_raises
+
+    reached = []
+    with pytest.raises(Terminated), sigterm_raises(), signals_deferred():
+        os.kill(os.getpid(), signal.SIGTERM)
+        reached.append("after the signal")
+    assert reached == ["after the signal"]
+    with pytest.raises(KeyboardInterrupt), signals_deferred():
+        os.kill(os.getpid(), signal.SIGINT)
+        reached.append("after SIGINT")
+    assert reached[-1] == "after SIGINT"

@@ -12,8 +12,10 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import signal
 import subprocess
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -110,10 +112,40 @@ def write_json(path, data: dict) -> Path:
     return write_text(path, json.dumps(jsonable(data), indent=2) + "\n")
 
 
+@contextlib.contextmanager
+def signals_deferred():
+    """SIGINT and SIGTERM held back while inside (main thread only) and delivered on leaving,
+    to their previous handlers. An interruption raised inside xarray's and netCDF4's locked
+    sections (or inside a file manager's destructor there, where Python prints and swallows
+    it) can leave the HDF5 lock held, and the run's next write then waits on it forever: seen
+    once as a hung ``dynslip window`` after SIGTERM (tests/test_faults.py)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+
+    def hold(signum, frame):
+        caught.append(signum)
+
+    previous = {s: signal.signal(s, hold) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if caught:
+            handler = previous[caught[0]]
+            if callable(handler):
+                handler(caught[0], None)
+            elif handler != signal.SIG_IGN:  # the default action (or a handler set in C)
+                signal.raise_signal(caught[0])
+
+
 def write_netcdf(ds: xr.Dataset, path) -> Path:
-    """Write a dataset to netCDF4 atomically."""
+    """Write a dataset to netCDF4 atomically, interruptions deferred to the write's end
+    (:func:`signals_deferred`)."""
     path, tmp = _atomic_target(path)
-    with _writing(path, tmp):
+    with signals_deferred(), _writing(path, tmp):
         ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4")
     return path
 
