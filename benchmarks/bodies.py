@@ -45,7 +45,7 @@ def _inline_ball():
     from dynslip.physics.bodies.segments import Projection
 
     class InlineBall(AbstractBody):
-        """The unit ball by the arithmetic newton.contact_gap had before bodies."""
+        """The unit ball by the arithmetic terms.contact_gap had before bodies."""
 
         segments: tuple = eqx.field(static=True, default=())
 
@@ -71,7 +71,8 @@ def _one(nodes: int) -> dict:
     import jax.numpy as jnp
 
     from dynslip.app.forming import build_core
-    from dynslip.physics import newton as nw
+    from dynslip.physics import increment as ni
+    from dynslip.physics import newton_matrix as nm
     from dynslip.physics.bodies import Sphere, Torus
     from dynslip.physics.bodies.held import Held
     from dynslip.physics.friction import Coulomb
@@ -96,7 +97,7 @@ def _one(nodes: int) -> dict:
     layout, args = run.layout, run.args
     rho, z, zb, _ = layout.unpack(run.y)
     q = jnp.stack([rho, z - zb], 1)
-    inc = nw.Increment(
+    inc = ni.Increment(
         q0=q,
         zb0=zb,
         delta0=layout.internal(run.y),
@@ -128,8 +129,8 @@ def _one(nodes: int) -> dict:
     for name, (m, inc_m) in models.items():
 
         def iteration(inc, q, zb, m=m):
-            r = nw.residual(m, fr, inc, q, zb)
-            b = nw.newton_blocks(m, fr, inc, q, zb)
+            r = ni.residual(m, fr, inc, q, zb)
+            b = nm.newton_blocks(m, fr, inc, q, zb)
             return bordered_solve(*b, *r, "cyclic")
 
         calls[name] = (jax.jit(iteration), inc_m)

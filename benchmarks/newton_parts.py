@@ -77,7 +77,8 @@ def _one(nodes: int) -> dict:
     import jax.numpy as jnp
 
     from dynslip.app.forming import build_core
-    from dynslip.physics import newton as nw
+    from dynslip.physics import increment as ni
+    from dynslip.physics import newton_matrix as nm
     from dynslip.physics.linalg import bordered_solve
     from dynslip.physics.simulate import MemberRun, simulate
     from dynslip.schema.base import load
@@ -98,7 +99,7 @@ def _one(nodes: int) -> dict:
     layout, args = run.layout, run.args
     rho, z, zb, _ = layout.unpack(run.y)
     q = jnp.stack([rho, z - zb], 1)
-    inc = nw.Increment(
+    inc = ni.Increment(
         q0=q,
         zb0=zb,
         delta0=layout.internal(run.y),
@@ -107,8 +108,8 @@ def _one(nodes: int) -> dict:
         args=args,
     )
     fr = args.friction
-    residual = jax.jit(lambda inc, q, zb: nw.residual(model, fr, inc, q, zb))
-    blocks = jax.jit(lambda inc, q, zb: nw.newton_blocks(model, fr, inc, q, zb))
+    residual = jax.jit(lambda inc, q, zb: ni.residual(model, fr, inc, q, zb))
+    blocks = jax.jit(lambda inc, q, zb: nm.newton_blocks(model, fr, inc, q, zb))
     cyclic = jax.jit(lambda b, r1, r2: bordered_solve(*b, r1, r2, "cyclic"))
     thomas = jax.jit(lambda b, r1, r2: bordered_solve(*b, r1, r2, "thomas"))
     generic = jax.jit(lambda b, r1, r2: _generic_bordered(*b, r1, r2))

@@ -17,7 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import newton as nw
+from dynslip.physics import increment as ni
+from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.field import free_body_rates
@@ -199,9 +200,9 @@ def test_newton_matrix_with_a_free_body_equals_jacfwd(model):
     bump = 0.05 * jnp.cos(0.5 * jnp.pi * jnp.clip(mesh.rbar / 1.3, 0.0, 1.0))
     q = jnp.stack([rho, -bump - zb], axis=1)
     zk0 = jnp.array([0.17])  # the post's top at -0.03: 0.02 into the sagging sheet
-    inc = nw.Increment(q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.2), h=jnp.asarray(0.2),
+    inc = ni.Increment(q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.2), h=jnp.asarray(0.2),
                        args=args)
-    res, blocks, _ = nw.free_system(model, FRICTION, inc, zk0 - 0.01)
+    res, blocks, _ = nm.free_system(model, FRICTION, inc, zk0 - 0.01)
     w = jnp.concatenate([zb[None], zk0])
     dense = _dense(*blocks(q, w))
     n = q.shape[0]

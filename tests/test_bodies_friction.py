@@ -18,7 +18,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import newton as nw
+from dynslip.physics import increment as ni
+from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder, Torus
 from dynslip.physics.bodies.held import Held, free_ball_velocity
 from dynslip.physics.friction import Coulomb, SlipWeakening
@@ -265,18 +266,18 @@ def test_newton_blocks_with_held_friction_equal_jacfwd(ball_mode):
     args = _args(ball_mode)
     q = jnp.stack([jnp.asarray(rho), jnp.asarray(z) - 0.02], axis=1)
     zb = jnp.asarray(0.02)
-    inc = nw.Increment(
+    inc = ni.Increment(
         q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3), args=args
     )
 
     def flat(v):
-        rq, rz = nw.residual(SMALL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
+        rq, rz = ni.residual(SMALL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
         return jnp.concatenate([rq.reshape(-1), rz[None]])
 
     ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
     from test_newton import _dense
 
-    got = _dense(*nw.newton_blocks(SMALL, args.friction, inc, q, zb))
+    got = _dense(*nm.newton_blocks(SMALL, args.friction, inc, q, zb))
     mask = np.ones_like(ref, dtype=bool)
     if ball_mode == BALL_FORCE:
         node = np.arange(2 * NS) // 2
@@ -290,10 +291,10 @@ def test_newton_blocks_with_held_friction_equal_jacfwd(ball_mode):
         jax.jacfwd(
             lambda v: jnp.concatenate(
                 [
-                    nw.residual(free, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])[0].reshape(
+                    ni.residual(free, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])[0].reshape(
                         -1
                     ),
-                    nw.residual(free, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])[1][None],
+                    ni.residual(free, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])[1][None],
                 ]
             )
         )(jnp.concatenate([q.reshape(-1), zb[None]]))

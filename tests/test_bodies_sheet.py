@@ -16,7 +16,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import newton as nw
+from dynslip.physics import increment as ni
+from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder, Sphere, Torus
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
@@ -212,17 +213,17 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
         support_k=1e3,
     )
     q = jnp.stack([jnp.asarray(rho), jnp.asarray(z) - 0.02], axis=1)
-    inc = nw.Increment(
+    inc = ni.Increment(
         q0=q, zb0=jnp.asarray(0.02), delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3), args=args
     )
     zb = jnp.asarray(0.02)
 
     def flat(v):
-        rq, rz = nw.residual(SMALL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
+        rq, rz = ni.residual(SMALL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
         return jnp.concatenate([rq.reshape(-1), rz[None]])
 
     ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
-    lower, diag, upper, B, C, D = nw.newton_blocks(SMALL, args.friction, inc, q, zb)
+    lower, diag, upper, B, C, D = nm.newton_blocks(SMALL, args.friction, inc, q, zb)
     from test_newton import _dense
 
     got = _dense(lower, diag, upper, B, C, D)

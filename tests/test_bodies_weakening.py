@@ -19,7 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import newton as nw
+from dynslip.physics import increment as ni
+from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder, Torus
 from dynslip.physics.bodies.held import Held, held_frame, n_memory
 from dynslip.physics.field import N_ACC, Layout, heal
@@ -281,22 +282,22 @@ def test_newton_blocks_with_held_weakening_equal_jacfwd(ball_mode):
     q = jnp.stack([jnp.asarray(rho), jnp.asarray(z) - 0.02], axis=1)
     zb = jnp.asarray(0.02)
     hd = jnp.asarray(np.linspace(0.0, 0.02, ns))[None]
-    inc = nw.Increment(q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3),
+    inc = ni.Increment(q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3),
                        args=args, held_delta0=hd)
 
     def flat(v, inc=inc):
-        rq, rz = nw.residual(model, args.friction, inc, v[:-1].reshape(ns, 2), v[-1])
+        rq, rz = ni.residual(model, args.friction, inc, v[:-1].reshape(ns, 2), v[-1])
         return jnp.concatenate([rq.reshape(-1), rz[None]])
 
     v0 = jnp.concatenate([q.reshape(-1), zb[None]])
     ref = np.asarray(jax.jacfwd(flat)(v0))
-    got = _dense(*nw.newton_blocks(model, args.friction, inc, q, zb))
+    got = _dense(*nm.newton_blocks(model, args.friction, inc, q, zb))
     mask = np.ones_like(ref, dtype=bool)
     if ball_mode == BALL_FORCE:
         node = np.arange(2 * ns) // 2
         mask[: 2 * ns, : 2 * ns] = ~(np.abs(node[:, None] - node[None, :]) > 1)
     np.testing.assert_allclose(got[mask], ref[mask], atol=1e-9 * np.abs(ref).max())
-    fresh = nw.Increment(q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3),
+    fresh = ni.Increment(q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3),
                          args=args, held_delta0=jnp.zeros_like(hd))
     assert np.abs(np.asarray(flat(v0) - flat(v0, fresh))).max() > 1e-6
 

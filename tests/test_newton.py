@@ -10,7 +10,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dynslip.physics import increment as ni
 from dynslip.physics import newton as nw
+from dynslip.physics import newton_matrix as nm
+from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout, vector_field
 from dynslip.physics.friction import make_friction
 from dynslip.physics.linalg import bordered_solve, cyclic_reduction
@@ -75,7 +78,7 @@ def _args(friction, ball_mode, clamp_mode):
 def _increment(layout, y0, args, h):
     rho, z, zb0, _ = layout.unpack(y0)
     q0 = jnp.stack([rho, z - zb0], axis=1)
-    return nw.Increment(
+    return ni.Increment(
         q0=q0, zb0=zb0, delta0=layout.internal(y0), t1=jnp.asarray(h), h=jnp.asarray(h), args=args
     )
 
@@ -110,12 +113,12 @@ def test_blocks_from_element_derivatives_equal_jacfwd(modes):
     zb = inc.zb0 + 1e-3
 
     def flat(x):
-        rq, rz = nw.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
+        rq, rz = ni.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
         return jnp.concatenate([rq.reshape(-1), rz[None]])
 
     x = jnp.concatenate([q.reshape(-1), zb[None]])
     jac = np.asarray(jax.jacfwd(flat)(x))
-    blocks = nw.newton_blocks(MODEL, WEAK, inc, q, zb)
+    blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
     np.testing.assert_allclose(_dense(*blocks), jac, rtol=0, atol=1e-12 * np.abs(jac).max())
     # and the bordered solve of those blocks is the dense solve, by either elimination
     r = np.asarray(flat(x))
@@ -185,11 +188,11 @@ def test_slip_update_adds_the_increments_slip_and_sticks_below_the_threshold():
     fr = make_friction("slip_weakening", mu_s=1.5, mu_k=1.0, d_c=0.02, eps=0.0)
     d0, c = jnp.asarray(0.01), jnp.asarray(2.0)
     mu0 = float(fr.coefficient(d0))
-    _, d1 = nw.slip_update(fr, jnp.asarray(2.0), jnp.asarray(1.0), 0.0, d0, c)
+    _, d1 = ni.slip_update(fr, jnp.asarray(2.0), jnp.asarray(1.0), 0.0, d0, c)
     assert float(d1) == pytest.approx(0.01 + 2.0 * (2.0 - mu0))
-    _, d1 = nw.slip_update(fr, jnp.asarray(0.99 * mu0), jnp.asarray(1.0), 0.0, d0, c)
+    _, d1 = ni.slip_update(fr, jnp.asarray(0.99 * mu0), jnp.asarray(1.0), 0.0, d0, c)
     assert float(d1) == 0.01
-    _, d1 = nw.slip_update(fr, jnp.asarray(2.0), jnp.asarray(0.0), 0.0, d0, c)
+    _, d1 = ni.slip_update(fr, jnp.asarray(2.0), jnp.asarray(0.0), 0.0, d0, c)
     assert float(d1) == 0.01
 
 
@@ -233,17 +236,17 @@ def test_frozen_branches_equal_the_law_on_them():
     normal, eps, area = jnp.asarray(2.0), 1e-3, jnp.asarray(0.5)
     delta = jnp.asarray(0.01)
     thr = float(WEAK.threshold(normal, delta, area))
-    for ft, mode in [(1.5 * thr, nw.SLIP_UP), (-1.5 * thr, nw.SLIP_DOWN), (0.5 * thr, nw.STICK)]:
+    for ft, mode in [(1.5 * thr, ni.SLIP_UP), (-1.5 * thr, ni.SLIP_DOWN), (0.5 * thr, ni.STICK)]:
         ft = jnp.asarray(ft)
         law = WEAK.slip_force(ft, normal, delta, eps=eps, area=area)
-        held = nw.frozen_slip(WEAK, jnp.asarray(mode), law, ft, normal, delta, area)
+        held = ni.frozen_slip(WEAK, jnp.asarray(mode), law, ft, normal, delta, area)
         assert float(held) == pytest.approx(float(law), abs=1e-14)
-        assert float(nw.frozen_slip(WEAK, jnp.asarray(nw.FREE), law, ft, normal, delta, area)) == (
+        assert float(ni.frozen_slip(WEAK, jnp.asarray(ni.FREE), law, ft, normal, delta, area)) == (
             float(law)
         )
     # held slipping across its stick boundary, the branch stays linear in F_t
     ft = jnp.asarray(0.5 * thr)
-    held = nw.frozen_slip(WEAK, jnp.asarray(nw.SLIP_UP), 0.0, ft, normal, delta, area)
+    held = ni.frozen_slip(WEAK, jnp.asarray(ni.SLIP_UP), 0.0, ft, normal, delta, area)
     assert float(held) == pytest.approx(-0.5 * thr, rel=1e-12)
 
 
@@ -280,7 +283,7 @@ def test_node_force_jacobian_equals_jacfwd(law):
     layout = Layout(N, friction.n_internal())
     y0 = _state(layout)
     inc = _increment(layout, y0, _args(friction, BALL_HOLD, CLAMP_POSITION), 0.5)
-    g = 50.0 * nw.forces(MODEL, inc.q0, inc.zb0)[0]  # the forces scaled: some nodes slip
+    g = 50.0 * nt.forces(MODEL, inc.q0, inc.zb0)[0]  # the forces scaled: some nodes slip
     idx = jnp.arange(N)
     d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(N)
     mem = inc.delta0 is not None
@@ -289,17 +292,17 @@ def test_node_force_jacobian_equals_jacfwd(law):
         inc_f = eqx.tree_at(lambda i: i.frozen, inc, frozen, is_leaf=lambda x: x is None)
 
         def rate(i, qi, gi, di, inc_f=inc_f):
-            return nw.node_rate(MODEL, friction, inc_f, i, qi, gi, di if mem else None)[0]
+            return ni.node_rate(MODEL, friction, inc_f, i, qi, gi, di if mem else None)[0]
 
         ref = jax.vmap(jax.jacfwd(rate, argnums=2))(idx, inc.q0, g, d0)
         got = jax.vmap(
-            lambda i, qi, gi, di, inc_f=inc_f: nw.node_force_jacobian(
+            lambda i, qi, gi, di, inc_f=inc_f: ni.node_force_jacobian(
                 MODEL, friction, inc_f, i, qi, gi, di if mem else None)
         )(idx, inc.q0, g, d0)
         np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * float(jnp.abs(ref).max()))
         slopes.append(np.asarray(ref))
     # both slopes of the law occur (stuck: the tangent's part 0; slipping: 1)
-    fn, ft, n, t, normal, area = jax.vmap(lambda i, qi, gi: nw._node_contact(MODEL, i, qi, gi))(
+    fn, ft, n, t, normal, area = jax.vmap(lambda i, qi, gi: ni.node_contact(MODEL, i, qi, gi))(
         idx, inc.q0, g)
     def slip(f, nn, di, a):
         return friction.slip_force(f, nn, di if mem else None, eps=inc.args.eps * a, area=a)

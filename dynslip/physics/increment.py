@@ -1,0 +1,293 @@
+r"""The residual of one implicit Euler load increment on the motion alone
+(:mod:`dynslip.physics.newton`, whose docstring states the method): the increment's data
+(:class:`Increment`), each node's rate relative to the ball under the friction law with its
+return map for the slip distance (:func:`slip_update`, :func:`node_rate`), the node rate's
+force Jacobian in closed form (:func:`node_force_jacobian`), the ball's and the clamped edge's
+rates, and the residual $q - q_0 - \Delta t\,u(q)$, $z_b - z_{b,0} - \Delta t\,v_b$.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from dynslip.physics.bodies.held import free_ball_velocity, frictional, held_frame
+from dynslip.physics.field import StageArgs
+from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
+from dynslip.physics.sheet import SheetModel, penalty_pressure
+from dynslip.physics.terms import contact_gap, forces
+
+__all__ = [
+    "Increment",
+    "ball_rate",
+    "ball_velocity",
+    "edge_rate",
+    "increment_rates",
+    "node_force_jacobian",
+    "node_rate",
+    "residual",
+    "residual_and_signs",
+    "sheet_held_frame",
+    "slip_update",
+]
+
+
+# --------------------------------------------------------------------------- friction return map
+
+
+def _slip(friction: AbstractFriction, ft, normal, delta, eps, area):
+    """$|S|$ of one node with slip distance ``delta`` (None for a memoryless law)."""
+    return jnp.abs(friction.slip_force(ft, normal, delta, eps=eps, area=area))
+
+
+def slip_update(friction, ft, normal, eps, delta0, c, area=None):
+    r"""The node's return map: the slip force with the coefficient of the increment's start,
+    $S(F_t, \mu(\delta_0) N)$ (exactly zero on the trial's stick side), and the slip distance
+    it adds, $\delta_1 = \delta_0 + c\,|S|$, $c = \Delta t/(\eta A)$; $\delta_1 = \delta_0$ out of
+    contact. Continuous in the motion, so its autodiff derivative is the map's consistent
+    tangent. Returns ``(delta_mu, delta1)``: the slip distance at which $\mu$ is evaluated,
+    and the new one.
+
+    Why $\mu$ at $\delta_0$ (first order in time, as implicit Euler itself): the fully implicit
+    root of $\delta = \delta_0 + c|S(F_t, \mu(\delta) N)|$ at fixed forces is unique, but where
+    the weakening outruns the drag ($c\,(\mu_s - \mu_k) N/d_c > 1$, the case at increments of
+    20 drag times) it lies on the kinetic branch past $d_c$ as soon as the node slips: the
+    node's slip force jumps from 0 to $|F_t| - \mu_k N$ across the trial's stick boundary, and
+    Newton on the motion chatters across it (33323 increments against 431 on the frozen
+    let-go path at N = 50, docs/speed.md). A corrector ($\mu$ at the predicted $\delta_1$) is
+    continuous too but needed 1185."""
+    live = normal > 0
+    d1 = delta0 + c * _slip(friction, ft, normal, delta0, eps, area)
+    return delta0, jnp.where(live, d1, delta0)
+
+
+# --------------------------------------------------------------------------- the increment's
+# residual
+
+
+class Increment(eqx.Module):
+    """The data of one increment: start state (relative positions, ball height, slip
+    distance), its end time and length, the loads."""
+
+    q0: jax.Array  # (n, 2)
+    zb0: jax.Array
+    delta0: jax.Array | None
+    t1: jax.Array
+    h: jax.Array
+    args: StageArgs
+    # per node, the friction branch held by the active-set pass (FREE: the law itself)
+    frozen: jax.Array | None = None
+    # the held bodies' slip distances at the start (K_mem, n): mu of a held law with memory is
+    # taken at them (the return map's delta0); None without such a body
+    held_delta0: jax.Array | None = None
+
+
+FREE, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # the active-set pass's branches per node
+
+
+def node_contact(model: SheetModel, i, q, g):
+    """Node ``i``'s normal and tangential driving forces against the ball, its normal and
+    tangent, the penalty's normal force and the node's area."""
+    f = -g
+    d, n, t = contact_gap(model.ball, q)
+    pole = i == 0
+    fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
+    ft = jnp.where(pole, 0.0, f @ t)
+    area = model.mesh.area[i]
+    return fn, ft, n, t, area * penalty_pressure(model.penalty, d), area
+
+
+def frozen_slip(friction, mode, s, ft, normal, delta_mu, area):
+    r"""The slip force on the branch ``mode`` holds: the law's own ``s`` (FREE), stuck (0), or
+    slipping either way along the tangent at the threshold, $F_t \mp T$ (smooth in $F_t$, so
+    Newton does not flip the node across its stick boundary)."""
+    thr = friction.threshold(normal, delta_mu, area)
+    return jnp.where(
+        mode == STICK,
+        0.0,
+        jnp.where(mode == SLIP_UP, ft - thr, jnp.where(mode == SLIP_DOWN, ft + thr, s)),
+    )
+
+
+def slip_signs(model: SheetModel, friction, inc: Increment, q, g):
+    """Per node, the sign of the law's own slip force against the ball (0: stuck) at relative
+    positions ``q`` under the energy gradient ``g``: the state the active-set pass counts
+    flips of."""
+
+    def one(i, qi, gi, di):
+        _, ft, _, _, normal, area = node_contact(model, i, qi, gi)
+        eps = inc.args.eps * area
+        return jnp.sign(friction.slip_force(ft, normal, di, eps=eps, area=area))
+
+    idx = jnp.arange(q.shape[0])
+    if inc.delta0 is None:
+        return jax.vmap(lambda i, qi, gi: one(i, qi, gi, None))(idx, q, g).astype(jnp.int32)
+    return jax.vmap(one)(idx, q, g, inc.delta0).astype(jnp.int32)
+
+
+def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None):
+    """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
+    gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
+    ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
+    (:mod:`dynslip.physics.bodies.held`), needed only when one has friction."""
+    args = inc.args
+    f = -g
+    pole = i == 0
+    fn, ft, n, t, normal, area = node_contact(model, i, q, g)
+    eta_a = args.drag * area
+    eps = args.eps * area
+    delta1, delta_mu = None, None
+    if delta0 is not None:
+        delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
+    s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
+    if inc.frozen is not None:
+        s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
+    u = (fn * n + s * t) / eta_a
+    if frictional(model.bodies):
+        live = (i > 0) & (i < model.mesh.n - 1)
+        hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
+        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live, zb, hd)
+        u = u + hf.force(vb) / eta_a
+    u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
+    return u, delta1
+
+
+def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
+    r"""$\partial u_i/\partial g_i$ of :func:`node_rate` without held friction, in closed form:
+    the rate reads the force only through $F_n = f\cdot n$ and $F_t = f\cdot t$ ($f = -g$; at
+    the pole $F_n = f_z\,{\rm sign}\,n_z$, $F_t = 0$), so
+    $\partial u/\partial g = -(n\,\partial F_n/\partial f^T + S'(F_t)\,t\,\partial F_t/
+    \partial f^T)/(\eta A)$, with $S'$ the slip law's slope (one scalar forward pass, the
+    active-set pass's branch included; $\mu$ at the increment's start, as the return map takes
+    it). Two forward directions fewer than ``jacfwd`` in $g$ (the Newton matrix's largest part
+    at large N); checked against it in tests/test_newton.py."""
+    args = inc.args
+    pole = i == 0
+    _, ft, n, t, normal, area = node_contact(model, i, q, g)
+    eta_a = args.drag * area
+    eps = args.eps * area
+
+    def slip(ft):
+        s = friction.slip_force(ft, normal, delta0, eps=eps, area=area)
+        if inc.frozen is not None:
+            s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta0, area)
+        return s
+
+    _, ds = jax.jvp(slip, (ft,), (jnp.ones_like(ft),))
+    dfn = jnp.where(pole, jnp.stack([jnp.zeros(()), jnp.sign(n[1])]), n)
+    dft = jnp.where(pole, jnp.zeros(2), t)
+    lg = -(jnp.outer(n, dfn) + ds * jnp.outer(t, dft)) / eta_a
+    return jnp.where(pole, jnp.stack([jnp.zeros(2), lg[1]]), lg)
+
+
+def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None):
+    """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
+    ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory)."""
+    return held_frame(
+        model.bodies,
+        x,
+        f,
+        lambda d: penalty_pressure(model.penalty, -d),
+        area,
+        args.drag,
+        args.eps,
+        live,
+        zb,
+        delta,
+    )
+
+
+def sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None):
+    """The held bodies' friction frame of the whole sheet at relative positions ``q`` under the
+    energy gradient ``g`` (not the pole nor the clamped edge), the ball at ``zb``, the held slip
+    distances ``delta`` (K_mem, n)."""
+    n = q.shape[0]
+    idx = jnp.arange(n)
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb,
+                       delta)
+
+
+def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
+    """The ball's velocity: :func:`ball_rate`, with the held bodies' friction (its axial part
+    depends on the velocity itself: :func:`dynslip.physics.bodies.held.free_ball_velocity`)."""
+    if not frictional(model.bodies):
+        return ball_rate(inc, g[-1], zb, load)
+    args = inc.args
+
+    def free():
+        hf = sheet_held_frame(model, args, q, zb, g, inc.held_delta0)
+        pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
+        cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
+        fb = args.ball_force(inc.t1) + args.support_force(zb)
+        return free_ball_velocity(hf, fb + (cz - load) + args.weight, args.ball_drag)
+
+    # a held ball's velocity is prescribed: the sheet's held friction frame and the root search
+    # are skipped (lax.cond; under vmap both branches run)
+    vzb = jnp.asarray(args.vzb, dtype=jnp.result_type(float))
+    return jax.lax.cond(args.ball_mode == BALL_HOLD, lambda: vzb, free)
+
+
+def ball_rate(inc: Increment, g_edge, zb, load):
+    """The ball's velocity from the clamp's force on the sheet $C_z$ less the held bodies'
+    ``load`` (held: prescribed; force-controlled: $(F_h + F_s(z_b) + C_z - L + F_g)/\\eta_b$)."""
+    args = inc.args
+    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
+    cz = jnp.where(pinned, g_edge[1], args.clamp_force(inc.t1)[1])
+    fb = args.ball_force(inc.t1) + args.support_force(zb)
+    return jnp.where(
+        args.ball_mode == BALL_HOLD, args.vzb, (fb + (cz - load) + args.weight) / args.ball_drag
+    )
+
+
+def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load, vb=None, rho_edge=0.0):
+    """Rate relative to the ball of the clamped edge: prescribed (pinned clamp), drag under
+    the ramped clamp force, or the band's (prescribed radially, sliding along the wall past
+    the grip, :meth:`SheetModel.band_slip`, at the edge's radius ``rho_edge``); ``vb`` the
+    ball's velocity (None: :func:`ball_rate`'s)."""
+    args = inc.args
+    pinned = args.clamp_mode == CLAMP_POSITION
+    band = args.clamp_mode == CLAMP_BAND
+    if vb is None:
+        vb = ball_rate(inc, g_edge, zb, load)
+    eta_a = args.drag * model.mesh.area[-1]
+    free = (args.clamp_force(inc.t1) - g_edge) / eta_a
+    w = jnp.where(band, model.band_slip(-g_edge[1], rho_edge, args.eps) / eta_a, 0.0)
+    return jnp.where(pinned | band, jnp.stack([args.vrhoc, args.vzc - vb + w]), free)
+
+
+def increment_rates(model, friction, inc: Increment, q, zb, g, load):
+    """Every node's rate relative to the ball (n, 2), the ball's velocity and the slip
+    distances at the increment's end, from the relative positions and energy gradient."""
+    idx = jnp.arange(q.shape[0])
+    d0 = inc.delta0
+    vb = ball_velocity(model, inc, q, zb, g, load)
+    if d0 is None:
+        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None, zb, vb))(
+            idx, q, g
+        )
+        delta1 = None
+    else:
+        u, delta1 = jax.vmap(
+            lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di, zb, vb)
+        )(idx, q, g, d0)
+        delta1 = delta1.at[-1].set(d0[-1])
+    u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load, vb, q[-1, 0]))
+    return u, vb, delta1
+
+
+def residual(model, friction, inc: Increment, q, zb):
+    """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} -
+    \\Delta t\\,v_b$."""
+    g, load = forces(model, q, zb)
+    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb
+
+
+def residual_and_signs(model, friction, inc: Increment, q, zb):
+    """:func:`residual` and :func:`slip_signs` from one evaluation of the forces."""
+    g, load = forces(model, q, zb)
+    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, slip_signs(model, friction, inc, q, g)

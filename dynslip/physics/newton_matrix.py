@@ -1,0 +1,197 @@
+r"""The Newton matrix of the increment's residual (:mod:`dynslip.physics.increment`) as the
+blocks of a bordered block-tridiagonal system (:func:`dynslip.physics.linalg.bordered_solve`):
+the chain rule $\partial u_i/\partial q_j = L^q_i\delta_{ij} + L^g_i H_{ij}$ from the node
+rates' derivatives and the energy's Hessian blocks (:func:`newton_blocks`); with friction on the
+held bodies, the ball's velocity couples every node (:func:`blocks_with_held_friction`); with
+free held bodies, their heights join the border (:func:`free_system`). Checked block by block
+against ``jacfwd`` of the residual (tests/test_newton.py, tests/test_bodies_sheet.py).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from dynslip.physics.bodies.held import frictional, place_free
+from dynslip.physics.field import free_body_rates
+from dynslip.physics.increment import (
+    Increment,
+    ball_rate,
+    ball_velocity,
+    edge_rate,
+    node_force_jacobian,
+    node_rate,
+    residual,
+    sheet_held_frame,
+)
+from dynslip.physics.linalg import small_matmul
+from dynslip.physics.protocols import BALL_HOLD
+from dynslip.physics.terms import forces, forces_and_hessians
+
+__all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
+
+
+def newton_blocks(model, friction, inc: Increment, q, zb):
+    """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
+    (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives."""
+    if frictional(model.bodies):
+        return blocks_with_held_friction(model, friction, inc, q, zb)
+    n = q.shape[0]
+    g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
+    idx = jnp.arange(n)
+    d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(n)
+    mem = inc.delta0 is not None
+
+    def local(i, qi, gi, di):
+        return node_rate(model, friction, inc, i, qi, gi, di if mem else None)[0]
+
+    lq = jax.vmap(jax.jacfwd(local, argnums=1))(idx, q, g, d0)  # (n, 2, 2)
+    lg = jax.vmap(
+        lambda i, qi, gi, di: node_force_jacobian(model, friction, inc, i, qi, gi,
+                                                  di if mem else None)
+    )(idx, q, g, d0)
+    # the clamped edge: rate from its force and the ball height only
+    eg, ez, el, er = jax.jacfwd(
+        lambda ge, z, ld, r: edge_rate(model, inc, ge, z, ld, None, r), argnums=(0, 1, 2, 3)
+    )(g[-1], zb, load, q[-1, 0])
+    bg, bz, bl = jax.jacfwd(lambda ge, z, ld: ball_rate(inc, ge, z, ld), argnums=(0, 1, 2))(
+        g[-1], zb, load
+    )
+    lq = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er))  # the band's grip reads rho_edge
+    lg = lg.at[-1].set(eg)
+    h_low = jnp.swapaxes(h_up, 1, 2)  # d2E/dx_{i+1} dx_i
+    h = inc.h
+    eye = jnp.eye(2)
+    diag = eye - h * (lq + small_matmul(lg, h_diag))
+    upper = jnp.concatenate([-h * small_matmul(lg[:-1], h_up), jnp.zeros((1, 2, 2))])
+    lower = jnp.concatenate([jnp.zeros((1, 2, 2)), -h * small_matmul(lg[1:], h_low)])
+    B = jnp.zeros((n, 2, 1)).at[-1, :, 0].set(-h * ez)
+    C = jnp.zeros((1, n, 2))
+    C = C.at[0, -1].set(-h * bg @ h_diag[-1]).at[0, -2].set(-h * bg @ h_low[-1])
+    D = jnp.reshape(1.0 - h * bz, (1, 1))
+    if hh is not None:
+        # the held bodies see q + zb: every node's force moves with zb (d g_i/d zb = hh_i e_z;
+        # not a body that moves with the ball), and the load L = sum_i dE_h/dz_i enters the
+        # ball's and the edge's rates
+        hh, hz = hh
+        dg_dz = hz[:, :, 1]  # (n, 2)
+        dl_dq = hh[:, 1, :]  # (n, 2)
+        dl_dz = jnp.sum(hz[:, 1, 1])
+        col = jnp.einsum("nij,nj->ni", lg, dg_dz).at[-1].set(eg @ dg_dz[-1] + el * dl_dz)
+        B = B - h * col[:, :, None]
+        C = C - h * bl * dl_dq[None]
+        D = D - h * (bg @ dg_dz[-1] + bl * dl_dz)
+        # a pinned edge on a free ball moves with the ball, whose rate reads every node's load:
+        # the edge's and its neighbour's part is kept (the rest is not block tridiagonal and
+        # is left out: an inexact Newton matrix, the residual exact; exact for a held ball)
+        diag = diag.at[-1].add(-h * jnp.outer(el, dl_dq[-1]))
+        lower = lower.at[-1].add(-h * jnp.outer(el, dl_dq[-2]))
+    return lower, diag, upper, B, C, D
+
+
+def blocks_with_held_friction(model, friction, inc: Increment, q, zb):
+    r""":func:`newton_blocks` with friction on the held bodies. The node rates depend on the
+    ball's velocity $v_b$ (:func:`ball_velocity`), which reads every node in contact with a
+    frictional body: with $V_j = dv_b/dq_j$ and $V_z = dv_b/dz_b$ (by reverse-mode autodiff
+    of :func:`ball_velocity` and the chain rule through the energy's Hessian), the border row
+    is $-h V$, the column $-h(\ell^g_i\,\partial g_i/\partial z_b + \ell^z_i + \ell^v_i V_z)$,
+    and the rank-one coupling $\ell^v_i V_j$ of the node rates is kept where $|i - j| \le 1$
+    (the rest is not block tridiagonal and is left out: an inexact Newton matrix, the residual
+    exact; with the ball held $V = 0$ and the matrix is exact)."""
+    n = q.shape[0]
+    g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
+    def value_and_grads():
+        return jax.value_and_grad(
+            lambda q, zb, g, ld: ball_velocity(model, inc, q, zb, g, ld), argnums=(0, 1, 2, 3)
+        )(q, zb, g, load)
+
+    def held():
+        vzb = jnp.asarray(inc.args.vzb, dtype=jnp.result_type(float))
+        return vzb, jax.tree_util.tree_map(jnp.zeros_like, (q, zb, g, load))
+
+    # a held ball's velocity is prescribed: its derivatives are zero, and the root search and
+    # the reverse pass through the held friction are skipped (lax.cond; under vmap both
+    # branches run); the free ball's velocity and its derivatives in one pass (the root search
+    # traced once here)
+    vb, (vq, vz, vg, vl) = jax.lax.cond(
+        inc.args.ball_mode == BALL_HOLD, held, value_and_grads
+    )
+    idx = jnp.arange(n)
+    mem = inc.delta0 is not None
+    d0 = inc.delta0 if mem else jnp.zeros(n)
+
+    def local(i, qi, gi, di, z, v):
+        return node_rate(model, friction, inc, i, qi, gi, di if mem else None, z, v)[0]
+
+    lq, lg, lz, lv = jax.vmap(
+        jax.jacfwd(local, argnums=(1, 2, 4, 5)), in_axes=(0, 0, 0, 0, None, None)
+    )(idx, q, g, d0, zb, vb)
+    eg, ev, er = jax.jacfwd(
+        lambda ge, v, r: edge_rate(model, inc, ge, zb, load, v, r), argnums=(0, 1, 2)
+    )(g[-1], vb, q[-1, 0])
+    lq, lz = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er)), lz.at[-1].set(0.0)
+    lg, lv = lg.at[-1].set(eg), lv.at[-1].set(ev)
+    h_low = jnp.swapaxes(h_up, 1, 2)  # h_low[j] = d2E/dx_{j+1} dx_j
+    hh, hz = hh
+    dg_dz = hz[:, :, 1]  # (n, 2): the held bodies at rest see q + zb
+    dl_dq = hh[:, 1, :]
+    dl_dz = jnp.sum(hz[:, 1, 1])
+    # dv_b/dq_j through the forces: sum_i (dv_b/dg_i) H_ij, H tridiagonal
+    big_v = vq + jnp.einsum("ni,nij->nj", vg, h_diag) + vl * dl_dq
+    big_v = big_v.at[1:].add(jnp.einsum("ni,nij->nj", vg[:-1], h_up))
+    big_v = big_v.at[:-1].add(jnp.einsum("ni,nij->nj", vg[1:], h_low))
+    v_z = vz + jnp.sum(vg * dg_dz) + vl * dl_dz
+    h = inc.h
+    eye = jnp.eye(2)
+    rank1 = jnp.einsum("ni,nj->nij", lv, big_v)
+    diag = eye - h * (lq + small_matmul(lg, h_diag) + rank1)
+    upper = -h * (small_matmul(lg[:-1], h_up) + jnp.einsum("ni,nj->nij", lv[:-1], big_v[1:]))
+    lower = -h * (small_matmul(lg[1:], h_low) + jnp.einsum("ni,nj->nij", lv[1:], big_v[:-1]))
+    upper = jnp.concatenate([upper, jnp.zeros((1, 2, 2))])
+    lower = jnp.concatenate([jnp.zeros((1, 2, 2)), lower])
+    col = jnp.einsum("nij,nj->ni", lg, dg_dz) + lz + lv * v_z
+    B = -h * col[:, :, None]
+    C = -h * big_v[None]
+    D = jnp.reshape(1.0 - h * v_z, (1, 1))
+    return lower, diag, upper, B, C, D
+
+
+def free_system(model, friction, inc: Increment, zk0):
+    r"""The increment's residual and Newton matrix with free held bodies
+    (:attr:`dynslip.physics.bodies.held.Held.free`): the border unknowns are $(z_b, z_1 ..
+    z_K)$, the bodies' residuals $z_k - z_{k,0} - \Delta t\,v_k$ with $v_k = (L_k + F_k)/\eta_k$
+    (:func:`dynslip.physics.field.free_body_rates`). The block-tridiagonal part and the ball's
+    border are :func:`newton_blocks`' at the bodies' heights; the bodies' columns (K forward
+    passes of the residual) and rows (K reverse passes) are exact. Returns ``(res, blocks,
+    placed)``, ``placed(zk)`` the model with the bodies at ``zk``."""
+    def placed(zk):
+        # at the increment's end, moving at the increment's velocity (the slip relative to a
+        # frictional free body)
+        return place_free(model, zk, (zk - zk0) / inc.h)
+
+    def body_res(q, zb, zk):
+        m = placed(zk)
+        hf = vb = None
+        if frictional(m.bodies):
+            g, load = forces(m, q, zb)
+            hf = sheet_held_frame(m, inc.args, q, zb, g, inc.held_delta0)
+            vb = ball_velocity(m, inc, q, zb, g, load)
+        v, _, _ = free_body_rates(m, q[:, 0], q[:, 1] + zb, zb, hf, vb)
+        return zk - zk0 - inc.h * v
+
+    def res(q, w):
+        zb, zk = w[0], w[1:]
+        r_q, r_z = residual(placed(zk), friction, inc, q, zb)
+        return r_q, jnp.concatenate([jnp.reshape(r_z, (1,)), body_res(q, zb, zk)])
+
+    def blocks(q, w):
+        zb, zk = w[0], w[1:]
+        lower, diag, upper, b, c, d = newton_blocks(placed(zk), friction, inc, q, zb)
+        cq, cz = jax.jacfwd(lambda zk: residual(placed(zk), friction, inc, q, zb))(zk)
+        rq, rzb, rzk = jax.jacrev(body_res, argnums=(0, 1, 2))(q, zb, zk)
+        b = jnp.concatenate([b, cq], axis=-1)  # (n, 2, 1 + K)
+        c = jnp.concatenate([c, rq], axis=0)  # (1 + K, n, 2)
+        d = jnp.block([[d, cz[None, :]], [rzb[:, None], rzk]])
+        return lower, diag, upper, b, c, d
+
+    return res, blocks, placed

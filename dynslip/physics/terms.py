@@ -1,0 +1,135 @@
+r"""The increment's element and node terms (:mod:`dynslip.physics.newton`): the elastic
+energy of one element, the contact gap against a body, the penalties, and the energy's
+gradient and Hessian blocks from them (``vmap`` of ``jacfwd`` of ``grad`` per element and per
+node; no pass over the whole field).
+
+The held bodies (:attr:`SheetModel.bodies`) see a node at its absolute position
+$q + z_b e_z$; the ball sees the relative position $q$.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from dynslip.physics.bodies.held import held_entries
+from dynslip.physics.materials import relaxed_energy
+from dynslip.physics.sheet import SheetModel, penalty_energy
+
+__all__ = ["contact_gap", "element_energy", "forces", "forces_and_hessians"]
+
+
+def element_energy(material, dr, rsum, area_el, xa, xb):
+    """Elastic energy of one element from its two nodes (rho, z) (G h0 R^2), as
+    :meth:`dynslip.physics.sheet.SheetModel.elastic_energy` sums it."""
+    d = xb - xa
+    lt = jnp.sqrt(d[0] ** 2 + d[1] ** 2) / dr
+    lp = (xa[0] + xb[0]) / rsum
+    return area_el * relaxed_energy(material, lt, lp)
+
+
+def contact_gap(body, q, z=0.0):
+    """Penetration $-d$ of a node at ``q`` = (rho, z) into ``body`` (an
+    :class:`~dynslip.physics.bodies.base.AbstractBody` displaced by ``z``), and the body's
+    outward normal and tangent (toward increasing arc length: for the unit sphere,
+    ``1 - |q|`` about its centre and the tangent toward the equator). The one place the
+    contact geometry is asked for: the ball at ``q`` relative to its reference placement,
+    the held bodies at the node's absolute position."""
+    p = body.project(q, z)
+    return -p.distance, p.normal, p.tangent
+
+
+def _node_penalty(pen, ball, area, q):
+    return area * penalty_energy(pen, contact_gap(ball, q)[0])
+
+
+def _held_penalty(model: SheetModel, area, x, zb=0.0, moving=None):
+    """Penalty energy of one node at absolute position ``x`` against every held body (a body
+    that moves with the ball displaced by ``zb``); ``moving`` True/False: only those that do /
+    do not (None: all)."""
+    return sum(
+        (
+            area * penalty_energy(model.penalty, contact_gap(e.body, x, e.shift(zb))[0])
+            for e in held_entries(model.bodies)
+            if moving is None or e.moves_with_ball == moving
+        ),
+        jnp.zeros(()),
+    )
+
+
+def _moves_with_ball(model: SheetModel) -> bool:
+    return any(e.moves_with_ball for e in held_entries(model.bodies))
+
+
+def forces(model: SheetModel, q, zb):
+    """$\\partial E/\\partial x$ per node, (n, 2), NaN everywhere where the energy is not finite
+    (as :meth:`SheetModel.gradients`), and the held bodies' load
+    (:meth:`SheetModel.held_load`; 0 without any). The held bodies see the node at
+    $q + z_b e_z$."""
+    m = model.mesh
+    rsum = m.rbar[1:] + m.rbar[:-1]
+
+    def el(dr, rs, a, xa, xb):
+        return jax.value_and_grad(element_energy, argnums=(4, 5))(model.material, dr, rs, a, xa, xb)
+
+    e, (ga, gb) = jax.vmap(el)(m.dr, rsum, m.area_el, q[:-1], q[1:])
+    ep, gp = jax.vmap(jax.value_and_grad(_node_penalty, argnums=3), in_axes=(None, None, 0, 0))(
+        model.penalty, model.ball, m.area, q
+    )
+    load = jnp.zeros(())
+    if model.bodies:
+        x = q + jnp.stack([jnp.zeros(()), zb])
+        eh, gh = jax.vmap(
+            jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi, zb), argnums=1)
+        )(m.area, x)
+        ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
+    g = gp.at[:-1].add(ga).at[1:].add(gb)
+    bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
+    return jnp.where(bad, jnp.nan, g), load
+
+
+def forces_and_hessians(model: SheetModel, q, zb):
+    """:func:`forces` and the blocks of the energy's Hessian: ``(g, h_diag, h_up, load, h_held)``,
+    ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them), ``h_held`` the
+    pair ``(hh, hz)``: ``hh[i]`` the held bodies' part of ``h_diag[i]``, ``hz[i]`` its part that
+    moves with ``zb`` at fixed ``q`` (the bodies at rest: a body that moves with the ball sees
+    ``q`` alone) (None without held bodies)."""
+    m = model.mesh
+    rsum = m.rbar[1:] + m.rbar[:-1]
+
+    def el(dr, rs, a, x):
+        def f(x):
+            return element_energy(model.material, dr, rs, a, x[:2], x[2:])
+
+        gfun = jax.grad(f)
+        h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
+        return f(x), g, h
+
+    e, ge, he = jax.vmap(el)(m.dr, rsum, m.area_el, jnp.concatenate([q[:-1], q[1:]], axis=1))
+
+    def second(f, x):
+        gfun = jax.grad(f)
+        h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
+        return f(x), g, h
+
+    ep, gp, hp = jax.vmap(
+        lambda a, x: second(lambda x: _node_penalty(model.penalty, model.ball, a, x), x)
+    )(m.area, q)
+    load, hh = jnp.zeros(()), None
+    if model.bodies:
+        x = q + jnp.stack([jnp.zeros(()), zb])
+        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x, zb), x))(
+            m.area, x
+        )
+        ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
+        hz = hh
+        if _moves_with_ball(model):
+            hz = jax.vmap(
+                lambda a, x: second(lambda x: _held_penalty(model, a, x, moving=False), x)[2]
+            )(m.area, x)
+        hh = (hh, hz)
+    g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
+    h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
+    h_up = he[:, :2, 2:]
+    bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
+    return jnp.where(bad, jnp.nan, g), h_diag, h_up, load, hh
