@@ -143,7 +143,8 @@ def _scipy(ref, core) -> tuple[dict, object]:
     from dynslip.physics.field import Layout, _f, sheet_structure, vector_field
     from dynslip.physics.frames import frame_record, initial_state, reset_internal
     from dynslip.physics.linalg import to_dense
-    from dynslip.physics.simulate import Result, _stage_args
+    from dynslip.physics.member import stage_args
+    from dynslip.physics.simulate import Result
 
     sc, model, protocol, kw = core
     settings = kw["settings"]
@@ -158,7 +159,7 @@ def _scipy(ref, core) -> tuple[dict, object]:
     sparsity = sp.csr_matrix(pattern != 0)
 
     def args_of(stage, t0, y, reaction, clamp_reaction):
-        return _stage_args(
+        return stage_args(
             stage,
             t0,
             float(y[2 * layout.n - 1]),

@@ -24,9 +24,10 @@ from dynslip.physics.bodies.held import Held
 from dynslip.physics.field import free_body_rates
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
+from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, _stage_args, simulate
+from dynslip.physics.simulate import Settings, simulate
 from test_newton import _dense
 
 N = 24
@@ -117,7 +118,7 @@ def test_power_balance_with_a_frictional_free_body_is_exact(run_friction):
     from dynslip.physics.field import N_ACC_MOVED, Layout, evaluate, place_free_moving
 
     stage = Stage("rise", StopRule("duration", duration=24.0))
-    args = _stage_args(stage, 0.0, 6.0, 0.0, (0.0, 0.0), FRICTION, EPS, TAU, ETA, 0.0)
+    args = stage_args(stage, 0.0, 6.0, 0.0, (0.0, 0.0), FRICTION, EPS, TAU, ETA, 0.0)
     lay = Layout(N, 0, N_ACC_MOVED, 1)
 
     @jax.jit
@@ -193,7 +194,7 @@ def test_newton_matrix_with_a_free_body_equals_jacfwd(model):
     the post's friction too (its velocity, the increment's, enters the nodes' slip relative to
     it and its own row)."""
     stage = Stage("rise", StopRule("duration", duration=1.0))
-    args = _stage_args(stage, 0.0, 6.0, 0.0, (0.0, 0.0), FRICTION, EPS, TAU, ETA, 0.0)
+    args = stage_args(stage, 0.0, 6.0, 0.0, (0.0, 0.0), FRICTION, EPS, TAU, ETA, 0.0)
     mesh = model.mesh
     rho = PRE * mesh.rbar
     zb = jnp.asarray(6.0)

@@ -24,6 +24,7 @@ from dynslip.physics.bodies import Cylinder, Torus
 from dynslip.physics.bodies.held import Held, free_ball_velocity
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
+from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
@@ -33,7 +34,7 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, _stage_args, simulate
+from dynslip.physics.simulate import Settings, simulate
 from test_forming import residual
 
 N = 32
@@ -215,7 +216,7 @@ def _args(ball_mode):
         ball_force_end=0.0,
         ball_vz=0.05,
     )
-    return _stage_args(
+    return stage_args(
         stage,
         0.0,
         0.0,

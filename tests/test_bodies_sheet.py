@@ -21,6 +21,7 @@ from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder, Sphere, Torus
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
+from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
@@ -30,7 +31,7 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import Settings, _stage_args, simulate
+from dynslip.physics.simulate import Settings, simulate
 from test_forming import residual
 
 N = 24
@@ -198,7 +199,7 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
         clamp_mode=CLAMP_POSITION,
         ball_force_end=0.0,
     )
-    args = _stage_args(
+    args = stage_args(
         stage,
         0.0,
         0.0,

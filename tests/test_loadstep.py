@@ -19,8 +19,9 @@ import pytest
 
 from dynslip.physics.friction import Coulomb, make_friction
 from dynslip.physics.loadstep import DampedNewton, FullStateLoadStep, LoadStepEuler, increments
+from dynslip.physics.member import stage_args
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Layout, Settings, _stage_args, initial_state, simulate
+from dynslip.physics.simulate import Layout, Settings, initial_state, simulate
 from dynslip.physics.upstream import ImplicitEuler
 from test_forming import MAT, PRE, RIM, Z0, push_protocol
 
@@ -161,7 +162,7 @@ def test_energy_residual_and_end_state_are_first_order_in_the_increment(referenc
     protocol = push_protocol()
     stage = protocol.stages[0]
     layout = Layout(N, 0)
-    args = _stage_args(
+    args = stage_args(
         stage,
         0.0,
         protocol.ball_z0,

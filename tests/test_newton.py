@@ -19,6 +19,7 @@ from dynslip.physics.friction import make_friction
 from dynslip.physics.linalg import bordered_solve, cyclic_reduction
 from dynslip.physics.loadstep import load_step_solver
 from dynslip.physics.materials import make_material
+from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
@@ -28,7 +29,6 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import _stage_args
 
 N = 9
 MODEL = SheetModel(
@@ -59,7 +59,7 @@ def _args(friction, ball_mode, clamp_mode):
         clamp_mode=clamp_mode,
         ball_force_end=0.0,
     )
-    return _stage_args(
+    return stage_args(
         stage,
         0.0,
         0.0,

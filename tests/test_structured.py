@@ -10,7 +10,8 @@ from dynslip.app.forming import build_core
 from dynslip.physics.field import Layout, sheet_structure, vector_field
 from dynslip.physics.frames import initial_state
 from dynslip.physics.linalg import extract_blocks, to_dense
-from dynslip.physics.simulate import _stage_args, segment_solver
+from dynslip.physics.member import stage_args
+from dynslip.physics.simulate import segment_solver
 from dynslip.schema.base import load
 
 N = 12
@@ -20,8 +21,8 @@ def _setup(name="method2_let_go"):
     sc = load(SCENARIOS / f"{name}.yaml", [f"numerics.nodes={N}"])
     model, protocol, kw = build_core(sc)
     layout = Layout(N, kw["friction"].n_internal())  # slip weakening, one state per node
-    stage_args = [
-        _stage_args(
+    per_stage = [
+        stage_args(
             st,
             0.0,
             float(protocol.ball_z0),
@@ -36,7 +37,7 @@ def _setup(name="method2_let_go"):
         for st in protocol.stages
     ]
     y0 = initial_state(model, layout, kw["pre_stretch"], kw["z_sheet"], protocol.ball_z0)
-    return model, layout, stage_args, y0, kw["settings"]
+    return model, layout, per_stage, y0, kw["settings"]
 
 
 MODEL, LAYOUT, STAGE_ARGS, Y0, SETTINGS = _setup()

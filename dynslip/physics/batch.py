@@ -6,7 +6,7 @@ durations, tolerances...) have identical array shapes: every leaf of
 is an array. :func:`simulate_batch` runs B such members together through the one host
 driver, :func:`dynslip.physics.simulate.drive`, with the segment step vmapped
 (:func:`dynslip.physics.simulate.segment_step`). Each member keeps its own host state
-(:class:`dynslip.physics.simulate.MemberRun`: its stage, time, stop rule, frames); every
+(:class:`dynslip.physics.member.MemberRun`: its stage, time, stop rule, frames); every
 tick advances every member by one save segment, with one call of the step over the stacked
 member states and stacked stage loads, so members may be in different stages and at
 different times. A member that has finished (its last stage done, or failed) asks for a
@@ -22,7 +22,7 @@ small (tens of nodes) problems, shared by B members. ``docs/sweeps.md`` has the
 measurement.
 
 Compiled once per (static key of the members, B): the key of
-:func:`dynslip.physics.simulate.static_key` (the solver object, mesh size, the non-array
+:func:`dynslip.physics.member.static_key` (the solver object, mesh size, the non-array
 parts of model and loads), which must be equal for every member.
 """
 
