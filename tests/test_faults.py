@@ -54,6 +54,17 @@ def md5(path: Path) -> str:
     return hashlib.md5(path.read_bytes()).hexdigest()
 
 
+def reap(p, timeout=120.0):
+    """Wait for a signalled process; one that has not ended ``timeout`` s later (a run hung in
+    its exit path) is killed and the test fails, instead of stalling the suite."""
+    try:
+        return p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        out = p.communicate()
+        pytest.fail(f"pid {p.pid} still running {timeout:g} s after its signal: {out[1][-2000:]}")
+
+
 def wait_for(pred, timeout=300.0):
     t0 = time.monotonic()
     while not pred():
@@ -89,7 +100,7 @@ def test_second_run_on_one_out_refused_and_killed_holder_does_not_block(tmp_path
     )
     assert "Traceback" not in b.stderr and waited < 60
     a.send_signal(signal.SIGKILL)
-    a.communicate()
+    reap(a)
     # the lock file stays behind; the dead holder's lock does not
     c = dynslip("run", SCENARIO, *TINY, "--out", tmp_path / "r", cwd=tmp_path)
     assert c.returncode == 0, c.stderr
@@ -201,7 +212,7 @@ def test_window_search_killed_resumes_to_the_same_window_json(tmp_path, sig):
     p = start(*WINDOW, "--out", tmp_path / "w", cwd=tmp_path)
     wait_for(lambda: finished() >= 2 or p.poll() is not None)
     p.send_signal(sig)
-    p.communicate()
+    reap(p)
     kept = finished()
     assert 2 <= kept < n_total, "killed too late to test a resume"
     assert not (tmp_path / "w" / "window.json").exists()
