@@ -32,8 +32,9 @@ def test_the_schema_builds_the_physics_from_the_one_registry_of_each_kind():
     from dynslip.physics.friction import FRICTION_LAWS, make_friction
     from dynslip.physics.materials import MATERIALS, make_material
     from dynslip.physics.protocols import STOPS
-    from dynslip.schema.forming import FrictionSpec, StageSpec, _stop_rule
+    from dynslip.schema.forming import FrictionSpec, StageSpec
     from dynslip.schema.materials import MaterialSpec
+    from dynslip.schema.protocol import stop_rule
 
     r, eps, p_scale = 20.0, 1e-3, 5.0
     for law in FRICTION_LAWS:
@@ -58,15 +59,15 @@ def test_the_schema_builds_the_physics_from_the_one_registry_of_each_kind():
                                       "ball_velocity_mm_s": -1.0}}
     assert set(stages) == set(STOPS)
     for until, kw in stages.items():
-        stop = _stop_rule(StageSpec(name="s", until=until, duration_s=5.0, **kw), 5.0, r, 2.0)
+        stop = stop_rule(StageSpec(name="s", until=until, duration_s=5.0, **kw), 5.0, r, 2.0)
         assert type(stop) is STOPS[until] and stop.duration == 5.0
-    built = _stop_rule(StageSpec(name="s", until="rest", duration_s=5.0, **stages["rest"]), 5.0,
+    built = stop_rule(StageSpec(name="s", until="rest", duration_s=5.0, **stages["rest"]), 5.0,
                        r, 2.0)
     # thresholds made nondimensional: speeds by R (mm), forces by the force scale (N)
     assert built.rate == pytest.approx(0.002 / r) and built.hold == 2.0
-    clamp = _stop_rule(StageSpec(name="s", until="clamp_force_below", duration_s=5.0,
+    clamp = stop_rule(StageSpec(name="s", until="clamp_force_below", duration_s=5.0,
                                  **stages["clamp_force_below"]), 5.0, r, 2.0)
     assert clamp.force == pytest.approx(0.02 / 2.0)
-    reaction = _stop_rule(StageSpec(name="s", until="ball_reaction_below", duration_s=5.0,
+    reaction = stop_rule(StageSpec(name="s", until="ball_reaction_below", duration_s=5.0,
                                     **stages["ball_reaction_below"]), 5.0, r, 2.0)
     assert reaction.force == pytest.approx(0.02 / 2.0)

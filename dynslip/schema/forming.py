@@ -7,12 +7,12 @@ Heights are measured from the ball centre, upward. See docs/forming.md.
 Longer than 400 lines: one validated model per section of the forming scenario (physics,
 numerics, the scenario), each field with its bounds, unit and description, and the protocol
 the validated stages build. The stages are in :mod:`dynslip.schema.stages`, the tube and the
-bottle in :mod:`dynslip.schema.apparatus` (both re-exported here).
+bottle in :mod:`dynslip.schema.apparatus` (both re-exported here), the core protocol the stages
+build in :mod:`dynslip.schema.protocol` (:func:`build_protocol`, re-exported here).
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Literal
 
@@ -23,11 +23,12 @@ from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.bodies import BallSpec, BodySpec
 from dynslip.schema.friction import FrictionSpec
 from dynslip.schema.materials import MaterialSpec
+from dynslip.schema.protocol import build_protocol, clamp_enters_ball
 from dynslip.schema.stages import MAX_STAGES, MAX_TIME_S, StageSpec
 from dynslip.schema.stages import default_stages as _default_stages
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec",
-           "FrictionSpec", "TubeSpec", "BottleSpec"]
+           "FrictionSpec", "TubeSpec", "BottleSpec", "build_protocol"]
 
 #: the most saved frames of a run (every saved frame is held in memory)
 MAX_FRAMES = 1_000_000
@@ -390,7 +391,7 @@ class FormingScenario(ScenarioBase):
             prot = build_protocol(self)
         except ValueError as err:
             raise ValueError(f"physics.stages: {err}") from None
-        if self.start_from is None and _clamp_enters_ball(prot, self.physics.ball_body()):
+        if self.start_from is None and clamp_enters_ball(prot, self.physics.ball_body()):
             raise ValueError("physics.stages: the clamp path enters the ball")
         assert isinstance(prot, Protocol)
         free = self.physics.free_names()
@@ -413,107 +414,3 @@ class FormingScenario(ScenarioBase):
     # the resolved start state of ``start_from`` (filled in by
     # :func:`dynslip.app.forming.resolve_start`)
     _start: tuple | None = PrivateAttr(default=None)
-
-
-def _clamp_enters_ball(prot, ball) -> bool:
-    """Whether the keyframed clamp path comes into the ball: within the unit distance of the
-    centre for the unit ball (today's check), else at a distance at most 0 from the ball's body
-    along the straight segments between keyframes (sampled every 1e-3 of a segment)."""
-    from dynslip.physics.bodies import Sphere
-
-    if isinstance(ball, Sphere) and ball.radius == 1.0:
-        return prot.clamp_min_distance_to_ball() <= 1.0
-    import numpy as np
-
-    kf = prot.keyframes()
-    u = np.linspace(0.0, 1.0, 1001)[:, None]
-    for (_, r0, z0), (_, r1, z1) in zip(kf[:-1], kf[1:], strict=True):
-        x = np.array([r0, z0 - prot.ball_z0]) + u * np.array([r1 - r0, z1 - z0])
-        if float(np.min(np.asarray(ball.distance(x)))) <= 0.0:
-            return True
-    return False
-
-
-def _stop_rule(s, duration: float, r: float, fs: float):
-    """The stop rule object of stage ``s`` (:data:`dynslip.physics.protocols.STOPS`, the one
-    registry: one final class per ``until``), its thresholds made nondimensional (lengths by
-    ``r`` mm, forces by ``fs`` N); a condition rule ends the stage at ``duration`` s at the
-    latest."""
-    from dynslip.physics.protocols import STOPS
-
-    params = {
-        "duration": lambda: {},
-        "clamp_force_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
-        "ball_reaction_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
-        "theta_max_below": lambda: {"angle": s.theta_stop_rad or 0.0},
-        "ball_speed_above": lambda: {"rate": (s.ball_speed_mm_s or 0.0) / r},
-        "rest": lambda: {"rate": (s.rest_rate_mm_s or 0.0) / r, "hold": s.rest_hold_s or 0.0},
-    }
-    return STOPS[s.until](**params[s.until](), duration=duration)
-
-
-def build_protocol(sc: FormingScenario):
-    """The core :class:`dynslip.physics.protocols.Protocol` (nondimensional) of a scenario."""
-    from dynslip.physics.protocols import (
-        BALL_FORCE,
-        BALL_HOLD,
-        CLAMP_BAND,
-        CLAMP_FORCE,
-        Protocol,
-        Stage,
-    )
-
-    p = sc.physics
-    r = p.ball_radius_mm
-    fs = p.force_scale_N
-    z = p.sheet_start_mm / r
-    stages = []
-    prev_ball = None
-    for s in p.stages:
-        if s.clamp_to_z_mm is not None:
-            dz = s.clamp_to_z_mm / r - z
-            dur = abs(dz) * r / s.clamp_speed_mm_s
-            vz = math.copysign(s.clamp_speed_mm_s / r, dz)
-        else:
-            dur = s.duration_s
-            vz = s.clamp_velocity_mm_s / r
-        z += vz * dur
-        stop = _stop_rule(s, dur, r, fs)
-        ckw = {"clamp_vz": vz}
-        moved = p.body_velocities(s)
-        if s.clamp == "let_go":
-            ckw = {"clamp_mode": CLAMP_FORCE}
-        elif s.clamp == "free":
-            ckw = {"clamp_mode": CLAMP_FORCE, "clamp_force_start": (0.0, 0.0)}
-        elif s.clamp == "band":
-            ckw = {"clamp_vz": vz, "clamp_mode": CLAMP_BAND}
-        if moved:
-            ckw["body_vz"] = moved
-        if s.ball == "hold":
-            stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD,
-                                ball_vz=s.ball_velocity_mm_s / r, **ckw))
-        elif s.ball == "release":
-            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_end=0.0, **ckw))
-        elif s.ball == "support":
-            stages.append(
-                Stage(
-                    s.name,
-                    stop,
-                    ball_mode=BALL_FORCE,
-                    ball_force_start=0.0,
-                    ball_force_end=0.0,
-                    support=True,
-                    **ckw,
-                )
-            )
-        elif s.ball == "pull":
-            # after a pull the ramp continues from that stage's final force (a preload, then a ramp)
-            start = None if prev_ball == "pull" else 0.0
-            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=start,
-                                ball_force_end=s.ball_force_N / fs, **ckw))
-        else:
-            stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_start=0.0,
-                                ball_force_end=0.0, **ckw))
-        prev_ball = s.ball
-    return Protocol(tuple(stages), clamp_rho0=p.rim_radius_mm / r,
-                    clamp_z0=p.sheet_start_mm / r, ball_z0=0.0)
