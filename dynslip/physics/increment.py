@@ -278,16 +278,19 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load):
     return u, vb, delta1
 
 
+def _residual_and_forces(model, friction, inc: Increment, q, zb):
+    g, load = forces(model, q, zb)
+    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, g
+
+
 def residual(model, friction, inc: Increment, q, zb):
     """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} -
     \\Delta t\\,v_b$."""
-    g, load = forces(model, q, zb)
-    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
-    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb
+    return _residual_and_forces(model, friction, inc, q, zb)[:2]
 
 
 def residual_and_signs(model, friction, inc: Increment, q, zb):
     """:func:`residual` and :func:`slip_signs` from one evaluation of the forces."""
-    g, load = forces(model, q, zb)
-    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
-    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, slip_signs(model, friction, inc, q, g)
+    r_q, r_z, g = _residual_and_forces(model, friction, inc, q, zb)
+    return r_q, r_z, slip_signs(model, friction, inc, q, g)
