@@ -26,6 +26,7 @@ __all__ = [
     "edge_rate",
     "increment_rates",
     "node_force_jacobian",
+    "node_held_frame",
     "node_rate",
     "residual",
     "residual_and_signs",
@@ -127,13 +128,24 @@ def slip_signs(model: SheetModel, friction, inc: Increment, q, g):
     return jax.vmap(one)(idx, q, g, inc.delta0).astype(jnp.int32)
 
 
-def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None):
+def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb):
+    """The held bodies' friction frame of node ``i`` at relative position ``q`` under the
+    energy gradient ``g``, the ball at ``zb`` (held friction acts on neither the pole nor the
+    clamped edge)."""
+    live = (i > 0) & (i < model.mesh.n - 1)
+    hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
+    return _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), -g, model.mesh.area[i],
+                       inc.args, live, zb, hd)
+
+
+def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None,
+              held=True):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
     ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
-    (:mod:`dynslip.physics.bodies.held`), needed only when one has friction."""
+    (:mod:`dynslip.physics.bodies.held`), needed only when one has friction; ``held=False``
+    leaves that friction out (the ball's part alone)."""
     args = inc.args
-    f = -g
     pole = i == 0
     fn, ft, n, t, normal, area = node_contact(model, i, q, g)
     eta_a = args.drag * area
@@ -145,11 +157,8 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     if inc.frozen is not None:
         s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
-    if frictional(model.bodies):
-        live = (i > 0) & (i < model.mesh.n - 1)
-        hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
-        hf = _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), f, area, args, live, zb, hd)
-        u = u + hf.force(vb) / eta_a
+    if held and frictional(model.bodies):
+        u = u + node_held_frame(model, inc, i, q, g, zb).force(vb) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import frictional, place_free
+from dynslip.physics.bodies.held import frictional, held_entries, place_free
 from dynslip.physics.field import free_body_rates
 from dynslip.physics.increment import (
     Increment,
@@ -20,12 +20,13 @@ from dynslip.physics.increment import (
     ball_velocity,
     edge_rate,
     node_force_jacobian,
+    node_held_frame,
     node_rate,
     residual,
     sheet_held_frame,
 )
 from dynslip.physics.linalg import small_matmul
-from dynslip.physics.protocols import BALL_HOLD
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.terms import forces, forces_and_hessians
 
 __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
@@ -89,48 +90,87 @@ def newton_blocks(model, friction, inc: Increment, q, zb):
     return lower, diag, upper, B, C, D
 
 
+def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, zb, vb):
+    r"""Node ``i``'s rate's derivatives in $(q_i, g_i, z_b, v_b)$ with held friction, and
+    those of the axial friction force on it, $\sum_k f_{ik} t_{k,z}$ (the ball's velocity
+    reads them): ``(lq, lg, lz, lv, aq, ag, az, av)``. The held bodies' friction $f_k = (S_k -
+    G_k)\,t_k$ reads the force only through $G_k = f\cdot t_k + (\partial G_k/\partial v_b)
+    v_b$ ($f = -g$), so its derivatives in $g$ and $v_b$ are closed forms in the laws' slopes
+    (:meth:`~dynslip.physics.bodies.held.HeldFrame.slopes`): $\partial f_k/\partial g =
+    (1 - S'_k)\,t_k t_k^T$, $\partial f_k/\partial v_b = (S'_k - 1)(\partial G_k/\partial
+    v_b)\,t_k$; the ball's part in $g$ is :func:`node_force_jacobian`'s. Forward mode in the
+    position alone (two directions), per body, so that $\partial f_k/\partial z_b$ is the
+    position's $z$ derivative for a body at rest and 0 for one that moves with the ball (its
+    projection reads $x_z - z_b$). ``moving`` (static): per frictional body, whether it moves
+    with the ball."""
+    eta_a = inc.args.drag * model.mesh.area[i]
+
+    def parts(qi):
+        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False)[0]
+        hf = node_held_frame(model, inc, i, qi, g, zb)
+        gk, sk = hf.slip(vb)
+        fk = jnp.where(hf.live, sk - gk, 0.0)[:, None] * hf.t  # (K, 2)
+        # the slopes at the primal point (no derivative of them is taken)
+        stop = jax.tree_util.tree_map(jax.lax.stop_gradient, hf)
+        _, _, ds, dgv = stop.slopes(jax.lax.stop_gradient(vb))
+        return (u, fk), (stop.t, stop.live, ds, dgv)
+
+    (uq, fq), (t, live, ds, dgv) = jax.jacfwd(parts, has_aux=True)(q)
+    w = jnp.where(live, 1.0 - ds, 0.0)  # (K,): -df_k/dG_k
+    fg = jnp.einsum("k,ki,kj->kij", w, t, t)  # (K, 2, 2)
+    fv = -(w * dgv)[:, None] * t  # (K, 2)
+    rest = jnp.asarray([0.0 if m else 1.0 for m in moving])
+    fz = jnp.einsum("k,ki->i", rest, fq[:, :, 1])
+    fq, fg, fv = jnp.sum(fq, axis=0), jnp.sum(fg, axis=0), jnp.sum(fv, axis=0)
+    lq = uq + fq / eta_a
+    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0) + fg / eta_a
+    return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1]
+
+
 def blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     r""":func:`newton_blocks` with friction on the held bodies. The node rates depend on the
     ball's velocity $v_b$ (:func:`ball_velocity`), which reads every node in contact with a
-    frictional body: with $V_j = dv_b/dq_j$ and $V_z = dv_b/dz_b$ (by reverse-mode autodiff
-    of :func:`ball_velocity` and the chain rule through the energy's Hessian), the border row
+    frictional body: with $V_j = dv_b/dq_j$ and $V_z = dv_b/dz_b$ (the implicit function
+    theorem on the ball's equation $\eta_b v_b - A_0 - \sum_i a_i(v_b) = 0$, $a_i$ node $i$'s
+    axial held friction, whose derivatives :func:`_held_node_terms` gives with the node's
+    rate's, and the chain rule through the energy's Hessian), the border row
     is $-h V$, the column $-h(\ell^g_i\,\partial g_i/\partial z_b + \ell^z_i + \ell^v_i V_z)$,
     and the rank-one coupling $\ell^v_i V_j$ of the node rates is kept where $|i - j| \le 1$
     (the rest is not block tridiagonal and is left out: an inexact Newton matrix, the residual
     exact; with the ball held $V = 0$ and the matrix is exact)."""
     n = q.shape[0]
+    args = inc.args
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
-    def value_and_grads():
-        return jax.value_and_grad(
-            lambda q, zb, g, ld: ball_velocity(model, inc, q, zb, g, ld), argnums=(0, 1, 2, 3)
-        )(q, zb, g, load)
-
-    def held():
-        vzb = jnp.asarray(inc.args.vzb, dtype=jnp.result_type(float))
-        return vzb, jax.tree_util.tree_map(jnp.zeros_like, (q, zb, g, load))
-
-    # a held ball's velocity is prescribed: its derivatives are zero, and the root search and
-    # the reverse pass through the held friction are skipped (lax.cond; under vmap both
-    # branches run); the free ball's velocity and its derivatives in one pass (the root search
-    # traced once here)
-    vb, (vq, vz, vg, vl) = jax.lax.cond(
-        inc.args.ball_mode == BALL_HOLD, held, value_and_grads
-    )
+    # the ball's velocity (held: prescribed, the root search skipped by lax.cond)
+    vb = ball_velocity(model, inc, q, zb, g, load)
     idx = jnp.arange(n)
     mem = inc.delta0 is not None
     d0 = inc.delta0 if mem else jnp.zeros(n)
+    moving = tuple(e.moves_with_ball for e in held_entries(model.bodies)
+                   if e.friction is not None)
 
-    def local(i, qi, gi, di, z, v):
-        return node_rate(model, friction, inc, i, qi, gi, di if mem else None, z, v)[0]
+    def local(i, qi, gi, di):
+        return _held_node_terms(model, friction, inc, moving, i, qi, gi, di if mem else None,
+                                zb, vb)
 
-    lq, lg, lz, lv = jax.vmap(
-        jax.jacfwd(local, argnums=(1, 2, 4, 5)), in_axes=(0, 0, 0, 0, None, None)
-    )(idx, q, g, d0, zb, vb)
+    lq, lg, lz, lv, aq, ag, az, av = jax.vmap(local)(idx, q, g, d0)
     eg, ev, er = jax.jacfwd(
         lambda ge, v, r: edge_rate(model, inc, ge, zb, load, v, r), argnums=(0, 1, 2)
     )(g[-1], vb, q[-1, 0])
     lq, lz = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er)), lz.at[-1].set(0.0)
     lg, lv = lg.at[-1].set(eg), lv.at[-1].set(ev)
+    # the ball's equation eta_b v - A_0(C_z, z_b, L) - sum_i a_i = 0 (a free ball; held: its
+    # velocity is prescribed, V = 0): dv_b/dy = (dA_0/dy + sum_i da_i/dy)/(eta_b - sum_i
+    # da_i/dv_b)
+    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
+    free = args.ball_mode != BALL_HOLD
+    slope = args.ball_drag - jnp.sum(av)
+    inv = jnp.where(free, 1.0 / jnp.where(free, slope, 1.0), 0.0)
+    _, dfs = jax.jvp(args.support_force, (zb,), (jnp.ones_like(zb),))
+    vq = inv * aq
+    vg = (inv * ag).at[-1, 1].add(jnp.where(pinned, inv, 0.0))
+    vz = inv * (dfs + jnp.sum(az))
+    vl = -inv
     h_low = jnp.swapaxes(h_up, 1, 2)  # h_low[j] = d2E/dx_{j+1} dx_j
     hh, hz = hh
     dg_dz = hz[:, :, 1]  # (n, 2): the held bodies at rest see q + zb

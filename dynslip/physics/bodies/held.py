@@ -222,17 +222,36 @@ class HeldFrame(eqx.Module):
         rel = vb - self.speeds[k] if self.speeds else vb
         return self.eta_a * rel * self.t[k][..., 1]
 
-    def slip(self, vb):
-        """``(G, S)`` per body and node (K, ...) at the ball's velocity ``vb``."""
-        g = jnp.stack([self.ft[k] + self._carried(k, vb) for k in range(len(self.laws))])
-        s = jnp.stack(
+    def _drive(self, vb):
+        # G per body and node (K, ...)
+        return jnp.stack([self.ft[k] + self._carried(k, vb) for k in range(len(self.laws))])
+
+    def _slip_of(self, g):
+        # S(G, mu N) per body and node (K, ...)
+        return jnp.stack(
             [
                 law.slip_force(g[k], self.normal[k], self._delta(k), eps=self.eps,
                                area=self.area)
                 for k, law in enumerate(self.laws)
             ]
         )
-        return g, s
+
+    def slip(self, vb):
+        """``(G, S)`` per body and node (K, ...) at the ball's velocity ``vb``."""
+        g = self._drive(vb)
+        return g, self._slip_of(g)
+
+    def slopes(self, vb):
+        r"""``(G, S, dS/dG, dG/dv_b)`` per body and node (K, ...): the laws' slopes in the
+        driving force (one forward pass; each $S_k$ reads its own $G_k$ only) and the drag the
+        ball's motion adds to $G$ per unit velocity ($\eta A\,t_{k,z}$; 0 on a body that moves
+        with the ball). With them the friction force $f_k = S_k - G_k$ has the closed-form
+        derivatives $\partial f_k/\partial G_k = S'_k - 1$ and $\partial f_k/\partial v_b =
+        (S'_k - 1)\,\partial G_k/\partial v_b$ (:func:`dynslip.physics.newton_matrix.
+        blocks_with_held_friction`)."""
+        g, dg = jax.jvp(self._drive, (vb,), (jnp.ones_like(vb),))
+        s, ds = jax.jvp(self._slip_of, (g,), (jnp.ones_like(g),))
+        return g, s, ds, dg
 
     def force(self, vb):
         """The held friction force on each node (..., 2), summed over the bodies."""
