@@ -11,6 +11,7 @@ test_bodies_friction.py).
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,8 +23,9 @@ from dynslip.physics.bodies import Torus
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD
+from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.simulate import _stage_args
 from dynslip.physics.terms import forces
 from test_bodies_friction import _args, _small_state
 
@@ -116,15 +118,28 @@ def test_held_node_terms_equal_jacfwd(push):
     np.testing.assert_array_equal(np.asarray(dgv)[1], 0.0)
 
 
-@pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE])
+def _supported(args):
+    # the ball pressed onto its support (the support's penalty's width is 1e-3)
+    stage = Stage("s", StopRule("duration", duration=5.0), clamp_vz=-0.2, ball_mode=BALL_FORCE,
+                  clamp_mode=CLAMP_POSITION, ball_force_end=0.0, support=True)
+    return _stage_args(stage, 0.0, 0.0, 0.3, (0.1, -0.2), args.friction, 1e-3, 0.1, 0.4, 0.05,
+                       support_z=ZB + 4e-4, support_k=1e3)
+
+
+@pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE, "supported"])
 def test_newton_blocks_with_several_frictional_bodies_equal_jacfwd(ball_mode):
     """Newton's matrix with three frictional held bodies (at rest, with the ball, moved by the
-    stages) against jax.jacfwd of the residual: exact with the ball held; under force all but
-    the far rank-one coupling (the border row and column, the D entry, every block within one
-    node of the diagonal)."""
+    stages) against jax.jacfwd of the residual: exact with the ball held; under force (free, or
+    pressed onto its support) all but the far rank-one coupling (the border row and column,
+    the D entry, every block within one node of the diagonal)."""
     from test_newton import _dense
 
-    args, inc, q, zb = _setup(ball_mode, memory=False)  # the ball's law: Coulomb
+    args, inc, q, zb = _setup(BALL_FORCE if ball_mode == "supported" else ball_mode,
+                              memory=False)  # the ball's law: Coulomb
+    if ball_mode == "supported":
+        args = _supported(args)
+        assert float(args.support_force(zb)) > 0
+        inc = eqx.tree_at(lambda i: i.args, inc, args)
 
     def flat(v):
         rq, rz = ni.residual(MODEL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
@@ -133,7 +148,7 @@ def test_newton_blocks_with_several_frictional_bodies_equal_jacfwd(ball_mode):
     ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
     got = _dense(*nm.newton_blocks(MODEL, args.friction, inc, q, zb))
     mask = np.ones_like(ref, dtype=bool)
-    if ball_mode == BALL_FORCE:
+    if ball_mode != BALL_HOLD:
         node = np.arange(2 * NS) // 2
         mask[: 2 * NS, : 2 * NS] = ~(np.abs(node[:, None] - node[None, :]) > 1)
         assert np.abs(ref[-1, :-1]).max() > 0  # the ball's velocity reads the nodes
