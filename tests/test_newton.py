@@ -309,3 +309,63 @@ def test_node_force_jacobian_equals_jacfwd(law):
 
     s = jax.vmap(slip)(ft, normal, d0, area)
     assert np.any(np.asarray(s)[1:] == 0.0) and np.any(np.asarray(s)[1:] != 0.0)
+
+
+@pytest.mark.parametrize("modes", MODES[:2])
+def test_residual_floor_accepts_the_motion_resolved_to_the_step_tolerance(modes):
+    """With ``atol`` at the residual's rounding floor (1e-13 here) Newton's corrections fall far
+    below the step tolerance while the residual stays above ``atol``: without the residual floor
+    the increment fails after ``max_iter`` iterations; with it (10 atol after two full
+    corrections below the step tolerance, the default) it is accepted, at the motion plain Newton
+    reaches with an ``atol`` above the floor."""
+    layout = Layout(N, 1)
+    y0 = _state(layout, seed=3)
+    args = _args(WEAK, *modes)
+    zero = (jnp.zeros((N, 2)), jnp.zeros(()))
+
+    def solve(atol, **kw):
+        solver = nw.MotionNewton(max_iter=60, **kw)
+        y1, ok, it, _ = solver.increment(
+            MODEL, layout, jnp.asarray(0.0), jnp.asarray(0.05), y0, args, zero, 1e-9, atol
+        )
+        return np.asarray(y1), bool(ok), int(it)
+
+    _, ok_off, it_off = solve(1e-13, floor_factor=0.0)
+    y_on, ok_on, it_on = solve(1e-13, floor_factor=10.0, floor_count=2)
+    y_ref, ok_ref, _ = solve(1e-11, floor_factor=0.0)
+    print(f"atol 1e-13: floor off {ok_off} ({it_off} its), on {ok_on} ({it_on} its)")
+    assert not ok_off and it_off == 60
+    assert ok_on and it_on < 60
+    assert ok_ref
+    np.testing.assert_allclose(y_on, y_ref, rtol=0, atol=1e-9)
+
+
+def test_the_increment_controller_remembers_a_failed_size():
+    """After a failure at h = 1 the retry is at 0.5; with the memory (``fail_cap`` 0.8,
+    ``fail_relax`` 1.05) the quick increments that follow grow no further than 0.8 times the
+    failed size, a bound relaxed by 1.05 per accepted increment, where without it they grow by
+    1.5 past the failed size at the third; a failure always halves, the memory never shrinks an
+    increment below the last one taken."""
+    cap = jnp.asarray(100.0)
+    inf = jnp.asarray(jnp.inf)
+    sizes = {}
+    for fail_cap in (0.0, 0.8):
+        s = nw.MotionNewton(fail_cap=fail_cap, fail_relax=1.05)
+        dt, h_fail = s.next_size(1.0, 1.0, 20, jnp.asarray(False), jnp.asarray(False), inf, cap)
+        assert float(dt) == 0.5
+        out, was_cut = [float(dt)], jnp.asarray(True)
+        for _ in range(6):
+            dt, h_fail = s.next_size(dt, dt, 3, jnp.asarray(True), was_cut, h_fail, cap)
+            out.append(float(dt))
+            was_cut = jnp.asarray(False)
+        sizes[fail_cap] = out
+    print("sizes after a failure at 1 (no memory, memory):", sizes)
+    np.testing.assert_allclose(sizes[0.0], [0.5, 0.5, 0.75, 1.125, 1.6875, 2.53125, 3.796875])
+    bound = [0.8 * 1.05**k for k in range(2, 6)]
+    np.testing.assert_allclose(sizes[0.8], [0.5, 0.5, 0.75, *bound], rtol=1e-12)
+    # the memory never takes an increment below the last one taken, nor undoes a shrink
+    s = nw.MotionNewton(fail_cap=0.8, fail_relax=1.05)
+    dt, _ = s.next_size(0.3, 0.3, 3, jnp.asarray(True), jnp.asarray(False), jnp.asarray(0.2), cap)
+    assert float(dt) == pytest.approx(0.3)
+    dt, _ = s.next_size(0.3, 0.3, 19, jnp.asarray(True), jnp.asarray(False), inf, cap)
+    assert float(dt) == pytest.approx(0.21)

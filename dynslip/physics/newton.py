@@ -34,6 +34,17 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   the accepted trial is the next iteration's residual (one evaluation per trial).
 - **Predictor.** Newton starts from the last accepted increment's rate extrapolated over
   the new increment (zero at a segment's start).
+- **Convergence.** The last correction below ``atol + rtol |x|`` and the residual's max norm
+  below ``atol``; or (the *residual floor*, ``floor_factor``) Newton's full correction below
+  ``atol + rtol |x|`` for ``floor_count`` iterations running and the residual below
+  ``floor_factor atol``. In stiff rows (a node slipping on a held body's regularised friction)
+  the residual cannot be brought below ``atol`` once the motion is resolved to the step
+  tolerance: Newton stalls there with corrections far below it until the increment is cut
+  (docs/speed.md).
+- **Increment size.** Grown by 1.5 after at most ``grow_below`` iterations, shrunk by 0.7 after
+  at least ``shrink_above``, halved on a failure; with ``fail_cap`` the increments that follow a
+  failure within a segment are held to at most ``fail_cap`` times the failed size, a bound
+  relaxed by ``fail_relax`` per accepted increment (0: no memory of the failure).
 
 The linear solve is :func:`dynslip.physics.linalg.block_solve` (block cyclic reduction or
 block Thomas, with the one-unknown border by a Schur complement).
@@ -81,6 +92,8 @@ GROW = 1.5
 CUT = 0.5
 SHRINK = 0.7
 MIN_FRACTION = 1e-10
+FAIL_CAP = 0.9  # the memory of a failed increment's size (0: none)
+FAIL_RELAX = 1.05
 
 
 def increment_cap(args, max_increment, max_increment_free):
@@ -121,7 +134,9 @@ class MotionNewton(eqx.Module):
     ball flipped between stick and slip ``freeze`` times within an increment is held on its
     branch (:func:`frozen_slip`) until Newton converges, then the law is given back and Newton
     goes on to the law's own root (not with free bodies); docs/speed.md measures it (more
-    iterations on the let-go path, hence off).
+    iterations on the let-go path, hence off). ``floor_factor``, ``floor_count``: the residual
+    floor (module docstring; 0: off); ``fail_cap``, ``fail_relax``: the memory of a failed
+    increment's size within a segment (module docstring; 0: off).
     """
 
     max_iter: int = eqx.field(static=True, default=20)
@@ -134,6 +149,10 @@ class MotionNewton(eqx.Module):
     heal_rate: float = eqx.field(static=True, default=0.0)
     max_steps: int = eqx.field(static=True, default=20000)
     freeze: int = eqx.field(static=True, default=0)
+    floor_factor: float = eqx.field(static=True, default=10.0)
+    floor_count: int = eqx.field(static=True, default=2)
+    fail_cap: float = eqx.field(static=True, default=FAIL_CAP)
+    fail_relax: float = eqx.field(static=True, default=FAIL_RELAX)
 
     def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
@@ -191,7 +210,7 @@ class MotionNewton(eqx.Module):
             return (~done) & (~bad) & (it < self.max_iter)
 
         def body(c):
-            q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final = c
+            q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final, small = c
             dq, dz = bordered_solve(*blocks(q, zb, mode), r_q, r_z, self.linear)
             f0 = size(r_q, r_z)
 
@@ -233,6 +252,17 @@ class MotionNewton(eqx.Module):
                 jnp.max(jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn))),
             )
             done = (step < 1.0) & (size(tq, tz) <= atol)
+            if self.floor_factor:
+                # the residual floor: Newton's full correction (not the damped one) below the
+                # step tolerance ``floor_count`` times running, the residual within the floor
+                full = jnp.maximum(
+                    jnp.max(jnp.abs(dq) / (atol + rtol * jnp.abs(qn))),
+                    jnp.max(jnp.abs(dz) / (atol + rtol * jnp.abs(zbn))),
+                )
+                small = jnp.where(full < 1.0, small + 1, 0)
+                done = done | (
+                    (small >= self.floor_count) & (size(tq, tz) <= self.floor_factor * atol)
+                )
             if active:
                 release = done & jnp.any(mode != FREE)
                 tq, tz, ts = jax.lax.cond(
@@ -244,11 +274,11 @@ class MotionNewton(eqx.Module):
             bad = ~(
                 jnp.all(jnp.isfinite(qn)) & jnp.all(jnp.isfinite(zbn)) & jnp.isfinite(size(tq, tz))
             )
-            return qn, zbn, tq, tz, it + 1, done, bad, mode, flips, ts, final
+            return qn, zbn, tq, tz, it + 1, done, bad, mode, flips, ts, final, small
 
         init = (
             q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False),
-            free_mode, jnp.zeros(n, jnp.int32), sgn, jnp.array(False),
+            free_mode, jnp.zeros(n, jnp.int32), sgn, jnp.array(False), jnp.array(0, jnp.int32),
         )
         q, zb, _, _, it, done, bad, *_ = jax.lax.while_loop(cond, body, init)
         zk = None
@@ -274,6 +304,24 @@ class MotionNewton(eqx.Module):
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
         return y1, ok, it, (q - q0, zb - zb0)
 
+    def next_size(self, dt, h, iters, ok, was_cut, h_fail, cap):
+        """The increment controller: the size to try after an increment of ``h`` (``dt`` the
+        size that was asked, ``h`` the one taken: the segment's last may be longer) that took
+        ``iters`` iterations and converged (``ok``) or not; ``was_cut``: it followed a failure;
+        ``h_fail``: the memory's bound (inf: no failure yet in the segment). Returns the next
+        size and the new ``h_fail``."""
+        factor = jnp.where(
+            iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0)
+        )
+        factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)
+        dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
+        if self.fail_cap:
+            # the memory of a failure: no growth past fail_cap times the failed size (never a
+            # shrink for it), the bound relaxed by fail_relax per accepted increment
+            dt_ok = jnp.minimum(dt_ok, jnp.maximum(self.fail_cap * h_fail, jnp.minimum(dt, h)))
+            h_fail = jnp.where(ok, h_fail * self.fail_relax, h)
+        return jnp.where(ok, dt_ok, CUT * h), h_fail
+
     def segment(
         self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None
     ) -> SegmentOutput:
@@ -286,11 +334,11 @@ class MotionNewton(eqx.Module):
         rate0 = zero_rate(n) if rate is None else rate
 
         def cond(c):
-            t, _, _, dt, _, nacc, nrej, _ = c
+            t, _, _, dt, _, nacc, nrej, _, _ = c
             return (t < t1) & (nacc + nrej < self.max_steps) & (dt >= dt_min)
 
         def body(c):
-            t, y, rate, dt, was_cut, nacc, nrej, nit = c
+            t, y, rate, dt, was_cut, nacc, nrej, nit, h_fail = c
             left = t1 - t
             last = left <= 1.25 * dt
             h = jnp.where(last, left, dt)
@@ -298,12 +346,7 @@ class MotionNewton(eqx.Module):
             y1, ok, iters, (dq, dz) = self.increment(
                 model, layout, t, t_next, y, args, rate, rtol, atol
             )
-            factor = jnp.where(
-                iters <= self.grow_below, GROW, jnp.where(iters >= self.shrink_above, SHRINK, 1.0)
-            )
-            factor = jnp.where(was_cut, jnp.minimum(factor, 1.0), factor)
-            dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
-            dt_new = jnp.where(ok, dt_ok, CUT * h)
+            dt_new, h_fail = self.next_size(dt, h, iters, ok, was_cut, h_fail, cap)
             new_rate = (dq / h, dz / h)
             rate = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_rate, rate)
             return (
@@ -315,10 +358,14 @@ class MotionNewton(eqx.Module):
                 nacc + ok,
                 nrej + (~ok),
                 nit + iters,
+                h_fail,
             )
 
-        init = (t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero)
-        t, y, rate, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
+        init = (
+            t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero,
+            jnp.array(jnp.inf),
+        )
+        t, y, rate, _, _, nacc, nrej, nit, _ = jax.lax.while_loop(cond, body, init)
         ok = (t >= t1) & jnp.all(jnp.isfinite(y))
         return SegmentOutput(
             y=y,
