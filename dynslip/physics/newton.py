@@ -37,10 +37,12 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
 - **Convergence.** The last correction below ``atol + rtol |x|`` and the residual's max norm
   below ``atol``; or (the *residual floor*, ``floor_factor``) Newton's full correction below
   ``atol + rtol |x|`` for ``floor_count`` iterations running and the residual below
-  ``floor_factor atol``. In stiff rows (a node slipping on a held body's regularised friction)
-  the residual cannot be brought below ``atol`` once the motion is resolved to the step
-  tolerance: Newton stalls there with corrections far below it until the increment is cut
-  (docs/speed.md).
+  ``floor_factor atol``. Traced on the main job: in the z rows of the sheet's edge nodes on the
+  tube and the band, rows whose Newton matrix leaves out the free ball's coupling to the rest
+  of the sheet (:func:`dynslip.physics.newton_matrix.blocks_with_held_friction`), Newton's
+  corrections fall far below the step tolerance while the residual stays at 2-10 ``atol``,
+  until the increment is cut. A bounded relaxation of the test: the let-go end states move by
+  at most 1.2e-7 rad (docs/speed.md); ``floor_factor = 0`` gives the old test.
 - **Increment size.** Grown by 1.5 after at most ``grow_below`` iterations, shrunk by 0.7 after
   at least ``shrink_above``, halved on a failure; with ``fail_cap`` the increments that follow a
   failure within a segment are held to at most ``fail_cap`` times the failed size, a bound
