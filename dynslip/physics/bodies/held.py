@@ -40,6 +40,13 @@ $[(A_0 - B)/\eta_b, (A_0 + B)/\eta_b]$, $B = \sum \mu N|t_z|$. Solved by safegua
 (:func:`free_ball_velocity`), differentiated by the implicit function theorem (one Newton step
 from the stopped root).
 
+Longer than 400 lines: the held entry and its placement, the friction frame built on them
+(slip, force, the slopes the Newton matrix reads, dissipation, the slip distances' memory) and
+the ball's velocity that is the root of the frame's axial force are one mechanism, documented
+here as one. The cut worth making, not yet made: the root search (:func:`free_ball_velocity`)
+to a module of its own (its callers: :mod:`dynslip.physics.field` and
+:mod:`dynslip.physics.increment`).
+
 Example::
 
     >>> import jax.numpy as jnp
