@@ -33,7 +33,7 @@ import numpy as np
 import xarray as xr
 
 from dynslip.data.trajectory import body_shift
-from dynslip.physics.bodies.chords import deepest_chord_in, deepest_relative_chord_in
+from dynslip.physics.bodies.chords import deepest_chords_in
 from dynslip.physics.sheet import chord_depths, deepest_chord
 
 __all__ = ["body_chord_check", "chord_check", "chord_depths", "span_of"]
@@ -106,10 +106,9 @@ def body_chord_check(ds: xr.Dataset, entries, limit: float, length_mm: float) ->
     for k, (name, body, with_ball) in enumerate(entries):
         shift = body_shift(ds, k, with_ball)
         shift = np.zeros(times.shape) if shift is None else shift
-        depth, el = deepest_chord_in(body, rho, z, shift)
+        (depth, el), (rel, radius, rel_el) = deepest_chords_in(body, rho, z, shift)
         f = int(np.argmax(depth))
         worst = float(depth[f])
-        rel, radius, rel_el = deepest_relative_chord_in(body, rho, z, shift)
         g = int(np.argmax(rel))
         r = float(radius[g])
         rel_worst = float(rel[g])

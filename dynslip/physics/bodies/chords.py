@@ -48,6 +48,7 @@ from dynslip.physics.bodies.base import AbstractBody
 __all__ = [
     "chord_depths",
     "deepest_chord_in",
+    "deepest_chords_in",
     "deepest_relative_chord_in",
     "relative_chord_depths",
 ]
@@ -58,65 +59,85 @@ _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
 _BISECT_STEPS = 50
 
 
-def _depths(body: AbstractBody, a, b, zpos):
-    """Depths (...,) of the chords from ``a`` to ``b`` (..., 2), body displaced by zpos (...)."""
-    return _deepest(body, a, b, zpos)[0]
-
-
 @eqx.filter_jit
-def _deepest(body: AbstractBody, a, b, zpos):
-    """``(depth, u)`` of the chords from ``a`` to ``b`` (..., 2): the depth and the fraction u
-    in [0, 1] along the chord of its deepest point, body displaced by zpos (...)."""
-    def depth(u):
-        return -body.distance(a + u[..., None] * (b - a), zpos)
+def _chords(body: AbstractBody, a, b, zpos):
+    """``(depth, s_in, s_out)`` of the chords from ``a`` to ``b`` (M, 2), body displaced by
+    ``zpos`` (M,): the depth of the deepest point (fraction u in [0, 1] along the chord), and
+    the arc lengths along the profile where the chord enters and leaves the body, by bisection
+    between the deepest point (inside) and each node (a node inside the body: the node itself);
+    the closest points' s.
+
+    One compiled function per body, its body evaluated at six call sites (the samples, the
+    golden-section pair, the deepest point, the bisection pair, the chord's ends, the
+    projection): each call site of a body's distance is compiled anew, and the main job checks
+    four bodies (docs/speed.md, "the chord check")."""
+    def depth(u):  # u (..., M): the depth at the fractions u along each chord
+        return -body.distance(a + u[..., None] * (b - a), jnp.broadcast_to(zpos, u.shape))
+
     u = jnp.linspace(0.0, 1.0, _SAMPLES)
-    samples = jax.vmap(lambda ui: depth(jnp.full(a.shape[:-1], ui)))(u)  # (S, ...)
+    samples = depth(jnp.broadcast_to(u[:, None], (_SAMPLES,) + zpos.shape))  # (S, M)
     k = jnp.argmax(samples, axis=0)
     lo = u[jnp.clip(k - 1, 0, _SAMPLES - 1)]
     hi = u[jnp.clip(k + 1, 0, _SAMPLES - 1)]
 
-    def step(_, lh):
+    def golden(_, lh):
         lo, hi = lh
         c, d = hi - _INV_PHI * (hi - lo), lo + _INV_PHI * (hi - lo)
-        left = depth(c) >= depth(d)
+        dc, dd = depth(jnp.stack([c, d]))
+        left = dc >= dd
         return jnp.where(left, lo, c), jnp.where(left, d, hi)
 
-    lo, hi = jax.lax.fori_loop(0, _GOLDEN_STEPS, step, (lo, hi))
+    lo, hi = jax.lax.fori_loop(0, _GOLDEN_STEPS, golden, (lo, hi))
     um = 0.5 * (lo + hi)
     dm, ds = depth(um), jnp.max(samples, axis=0)
-    return jnp.maximum(ds, dm), jnp.where(dm >= ds, um, u[k])
+    deepest = jnp.maximum(ds, dm)
+    um = jnp.where(dm >= ds, um, u[k])
+
+    # where the chord enters (towards u = 0) and leaves (towards u = 1), both ends at once
+    ends = jnp.stack([jnp.zeros_like(um), jnp.ones_like(um)])
+
+    def bisect(_, lh):
+        lo, hi = lh  # lo inside, hi outside
+        mid = 0.5 * (lo + hi)
+        inside = depth(mid) > 0
+        return jnp.where(inside, mid, lo), jnp.where(inside, hi, mid)
+
+    lo, hi = jax.lax.fori_loop(0, _BISECT_STEPS, bisect, (jnp.stack([um, um]), ends))
+    cross = jnp.where(depth(ends) > 0, ends, 0.5 * (lo + hi))
+    s = body.project(a + cross[..., None] * (b - a), jnp.broadcast_to(zpos, cross.shape)).s
+    return deepest, s[0], s[1]
 
 
-@eqx.filter_jit
-def _cut_off(body: AbstractBody, a, b, zpos, um):
-    """Arc lengths ``(s_in, s_out)`` along the profile where the chords from ``a`` to ``b``
-    enter and leave the body, by bisection between the deepest point ``um`` (inside) and each
-    node (a node inside the body: the node itself); the closest points' s."""
-    def depth(u):
-        return -body.distance(a + u[..., None] * (b - a), zpos)
-
-    def crossing(end):
-        def step(_, lh):
-            lo, hi = lh  # lo inside, hi outside
-            mid = 0.5 * (lo + hi)
-            inside = depth(mid) > 0
-            return jnp.where(inside, mid, lo), jnp.where(inside, hi, mid)
-        lo, hi = jax.lax.fori_loop(0, _BISECT_STEPS, step, (um, jnp.full(um.shape, end)))
-        return jnp.where(depth(jnp.full(um.shape, end)) > 0, end, 0.5 * (lo + hi))
-
-    def s_at(u):
-        return body.project(a + u[..., None] * (b - a), zpos).s
-    return s_at(crossing(0.0)), s_at(crossing(1.0))
+def _per_frame(body: AbstractBody, rho, z, zpos):
+    """:func:`_chords` of every frame (leading shape (...)) of node positions ``rho, z`` (..., N),
+    the body displaced by ``zpos`` (...): three arrays (..., N-1). Frame by frame, so that a
+    run's check (one frame at a time) and a trajectory's (every frame) share one compiled
+    function per body."""
+    x = np.stack([np.asarray(rho, float), np.asarray(z, float)], axis=-1)
+    lead, n = x.shape[:-2], x.shape[-2]
+    zp = np.broadcast_to(np.asarray(zpos, float), lead).reshape(-1)
+    x = x.reshape((-1, n, 2))
+    out = [
+        _chords(body, xf[:-1], xf[1:], np.full(n - 1, zf)) for xf, zf in zip(x, zp, strict=True)
+    ]
+    return tuple(np.stack([np.asarray(o[j]) for o in out]).reshape(lead + (n - 1,))
+                 for j in range(3))
 
 
 def chord_depths(body: AbstractBody, rho, z, zpos) -> np.ndarray:
     """Depth inside ``body`` (displaced by ``zpos``, shape (...)) of each element chord, for
     node positions ``rho, z`` of shape (..., N): shape (..., N-1), positive inside, as
     :func:`dynslip.physics.sheet.chord_depths` for the unit ball."""
-    x = jnp.stack([jnp.asarray(rho, float), jnp.asarray(z, float)], axis=-1)
-    zp = jnp.asarray(zpos, float)[..., None]
-    zp = jnp.broadcast_to(zp, x.shape[:-2] + (x.shape[-2] - 1,))
-    return np.asarray(_depths(body, x[..., :-1, :], x[..., 1:, :], zp))
+    return _per_frame(body, rho, z, zpos)[0]
+
+
+def _deepest(v, *also):
+    """Per frame, the largest of ``v`` (..., N-1) over its elements (a non-finite one counts as
+    -inf), the same element's values of each of ``also``, and the element."""
+    v = np.where(np.isfinite(v), v, -np.inf)
+    k = np.argmax(v, axis=-1)
+    pick = lambda a: np.take_along_axis(a, k[..., None], axis=-1)[..., 0]  # noqa: E731
+    return (pick(v), *(pick(a) for a in also), k)
 
 
 def deepest_chord_in(body: AbstractBody, rho, z, zpos) -> tuple[np.ndarray, np.ndarray]:
@@ -125,10 +146,7 @@ def deepest_chord_in(body: AbstractBody, rho, z, zpos) -> tuple[np.ndarray, np.n
     each frame), for node positions ``rho, z`` of shape (..., N): depth in R (positive inside,
     a non-finite chord counts as -inf), ``element`` the index of its element (nodes ``element``
     and ``element + 1``). No pole crossing (the module's docstring: the ball's check only)."""
-    depth = chord_depths(body, rho, z, zpos)
-    depth = np.where(np.isfinite(depth), depth, -np.inf)
-    k = np.argmax(depth, axis=-1)
-    return np.take_along_axis(depth, k[..., None], axis=-1)[..., 0], k
+    return _deepest(chord_depths(body, rho, z, zpos))
 
 
 def relative_chord_depths(body: AbstractBody, rho, z, zpos):
@@ -146,15 +164,8 @@ def relative_chord_depths(body: AbstractBody, rho, z, zpos):
     depth, the wall's half thickness, is the rim's radius, relative depth 1. Where no radius
     applies the depth is taken as it is (relative to R): a chord that does not enter the body
     (depth <= 0, radius nan) and one that cuts a sharp corner (radius 0)."""
-    x = jnp.stack([jnp.asarray(rho, float), jnp.asarray(z, float)], axis=-1)
-    zp = jnp.asarray(zpos, float)[..., None]
-    zp = jnp.broadcast_to(zp, x.shape[:-2] + (x.shape[-2] - 1,))
-    a, b = x[..., :-1, :], x[..., 1:, :]
-    depth, um = _deepest(body, a, b, zp)
-    s_in, s_out = _cut_off(body, a, b, zp, um)
-    depth = np.asarray(depth)
-    radius = np.where(depth > 0, body.curvature_radius(np.asarray(s_in), np.asarray(s_out)),
-                      np.nan)
+    depth, s_in, s_out = _per_frame(body, rho, z, zpos)
+    radius = np.where(depth > 0, body.curvature_radius(s_in, s_out), np.nan)
     scale = np.where((depth > 0) & (radius > 0), radius, 1.0)
     return depth, radius, depth / scale
 
@@ -163,8 +174,11 @@ def deepest_relative_chord_in(body: AbstractBody, rho, z, zpos):
     """Per frame (frames leading, shape (...)) ``(relative, radius, element)`` of the element
     chord deepest relative to the radius it cuts off (:func:`relative_chord_depths`), as
     :func:`deepest_chord_in` (a non-finite chord counts as -inf)."""
-    _, radius, rel = relative_chord_depths(body, rho, z, zpos)
-    rel = np.where(np.isfinite(rel), rel, -np.inf)
-    k = np.argmax(rel, axis=-1)
-    pick = lambda v: np.take_along_axis(v, k[..., None], axis=-1)[..., 0]  # noqa: E731
-    return pick(rel), pick(radius), k
+    return deepest_chords_in(body, rho, z, zpos)[1]
+
+
+def deepest_chords_in(body: AbstractBody, rho, z, zpos):
+    """:func:`deepest_chord_in` and :func:`deepest_relative_chord_in` from one evaluation of the
+    chords: ``((depth, element), (relative, radius, element))``."""
+    depth, radius, rel = relative_chord_depths(body, rho, z, zpos)
+    return _deepest(depth), _deepest(rel, radius)
