@@ -30,6 +30,7 @@ __all__ = [
     "node_rate",
     "residual",
     "residual_and_signs",
+    "residual_and_state",
     "sheet_held_frame",
     "slip_update",
 ]
@@ -287,19 +288,25 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load):
     return u, vb, delta1
 
 
-def _residual_and_forces(model, friction, inc: Increment, q, zb):
+def residual_and_state(model, friction, inc: Increment, q, zb):
+    """:func:`residual` and what the increment's end reads from the same evaluation: the
+    energy gradient ``g`` (n, 2), the ball's velocity and the slip distances at the increment's
+    end (None: memoryless law), ``(r_q, r_z, (g, vb, delta1))``. Newton carries the last
+    accepted trial's, so the converged state's rates are not evaluated again (each call site of
+    the residual is compiled anew: docs/speed.md)."""
     g, load = forces(model, q, zb)
-    u, vb, _ = increment_rates(model, friction, inc, q, zb, g, load)
-    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, g
+    u, vb, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, (g, vb, delta1)
 
 
 def residual(model, friction, inc: Increment, q, zb):
     """The increment's residual: $q - q_0 - \\Delta t\\,u(q)$ (n, 2) and $z_b - z_{b,0} -
     \\Delta t\\,v_b$."""
-    return _residual_and_forces(model, friction, inc, q, zb)[:2]
+    return residual_and_state(model, friction, inc, q, zb)[:2]
 
 
 def residual_and_signs(model, friction, inc: Increment, q, zb):
-    """:func:`residual` and :func:`slip_signs` from one evaluation of the forces."""
-    r_q, r_z, g = _residual_and_forces(model, friction, inc, q, zb)
-    return r_q, r_z, slip_signs(model, friction, inc, q, g)
+    """:func:`residual_and_state` and :func:`slip_signs` from one evaluation of the forces:
+    ``(r_q, r_z, signs, state)``."""
+    r_q, r_z, state = residual_and_state(model, friction, inc, q, zb)
+    return r_q, r_z, slip_signs(model, friction, inc, q, state[0]), state

@@ -31,7 +31,9 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   $\partial u_i/\partial q_j = L^q_i\delta_{ij} + L^g_i H_{ij}$. No pass over the whole field.
 - **Backtracking** as :class:`dynslip.physics.loadstep.DampedNewton` (a correction that
   raises the residual's max norm is halved, at most ``backtrack`` times); the residual of
-  the accepted trial is the next iteration's residual (one evaluation per trial).
+  the accepted trial is the next iteration's residual (one evaluation per trial), and its
+  energy gradient, ball velocity and slip distances are the converged state's (not evaluated
+  again after the loop; :func:`dynslip.physics.increment.residual_and_state`).
 - **Predictor.** Newton starts from the last accepted increment's rate extrapolated over
   the new increment (zero at a segment's start).
 - **Convergence.** The last correction below ``atol + rtol |x|`` and the residual's max norm
@@ -79,8 +81,8 @@ from dynslip.physics.increment import (
     STICK,
     Increment,
     increment_rates,
-    residual,
     residual_and_signs,
+    residual_and_state,
     sheet_held_frame,
 )
 from dynslip.physics.linalg import bordered_solve
@@ -182,7 +184,8 @@ class MotionNewton(eqx.Module):
             zb = jnp.concatenate([jnp.reshape(zb0 + h * rz, (1,)), layout.free(y0)])
 
             def res(q, zb, mode):
-                return (*res0(q, zb), jnp.zeros(n, jnp.int32))
+                # the end state is evaluated after the loop (``state`` None)
+                return (*res0(q, zb), jnp.zeros(n, jnp.int32), None)
 
             def blocks(q, zb, mode):
                 return blocks0(q, zb)
@@ -194,8 +197,12 @@ class MotionNewton(eqx.Module):
                                  held_delta0=hdelta0)
 
             def res(q, zb, mode):
+                # the residual, the slip signs and the state the increment's end reads
+                # (:func:`residual_and_state`; with every node given back its law, as at
+                # convergence, the held branches' state is the law's own)
                 if not active:
-                    return (*residual(model, friction, inc, q, zb), jnp.zeros(n, jnp.int32))
+                    r_q, r_z, state = residual_and_state(model, friction, inc, q, zb)
+                    return r_q, r_z, jnp.zeros(n, jnp.int32), state
                 return residual_and_signs(model, friction, held(mode), q, zb)
 
             def blocks(q, zb, mode):
@@ -205,14 +212,14 @@ class MotionNewton(eqx.Module):
             return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))
 
         free_mode = jnp.zeros(n, jnp.int32)
-        r_q, r_z, sgn = res(q, zb, free_mode)
+        r_q, r_z, sgn, state = res(q, zb, free_mode)
 
         def cond(c):
             it, done, bad = c[4], c[5], c[6]
             return (~done) & (~bad) & (it < self.max_iter)
 
         def body(c):
-            q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final, small = c
+            q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final, small, state = c
             dq, dz = bordered_solve(*blocks(q, zb, mode), r_q, r_z, self.linear)
             f0 = size(r_q, r_z)
 
@@ -220,18 +227,18 @@ class MotionNewton(eqx.Module):
             # loop whose first pass is the full step, so the residual is traced once here (each
             # call site of it is compiled anew: 2 s of the world's compile per copy)
             def bt_cond(b):
-                _alpha, tq, tz, _, k = b
+                _alpha, tq, tz, _, _, k = b
                 f1 = size(tq, tz)
                 return ~((f1 <= f0) | (f1 <= atol)) & (k <= self.backtrack)
 
             def bt_body(b):
-                alpha, _, _, _, k = b
+                alpha, _, _, _, _, k = b
                 alpha = jnp.where(k == 0, 1.0, 0.5 * alpha)
-                tq, tz, ts = res(q - alpha * dq, zb - alpha * dz, mode)
-                return alpha, tq, tz, ts, k + 1
+                tq, tz, ts, tstate = res(q - alpha * dq, zb - alpha * dz, mode)
+                return alpha, tq, tz, ts, tstate, k + 1
 
-            unset = (jnp.full_like(r_q, jnp.inf), jnp.full_like(r_z, jnp.inf), sgn)
-            alpha, tq, tz, ts, _ = jax.lax.while_loop(
+            unset = (jnp.full_like(r_q, jnp.inf), jnp.full_like(r_z, jnp.inf), sgn, state)
+            alpha, tq, tz, ts, state, _ = jax.lax.while_loop(
                 bt_cond, bt_body, (jnp.array(1.0), *unset, jnp.array(0))
             )
             qn, zbn = q - alpha * dq, zb - alpha * dz
@@ -243,10 +250,10 @@ class MotionNewton(eqx.Module):
                 hold = (~final) & (mode == FREE) & (flips >= self.freeze)
                 branch = jnp.where(ts == 0, STICK, jnp.where(ts > 0, SLIP_UP, SLIP_DOWN))
                 new_mode = jnp.where(hold, branch, mode)
-                tq, tz, ts = jax.lax.cond(
+                tq, tz, ts, state = jax.lax.cond(
                     jnp.any(new_mode != mode),
                     lambda: res(qn, zbn, new_mode),
-                    lambda: (tq, tz, ts),
+                    lambda: (tq, tz, ts, state),
                 )
                 mode = new_mode
             step = jnp.maximum(
@@ -267,8 +274,8 @@ class MotionNewton(eqx.Module):
                 )
             if active:
                 release = done & jnp.any(mode != FREE)
-                tq, tz, ts = jax.lax.cond(
-                    release, lambda: res(qn, zbn, free_mode), lambda: (tq, tz, ts)
+                tq, tz, ts, state = jax.lax.cond(
+                    release, lambda: res(qn, zbn, free_mode), lambda: (tq, tz, ts, state)
                 )
                 mode = jnp.where(release, free_mode, mode)
                 final = final | release
@@ -276,19 +283,23 @@ class MotionNewton(eqx.Module):
             bad = ~(
                 jnp.all(jnp.isfinite(qn)) & jnp.all(jnp.isfinite(zbn)) & jnp.isfinite(size(tq, tz))
             )
-            return qn, zbn, tq, tz, it + 1, done, bad, mode, flips, ts, final, small
+            return qn, zbn, tq, tz, it + 1, done, bad, mode, flips, ts, final, small, state
 
         init = (
             q, zb, r_q, r_z, jnp.array(0, jnp.int32), jnp.array(False), jnp.array(False),
             free_mode, jnp.zeros(n, jnp.int32), sgn, jnp.array(False), jnp.array(0, jnp.int32),
+            state,
         )
-        q, zb, _, _, it, done, bad, *_ = jax.lax.while_loop(cond, body, init)
+        q, zb, _, _, it, done, bad, *_, state = jax.lax.while_loop(cond, body, init)
         zk = None
         if nf:
             zb, zk = zb[0], zb[1:]
             model = placed(zk)
-        g, load = forces(model, q, zb)
-        _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
+            g, load = forces(model, q, zb)
+            _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
+        else:
+            # the converged state's gradient and rates, from the residual's last evaluation
+            g, vb1, delta1 = state
         hdelta1 = None
         if hdelta0 is not None:
             # the held bodies' return map: delta1 = delta0 + h |S(G, mu(delta0) N)|/(eta A) in
