@@ -187,7 +187,7 @@ class MotionNewton(eqx.Module):
                 # the end state is evaluated after the loop (``state`` None)
                 return (*res0(q, zb), jnp.zeros(n, jnp.int32), None)
 
-            def blocks(q, zb, mode):
+            def blocks(q, zb, mode, state):
                 return blocks0(q, zb)
         else:
             zb = zb0 + h * rz
@@ -205,8 +205,10 @@ class MotionNewton(eqx.Module):
                     return r_q, r_z, jnp.zeros(n, jnp.int32), state
                 return residual_and_signs(model, friction, held(mode), q, zb)
 
-            def blocks(q, zb, mode):
-                return newton_blocks(model, friction, held(mode) if active else inc, q, zb)
+            def blocks(q, zb, mode, state):
+                # the ball's velocity at (q, zb) from the residual's evaluation there
+                return newton_blocks(model, friction, held(mode) if active else inc, q, zb,
+                                     vb=state[1])
 
         def size(rq, rz):
             return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))
@@ -220,7 +222,7 @@ class MotionNewton(eqx.Module):
 
         def body(c):
             q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final, small, state = c
-            dq, dz = bordered_solve(*blocks(q, zb, mode), r_q, r_z, self.linear)
+            dq, dz = bordered_solve(*blocks(q, zb, mode, state), r_q, r_z, self.linear)
             f0 = size(r_q, r_z)
 
             # the full step, then up to ``backtrack`` halvings while the residual rises: one

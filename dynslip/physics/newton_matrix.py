@@ -32,11 +32,13 @@ from dynslip.physics.terms import forces, forces_and_hessians
 __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
 
 
-def newton_blocks(model, friction, inc: Increment, q, zb):
+def newton_blocks(model, friction, inc: Increment, q, zb, vb=None):
     """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
-    (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives."""
+    (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives. ``vb``:
+    the ball's velocity at ``(q, zb)`` where the caller has it (the residual's, which Newton
+    carries), read with held friction only (None: :func:`ball_velocity`'s)."""
     if frictional(model.bodies):
-        return blocks_with_held_friction(model, friction, inc, q, zb)
+        return blocks_with_held_friction(model, friction, inc, q, zb, vb)
     n = q.shape[0]
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
     idx = jnp.arange(n)
@@ -127,7 +129,7 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1]
 
 
-def blocks_with_held_friction(model, friction, inc: Increment, q, zb):
+def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None):
     r""":func:`newton_blocks` with friction on the held bodies. The node rates depend on the
     ball's velocity $v_b$ (:func:`ball_velocity`), which reads every node in contact with a
     frictional body: with $V_j = dv_b/dq_j$ and $V_z = dv_b/dz_b$ (the implicit function
@@ -137,12 +139,13 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb):
     is $-h V$, the column $-h(\ell^g_i\,\partial g_i/\partial z_b + \ell^z_i + \ell^v_i V_z)$,
     and the rank-one coupling $\ell^v_i V_j$ of the node rates is kept where $|i - j| \le 1$
     (the rest is not block tridiagonal and is left out: an inexact Newton matrix, the residual
-    exact; with the ball held $V = 0$ and the matrix is exact)."""
+    exact; with the ball held $V = 0$ and the matrix is exact). ``vb``: :func:`newton_blocks`'s."""
     n = q.shape[0]
     args = inc.args
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
-    # the ball's velocity (held: prescribed, the root search skipped by lax.cond)
-    vb = ball_velocity(model, inc, q, zb, g, load)
+    if vb is None:
+        # the ball's velocity (held: prescribed, the root search skipped by lax.cond)
+        vb = ball_velocity(model, inc, q, zb, g, load)
     idx = jnp.arange(n)
     mem = inc.delta0 is not None
     d0 = inc.delta0 if mem else jnp.zeros(n)
