@@ -91,8 +91,11 @@ def _f(x):
     return jnp.asarray(x, dtype=jnp.float64)
 
 
-def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
-    """Rates and the quantities derived on the way (shared by the vector field and frames)."""
+def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None):
+    """Rates and the quantities derived on the way (shared by the vector field and frames).
+    ``vb``: the ball's velocity where the caller has solved for it at this state (the load
+    step's converged increment), so the root search of a free ball with held friction is not
+    run again (None: solved here)."""
     model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
@@ -125,8 +128,9 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs):
         vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
         c_ball = c_pen
     else:
-        vb_free = free_ball_velocity(hf, fb + c_pen + args.weight, args.ball_drag, held)
-        vb = jnp.where(held, args.vzb, vb_free)
+        if vb is None:
+            vb_free = free_ball_velocity(hf, fb + c_pen + args.weight, args.ball_drag, held)
+            vb = jnp.where(held, args.vzb, vb_free)
         c_ball = c_pen + hf.axial(vb)
         u = u + hf.force(vb).T / eta_a
     f_hold = jnp.where(held, args.ball_drag * vb - c_ball - args.weight, fb)

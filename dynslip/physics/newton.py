@@ -313,7 +313,7 @@ class MotionNewton(eqx.Module):
         # friction power of fully mobilised nodes is counted at the weakened threshold, which
         # the motion never saw: 5x the work on the let-go path)
         y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk, hdelta0)
-        dy, _ = evaluate(model, layout, t1, y_rates, args)
+        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1)
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1)
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
