@@ -43,22 +43,16 @@ def _node_penalty(pen, ball, area, q):
     return area * penalty_energy(pen, contact_gap(ball, q)[0])
 
 
-def _held_penalty(model: SheetModel, area, x, zb=0.0, moving=None):
+def _held_penalty(model: SheetModel, area, x, zb=0.0):
     """Penalty energy of one node at absolute position ``x`` against every held body (a body
-    that moves with the ball displaced by ``zb``); ``moving`` True/False: only those that do /
-    do not (None: all)."""
+    that moves with the ball displaced by ``zb``)."""
     return sum(
         (
             area * penalty_energy(model.penalty, contact_gap(e.body, x, e.shift(zb))[0])
             for e in held_entries(model.bodies)
-            if moving is None or e.moves_with_ball == moving
         ),
         jnp.zeros(()),
     )
-
-
-def _moves_with_ball(model: SheetModel) -> bool:
-    return any(e.moves_with_ball for e in held_entries(model.bodies))
 
 
 def forces(model: SheetModel, q, zb):
@@ -118,15 +112,22 @@ def forces_and_hessians(model: SheetModel, q, zb):
     load, hh = jnp.zeros(()), None
     if model.bodies:
         x = q + jnp.stack([jnp.zeros(()), zb])
-        eh, gh, hh = jax.vmap(lambda a, x: second(lambda x: _held_penalty(model, a, x, zb), x))(
-            m.area, x
-        )
+        # per body, summed here: the Hessian of the bodies at rest is the part that moves with
+        # zb at fixed q, so each body's projection is differentiated twice once, not again
+        # for that part (each derivative pass through a profile's projection is large: the
+        # world's compile)
+        entries = held_entries(model.bodies)
+        parts = [
+            jax.vmap(lambda a, x, e=e: second(
+                lambda x: a * penalty_energy(model.penalty, contact_gap(e.body, x,
+                                                                        e.shift(zb))[0]), x))(
+                m.area, x)
+            for e in entries
+        ]
+        eh, gh, hh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(3))
         ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
-        hz = hh
-        if _moves_with_ball(model):
-            hz = jax.vmap(
-                lambda a, x: second(lambda x: _held_penalty(model, a, x, moving=False), x)[2]
-            )(m.area, x)
+        hz = sum((p[2] for p, e in zip(parts, entries, strict=True) if not e.moves_with_ball),
+                 jnp.zeros_like(hh))
         hh = (hh, hz)
     g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
     h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
