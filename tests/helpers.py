@@ -1,6 +1,8 @@
 """Helpers shared by the tests: a small contract-conforming trajectory whose ``state``
 field is prescribed (fronts, animations, comparisons and the command line are tested on it
-without running the simulator); :func:`one_line`, the check of a one-line error message."""
+without running the simulator); :func:`one_line`, the check of a one-line error message;
+the Newton matrix against ``jax.jacfwd`` of the increment's residual
+(:func:`newton_matrix_and_jacfwd`)."""
 
 from __future__ import annotations
 
@@ -194,3 +196,48 @@ def run_refused(tmp_path, capsys, scenario, edit, *words):
         assert w in line, line
     assert not out.exists()
     assert [p.name for p in tmp_path.iterdir()] == ["bad.yaml"]
+
+
+def dense_blocks(lower, diag, upper, B, C, D):
+    """The bordered block-tridiagonal matrix as a dense array (a border of m = D's size)."""
+    n, m = diag.shape[0], np.shape(D)[0]
+    j = np.zeros((2 * n + m, 2 * n + m))
+    for i in range(n):
+        j[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = diag[i]
+        if i > 0:
+            j[2 * i : 2 * i + 2, 2 * i - 2 : 2 * i] = lower[i]
+        if i < n - 1:
+            j[2 * i : 2 * i + 2, 2 * i + 2 : 2 * i + 4] = upper[i]
+    j[: 2 * n, 2 * n :] = np.asarray(B).reshape(2 * n, m)
+    j[2 * n :, : 2 * n] = np.asarray(C).reshape(m, 2 * n)
+    j[2 * n :, 2 * n :] = np.asarray(D)
+    return j
+
+
+def newton_matrix_and_jacfwd(model, friction, inc, q, zb):
+    """The increment's Newton matrix (``newton_blocks``, dense) and ``jax.jacfwd`` of its
+    residual flattened over ``(q, zb)``: ``(got, ref)``, both (2n + 1, 2n + 1)."""
+    import jax
+    import jax.numpy as jnp
+
+    from dynslip.physics import increment as ni
+    from dynslip.physics import newton_matrix as nm
+
+    n = q.shape[0]
+
+    def flat(v):
+        rq, rz = ni.residual(model, friction, inc, v[:-1].reshape(n, 2), v[-1])
+        return jnp.concatenate([rq.reshape(-1), rz[None]])
+
+    ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
+    return dense_blocks(*nm.newton_blocks(model, friction, inc, q, zb)), ref
+
+
+def near_diagonal(n):
+    """The mask (2n + 1, 2n + 1) of a Newton matrix without the node blocks more than one node
+    off the diagonal (the rank-one coupling through a free ball's velocity the matrix leaves
+    out, docs/bodies.md); the border row and column kept."""
+    mask = np.ones((2 * n + 1, 2 * n + 1), dtype=bool)
+    node = np.arange(2 * n) // 2
+    mask[: 2 * n, : 2 * n] = np.abs(node[:, None] - node[None, :]) <= 1
+    return mask

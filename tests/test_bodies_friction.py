@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 
 from dynslip.physics import increment as ni
-from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder, Torus
 from dynslip.physics.bodies.held import Held, free_ball_velocity
 from dynslip.physics.friction import Coulomb, SlipWeakening
@@ -35,6 +34,7 @@ from dynslip.physics.protocols import (
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import Settings, simulate
+from helpers import near_diagonal, newton_matrix_and_jacfwd
 from test_forming import residual
 
 N = 32
@@ -271,19 +271,8 @@ def test_newton_blocks_with_held_friction_equal_jacfwd(ball_mode):
         q0=q, zb0=zb, delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3), args=args
     )
 
-    def flat(v):
-        rq, rz = ni.residual(SMALL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
-        return jnp.concatenate([rq.reshape(-1), rz[None]])
-
-    ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
-    from test_newton import _dense
-
-    got = _dense(*nm.newton_blocks(SMALL, args.friction, inc, q, zb))
-    mask = np.ones_like(ref, dtype=bool)
-    if ball_mode == BALL_FORCE:
-        node = np.arange(2 * NS) // 2
-        far = np.abs(node[:, None] - node[None, :]) > 1
-        mask[: 2 * NS, : 2 * NS] = ~far
+    got, ref = newton_matrix_and_jacfwd(SMALL, args.friction, inc, q, zb)
+    mask = near_diagonal(NS) if ball_mode == BALL_FORCE else np.ones_like(ref, dtype=bool)
     np.testing.assert_allclose(got[mask], ref[mask], atol=1e-9 * np.abs(ref).max())
     # the friction couples the node rates to the ball's velocity: the rows differ from the
     # frictionless model's

@@ -11,13 +11,11 @@ from __future__ import annotations
 
 import math
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from dynslip.physics import increment as ni
-from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder, Sphere, Torus
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
@@ -32,6 +30,7 @@ from dynslip.physics.protocols import (
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.simulate import Settings, simulate
+from helpers import newton_matrix_and_jacfwd
 from test_forming import residual
 
 N = 24
@@ -219,15 +218,7 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
     )
     zb = jnp.asarray(0.02)
 
-    def flat(v):
-        rq, rz = ni.residual(SMALL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
-        return jnp.concatenate([rq.reshape(-1), rz[None]])
-
-    ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
-    lower, diag, upper, B, C, D = nm.newton_blocks(SMALL, args.friction, inc, q, zb)
-    from test_newton import _dense
-
-    got = _dense(lower, diag, upper, B, C, D)
+    got, ref = newton_matrix_and_jacfwd(SMALL, args.friction, inc, q, zb)
     mask = np.ones_like(ref, dtype=bool)
     if ball_mode == BALL_FORCE:
         mask[2 * NS - 2 : 2 * NS, : 2 * NS - 4] = False  # the edge row's far columns

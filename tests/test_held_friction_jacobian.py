@@ -27,6 +27,7 @@ from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.terms import forces
+from helpers import near_diagonal, newton_matrix_and_jacfwd
 from test_bodies_friction import _args, _small_state
 
 NS = 9
@@ -132,8 +133,6 @@ def test_newton_blocks_with_several_frictional_bodies_equal_jacfwd(ball_mode):
     stages) against jax.jacfwd of the residual: exact with the ball held; under force (free, or
     pressed onto its support) all but the far rank-one coupling (the border row and column,
     the D entry, every block within one node of the diagonal)."""
-    from test_newton import _dense
-
     args, inc, q, zb = _setup(BALL_FORCE if ball_mode == "supported" else ball_mode,
                               memory=False)  # the ball's law: Coulomb
     if ball_mode == "supported":
@@ -141,15 +140,9 @@ def test_newton_blocks_with_several_frictional_bodies_equal_jacfwd(ball_mode):
         assert float(args.support_force(zb)) > 0
         inc = eqx.tree_at(lambda i: i.args, inc, args)
 
-    def flat(v):
-        rq, rz = ni.residual(MODEL, args.friction, inc, v[:-1].reshape(NS, 2), v[-1])
-        return jnp.concatenate([rq.reshape(-1), rz[None]])
-
-    ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
-    got = _dense(*nm.newton_blocks(MODEL, args.friction, inc, q, zb))
+    got, ref = newton_matrix_and_jacfwd(MODEL, args.friction, inc, q, zb)
     mask = np.ones_like(ref, dtype=bool)
     if ball_mode != BALL_HOLD:
-        node = np.arange(2 * NS) // 2
-        mask[: 2 * NS, : 2 * NS] = ~(np.abs(node[:, None] - node[None, :]) > 1)
+        mask = near_diagonal(NS)
         assert np.abs(ref[-1, :-1]).max() > 0  # the ball's velocity reads the nodes
     np.testing.assert_allclose(got[mask], ref[mask], rtol=0, atol=1e-12 * np.abs(ref).max())

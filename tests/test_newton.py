@@ -29,6 +29,7 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from helpers import dense_blocks
 
 N = 9
 MODEL = SheetModel(
@@ -83,20 +84,7 @@ def _increment(layout, y0, args, h):
     )
 
 
-def _dense(lower, diag, upper, B, C, D):
-    """The bordered block-tridiagonal matrix as a dense array (a border of m = D's size)."""
-    n, m = diag.shape[0], np.shape(D)[0]
-    j = np.zeros((2 * n + m, 2 * n + m))
-    for i in range(n):
-        j[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = diag[i]
-        if i > 0:
-            j[2 * i : 2 * i + 2, 2 * i - 2 : 2 * i] = lower[i]
-        if i < n - 1:
-            j[2 * i : 2 * i + 2, 2 * i + 2 : 2 * i + 4] = upper[i]
-    j[: 2 * n, 2 * n :] = np.asarray(B).reshape(2 * n, m)
-    j[2 * n :, : 2 * n] = np.asarray(C).reshape(m, 2 * n)
-    j[2 * n :, 2 * n :] = np.asarray(D)
-    return j
+_dense = dense_blocks  # the name the other test modules import
 
 
 @pytest.mark.slow
