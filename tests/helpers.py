@@ -214,8 +214,9 @@ def dense_blocks(lower, diag, upper, B, C, D):
     return j
 
 
-def newton_matrix_and_jacfwd(model, friction, inc, q, zb):
-    """The increment's Newton matrix (``newton_blocks``, dense) and ``jax.jacfwd`` of its
+def newton_matrix_and_jacfwd(model, friction, inc, q, zb, exact=True):
+    """The increment's Newton matrix (``newton_blocks(exact=)``, dense, its auxiliary border
+    unknowns past ``z_b`` eliminated by their Schur complement) and ``jax.jacfwd`` of its
     residual flattened over ``(q, zb)``: ``(got, ref)``, both (2n + 1, 2n + 1)."""
     import jax
     import jax.numpy as jnp
@@ -230,7 +231,11 @@ def newton_matrix_and_jacfwd(model, friction, inc, q, zb):
         return jnp.concatenate([rq.reshape(-1), rz[None]])
 
     ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
-    return dense_blocks(*nm.newton_blocks(model, friction, inc, q, zb)), ref
+    got = dense_blocks(*nm.newton_blocks(model, friction, inc, q, zb, exact=exact))
+    k = 2 * n + 1
+    if got.shape[0] > k:
+        got = got[:k, :k] - got[:k, k:] @ np.linalg.solve(got[k:, k:], got[k:, :k])
+    return got, ref
 
 
 def near_diagonal(n):
@@ -241,3 +246,20 @@ def near_diagonal(n):
     node = np.arange(2 * n) // 2
     mask[: 2 * n, : 2 * n] = np.abs(node[:, None] - node[None, :]) <= 1
     return mask
+
+
+def check_newton_matrix(model, friction, inc, q, zb, free_ball: bool, rel: float):
+    """The Newton matrix against ``jax.jacfwd`` of the increment's residual, to ``rel`` of its
+    largest entry: every entry with ``exact=True``; with ``exact=False`` (the border of one that
+    ``free_system`` builds on) all but the far rank-one coupling through a free ball's velocity
+    (``free_ball``: the ball under force), and that coupling must be there for the exact
+    matrix to have something to add. Returns the reference."""
+    got, ref = newton_matrix_and_jacfwd(model, friction, inc, q, zb)
+    tol = rel * np.abs(ref).max()
+    np.testing.assert_allclose(got, ref, rtol=0, atol=tol)
+    banded, _ = newton_matrix_and_jacfwd(model, friction, inc, q, zb, exact=False)
+    mask = near_diagonal(q.shape[0]) if free_ball else np.ones_like(ref, dtype=bool)
+    np.testing.assert_allclose(banded[mask], ref[mask], rtol=0, atol=tol)
+    if free_ball:
+        assert np.abs(ref[~mask]).max() > 1e3 * tol
+    return ref

@@ -367,7 +367,10 @@ def bordered_solve(lower, diag, upper, B, C, D, f, g, method: str = "cyclic"):
     \begin{pmatrix}f\\ g\end{pmatrix}$, $A$ block tridiagonal (blocks (n, b, b)), border of m
     unknowns (``B`` (n, b, m), ``C`` (m, n, b), ``D`` (m, m)), ``f`` (n, b), ``g`` (m,) or a scalar
     for m = 1: one block-tridiagonal solve for $[f, B]$ together, then the Schur complement
-    $S = D - C A^{-1} B$. Returns ``(x, y)`` shaped as ``(f, g)``."""
+    $S = D - C A^{-1} B$. Returns ``(x, y)`` shaped as ``(f, g)``. A ``g`` of fewer than m
+    entries is the first of them, the rest 0 (auxiliary unknowns, such as the ball's velocity
+    change in :func:`dynslip.physics.newton_matrix.blocks_with_held_friction`), and ``y`` its
+    first entries."""
     n, b = f.shape
     m = D.shape[0]
     sol = block_tridiagonal_solve(
@@ -376,7 +379,9 @@ def bordered_solve(lower, diag, upper, B, C, D, f, g, method: str = "cyclic"):
     ainv_f, ainv_b = sol[:, :, 0], sol[:, :, 1:]
     cflat = C.reshape(m, n * b)
     schur = D - cflat @ ainv_b.reshape(n * b, m)
-    gv = jnp.reshape(g, (m,))
+    gv = jnp.reshape(g, (-1,))
+    k = gv.shape[0]
+    gv = jnp.concatenate([gv, jnp.zeros(m - k, gv.dtype)]) if k < m else gv
     y = jnp.linalg.solve(schur, gv - cflat @ ainv_f.reshape(n * b))
     x = ainv_f - ainv_b @ y
-    return x, jnp.reshape(y, jnp.shape(g))
+    return x, jnp.reshape(y[:k], jnp.shape(g))

@@ -39,12 +39,13 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
 - **Convergence.** The last correction below ``atol + rtol |x|`` and the residual's max norm
   below ``atol``; or (the *residual floor*, ``floor_factor``) Newton's full correction below
   ``atol + rtol |x|`` for ``floor_count`` iterations running and the residual below
-  ``floor_factor atol``. Traced on the main job: in the z rows of the sheet's edge nodes on the
-  tube and the band, rows whose Newton matrix leaves out the free ball's coupling to the rest
-  of the sheet (:func:`dynslip.physics.newton_matrix.blocks_with_held_friction`), Newton's
-  corrections fall far below the step tolerance while the residual stays at 2-10 ``atol``,
-  until the increment is cut. A bounded relaxation of the test: the let-go end states move by
-  at most 1.2e-7 rad (docs/speed.md); ``floor_factor = 0`` gives the old test.
+  ``floor_factor atol``. Traced on the main job when its Newton matrix still left out the free
+  ball's coupling to the rest of the sheet (now exact:
+  :func:`dynslip.physics.newton_matrix.blocks_with_held_friction`): in the z rows of the sheet's
+  edge nodes on the tube and the band, Newton's corrections fell far below the step tolerance
+  while the residual stayed at 2-10 ``atol``, until the increment was cut. A bounded
+  relaxation of the test: the let-go end states move by at most 1.2e-7 rad (docs/speed.md);
+  ``floor_factor = 0`` gives the old test.
 - **Increment size.** Grown by 1.5 after at most ``grow_below`` iterations, shrunk by 0.7 after
   at least ``shrink_above``, halved on a failure; with ``fail_cap`` the increments that follow a
   failure within a segment are held to at most ``fail_cap`` times the failed size, a bound
@@ -64,6 +65,12 @@ Hessian blocks) in :mod:`dynslip.physics.terms`; the increment's data and residu
 :mod:`dynslip.physics.newton_matrix`; here the increment's loop and the segment's. The
 active-set pass (``MotionNewton.freeze``) lives in the increment's loop because it changes the
 residual and matrix that loop evaluates.
+
+Longer than 400 lines: the increment's Newton loop (predictor, one residual call site,
+backtracking, the active-set pass, the residual floor) and the segment's loop with its
+increment controller are one algorithm, documented here as one. The cut worth making, not yet
+made: the increment controller (:meth:`MotionNewton.next_size`, :func:`increment_cap`) to a
+module of its own.
 """
 
 from __future__ import annotations

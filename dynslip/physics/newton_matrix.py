@@ -32,13 +32,14 @@ from dynslip.physics.terms import forces, forces_and_hessians
 __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
 
 
-def newton_blocks(model, friction, inc: Increment, q, zb, vb=None):
+def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
     (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives. ``vb``:
     the ball's velocity at ``(q, zb)`` where the caller has it (the residual's, which Newton
-    carries), read with held friction only (None: :func:`ball_velocity`'s)."""
+    carries), read with held friction only (None: :func:`ball_velocity`'s); ``exact``: with
+    held friction, :func:`blocks_with_held_friction`'s border of two."""
     if frictional(model.bodies):
-        return blocks_with_held_friction(model, friction, inc, q, zb, vb)
+        return blocks_with_held_friction(model, friction, inc, q, zb, vb, exact)
     n = q.shape[0]
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
     idx = jnp.arange(n)
@@ -129,7 +130,7 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1]
 
 
-def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None):
+def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     r""":func:`newton_blocks` with friction on the held bodies. The node rates depend on the
     ball's velocity $v_b$ (:func:`ball_velocity`), which reads every node in contact with a
     frictional body: with $V_j = dv_b/dq_j$ and $V_z = dv_b/dz_b$ (the implicit function
@@ -137,9 +138,17 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None):
     axial held friction, whose derivatives :func:`_held_node_terms` gives with the node's
     rate's, and the chain rule through the energy's Hessian), the border row
     is $-h V$, the column $-h(\ell^g_i\,\partial g_i/\partial z_b + \ell^z_i + \ell^v_i V_z)$,
-    and the rank-one coupling $\ell^v_i V_j$ of the node rates is kept where $|i - j| \le 1$
-    (the rest is not block tridiagonal and is left out: an inexact Newton matrix, the residual
-    exact; with the ball held $V = 0$ and the matrix is exact). ``vb``: :func:`newton_blocks`'s."""
+    and the node rates' rank-one coupling $\ell^v_i V_j$ through the ball's velocity couples
+    every node to every other (not block tridiagonal).
+
+    ``exact`` (the default): the coupling enters through a second border unknown, the ball's
+    velocity change $w = \sum_j V_j\,dq_j + V_z\,dz_b$: the node rows read $-h\ell^v_i w$, the
+    ball's row $dz_b - h w$, and $w$'s own row $\sum_j V_j\,dq_j + V_z\,dz_b - w = 0$ (right-hand
+    side 0: :func:`dynslip.physics.linalg.bordered_solve` pads it). Eliminating $w$ gives the
+    exact Newton matrix. ``exact=False``: the border of one, $z_b$, with the coupling kept
+    where $|i - j| \le 1$ and the rest left out (an inexact matrix, the residual exact; what
+    :func:`free_system` builds on). With the ball held $V = 0$ and both are exact.
+    ``vb``: :func:`newton_blocks`'s."""
     n = q.shape[0]
     args = inc.args
     g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
@@ -186,16 +195,24 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None):
     v_z = vz + jnp.sum(vg * dg_dz) + vl * dl_dz
     h = inc.h
     eye = jnp.eye(2)
-    rank1 = jnp.einsum("ni,nj->nij", lv, big_v)
-    diag = eye - h * (lq + small_matmul(lg, h_diag) + rank1)
-    upper = -h * (small_matmul(lg[:-1], h_up) + jnp.einsum("ni,nj->nij", lv[:-1], big_v[1:]))
-    lower = -h * (small_matmul(lg[1:], h_low) + jnp.einsum("ni,nj->nij", lv[1:], big_v[:-1]))
+    diag = eye - h * (lq + small_matmul(lg, h_diag))
+    upper = -h * small_matmul(lg[:-1], h_up)
+    lower = -h * small_matmul(lg[1:], h_low)
+    col = jnp.einsum("nij,nj->ni", lg, dg_dz) + lz
+    if exact:
+        # the border (z_b, w): w the ball's velocity change, its row sum_j V_j dq_j + V_z dz_b
+        B = -h * jnp.stack([col, lv], axis=-1)  # (n, 2, 2)
+        C = jnp.stack([jnp.zeros_like(big_v), big_v])  # (2, n, 2)
+        D = jnp.stack([jnp.stack([jnp.ones_like(v_z), -h]), jnp.stack([v_z, -jnp.ones_like(v_z)])])
+    else:
+        diag = diag - h * jnp.einsum("ni,nj->nij", lv, big_v)
+        upper = upper - h * jnp.einsum("ni,nj->nij", lv[:-1], big_v[1:])
+        lower = lower - h * jnp.einsum("ni,nj->nij", lv[1:], big_v[:-1])
+        B = -h * (col + lv * v_z)[:, :, None]
+        C = -h * big_v[None]
+        D = jnp.reshape(1.0 - h * v_z, (1, 1))
     upper = jnp.concatenate([upper, jnp.zeros((1, 2, 2))])
     lower = jnp.concatenate([jnp.zeros((1, 2, 2)), lower])
-    col = jnp.einsum("nij,nj->ni", lg, dg_dz) + lz + lv * v_z
-    B = -h * col[:, :, None]
-    C = -h * big_v[None]
-    D = jnp.reshape(1.0 - h * v_z, (1, 1))
     return lower, diag, upper, B, C, D
 
 
@@ -229,7 +246,8 @@ def free_system(model, friction, inc: Increment, zk0):
 
     def blocks(q, w):
         zb, zk = w[0], w[1:]
-        lower, diag, upper, b, c, d = newton_blocks(placed(zk), friction, inc, q, zb)
+        lower, diag, upper, b, c, d = newton_blocks(placed(zk), friction, inc, q, zb,
+                                                    exact=False)
         cq, cz = jax.jacfwd(lambda zk: residual(placed(zk), friction, inc, q, zb))(zk)
         rq, rzb, rzk = jax.jacrev(body_res, argnums=(0, 1, 2))(q, zb, zk)
         b = jnp.concatenate([b, cq], axis=-1)  # (n, 2, 1 + K)
