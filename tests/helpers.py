@@ -198,16 +198,25 @@ def run_refused(tmp_path, capsys, scenario, edit, *words):
     assert [p.name for p in tmp_path.iterdir()] == ["bad.yaml"]
 
 
+def dense_tridiagonal(lower, diag, upper, size=None):
+    """The block-tridiagonal matrix of blocks (n, b, b) as a dense array, (size, size) with the
+    blocks at its top left (default: n b)."""
+    n, b = diag.shape[0], diag.shape[1]
+    j = np.zeros((size or n * b,) * 2)
+    for i in range(n):
+        r = slice(b * i, b * i + b)
+        j[r, r] = diag[i]
+        if i > 0:
+            j[r, b * i - b : b * i] = lower[i]
+        if i < n - 1:
+            j[r, b * i + b : b * i + 2 * b] = upper[i]
+    return j
+
+
 def dense_blocks(lower, diag, upper, B, C, D):
     """The bordered block-tridiagonal matrix as a dense array (a border of m = D's size)."""
     n, m = diag.shape[0], np.shape(D)[0]
-    j = np.zeros((2 * n + m, 2 * n + m))
-    for i in range(n):
-        j[2 * i : 2 * i + 2, 2 * i : 2 * i + 2] = diag[i]
-        if i > 0:
-            j[2 * i : 2 * i + 2, 2 * i - 2 : 2 * i] = lower[i]
-        if i < n - 1:
-            j[2 * i : 2 * i + 2, 2 * i + 2 : 2 * i + 4] = upper[i]
+    j = dense_tridiagonal(lower, diag, upper, 2 * n + m)
     j[: 2 * n, 2 * n :] = np.asarray(B).reshape(2 * n, m)
     j[2 * n :, : 2 * n] = np.asarray(C).reshape(m, 2 * n)
     j[2 * n :, 2 * n :] = np.asarray(D)

@@ -29,7 +29,7 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from helpers import dense_blocks
+from helpers import dense_blocks, dense_tridiagonal
 
 N = 9
 MODEL = SheetModel(
@@ -128,13 +128,7 @@ def test_cyclic_reduction_equals_dense_solve(n):
     low, up = (jnp.asarray(rng.normal(size=(n, 3, 3))) for _ in range(2))
     dia = jnp.asarray(rng.normal(size=(n, 3, 3))) + 8 * jnp.eye(3)
     f = jnp.asarray(rng.normal(size=(n, 3, 2)))
-    a = np.zeros((3 * n, 3 * n))
-    for i in range(n):
-        a[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = dia[i]
-        if i > 0:
-            a[3 * i : 3 * i + 3, 3 * i - 3 : 3 * i] = low[i]
-        if i < n - 1:
-            a[3 * i : 3 * i + 3, 3 * i + 3 : 3 * i + 6] = up[i]
+    a = dense_tridiagonal(np.asarray(low), np.asarray(dia), np.asarray(up))
     x = cyclic_reduction(low, dia, up, f)
     np.testing.assert_allclose(
         np.asarray(x).reshape(-1, 2),
