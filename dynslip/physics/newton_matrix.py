@@ -34,7 +34,9 @@ __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
 
 def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     """The Newton matrix of :func:`residual` as blocks ``(lower, diag, upper, B, C, D)``
-    (shapes (n,2,2) x3, (n,2,1), (1,n,2), (1,1)) from element and node derivatives. ``vb``:
+    (shapes (n,2,2) x3, (n,2,m), (m,n,2), (m,m); the border m = 1, ``zb``, or with held friction
+    and ``exact`` m = 2, ``zb`` and the ball's velocity change) from element and node
+    derivatives. ``vb``:
     the ball's velocity at ``(q, zb)`` where the caller has it (the residual's, which Newton
     carries), read with held friction only (None: :func:`ball_velocity`'s); ``exact``: with
     held friction, :func:`blocks_with_held_friction`'s border of two."""
