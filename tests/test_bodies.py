@@ -29,6 +29,7 @@ from dynslip.physics.bodies import (
     overlap,
     penetration,
 )
+from dynslip.physics.bodies.segments import segment_arrays
 
 # the coin of issue 21 in units of a 20 mm ball radius: 24.26 mm across, 1.75 mm thick
 COIN = Disc(radius=12.13 / 20, thickness=1.75 / 20, edge_radius=0.3 / 20, centre_z=0.2)
@@ -449,3 +450,50 @@ def test_trap_criteria():
     assert PastWidest(BALL).threshold() == pytest.approx(math.pi / 2, abs=1e-12)
     assert bool(coin.trapped(s_mid + 1e-6)) and not bool(coin.trapped(s_mid - 1e-6))
     assert float(coin.margin(s_mid + 0.01)) == pytest.approx(0.01)
+
+
+@eqx.filter_jit
+def _jvp_projection(body, x, dx):
+    """The projection's outputs and their closed-form derivatives along dx, per point."""
+    def one(xi, di):
+        return jax.jvp(lambda y: tuple(project(body, y, 0.0)), (xi,), (di,))
+
+    return jax.vmap(one)(x, dx)
+
+
+@pytest.mark.parametrize("name", ["coin", "tube", "cone", "cylinder", "torus", "profile"])
+def test_projection_derivatives_match_finite_differences(name):
+    """The profile projection's closed-form derivative rule (segments.project_onto_segments:
+    the normal's turn by the foot's curvature, the tangent's with it, ds) against central
+    differences of the projection itself, for every output, along random directions, off the
+    surface on both sides near lines, arcs and corners, and across the axis (the mirror); the
+    distance's Hessian (jax.hessian, through the rule twice) against differences of the
+    normal."""
+    body = BODIES[name]
+    rng = np.random.default_rng(11)
+    s = rng.uniform(0, body.length, 80)
+    p = body.point_at(s)
+    _, n0, _, _ = proj(body, p)
+    x = p + rng.uniform(-0.02, 0.08, 80)[:, None] * n0
+    x[:8, 0] = -x[:8, 0]  # mirror images across the axis
+    cv, _, bis = segment_arrays(body.segments)[2]  # and off each corner, along its bisector
+    x = np.concatenate([x, cv + 0.05 * bis, cv + 0.05 * (bis + 0.3 * bis[:, ::-1])])
+    d_ = rng.normal(size=x.shape)
+    d_ /= np.linalg.norm(d_, axis=1, keepdims=True)
+    eps = 1e-6
+    plus, minus = proj(body, x + eps * d_), proj(body, x - eps * d_)
+    (_, tangents) = _jvp_projection(body, jnp.asarray(x), jnp.asarray(d_))
+    # the nearest foot is the same candidate at x +- eps d (else the difference is a jump), off
+    # the axis (where the mirror turns the tangent over)
+    same = (np.abs(plus[2] - minus[2]) < 1e-3) & (np.abs(x[:, 0]) > 1e-4)
+    assert same.sum() >= 0.75 * len(x)
+    for k, (a, b, t) in enumerate(zip(plus, minus, tangents, strict=True)):
+        fd = (a - b) / (2 * eps)
+        np.testing.assert_allclose(np.asarray(t)[same], fd[same], atol=2e-6, err_msg=f"output {k}")
+    # the normal turns where the profile curves: the rule's curvature term is exercised
+    turn = np.linalg.norm(np.asarray(tangents[1])[same], axis=1)
+    assert turn.max() > 0.5
+    hess = jax.vmap(jax.hessian(lambda y: body.distance(y)))(jnp.asarray(x))
+    fd_h = (plus[1] - minus[1]) / (2 * eps)  # the normal is the distance's gradient
+    np.testing.assert_allclose(np.einsum("pij,pj->pi", np.asarray(hess), d_)[same], fd_h[same],
+                               atol=2e-6)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -188,7 +189,9 @@ def _safe_norm(v):
 
 def _feet_on_lines(x, p0, p1, s0):
     """The foot of the normal from x on each line: |distance| (inf where the foot falls off
-    the line), signed distance, normal, s, tangent; shapes (..., L) and (..., L, 2)."""
+    the line), signed distance, normal, s, tangent, and the derivative factors of
+    :func:`project_onto_segments` (curvature 0, ``ds/d(t.x)`` 1); shapes (..., L) and
+    (..., L, 2)."""
     d = p1 - p0  # (L, 2)
     length = np.sqrt(np.sum(d * d, axis=-1))  # (L,)
     t = d / length[:, None]
@@ -204,13 +207,16 @@ def _feet_on_lines(x, p0, p1, s0):
         jnp.broadcast_to(n, shape),
         s0 + jnp.clip(u, 0.0, length),
         jnp.broadcast_to(t, shape),
+        jnp.zeros_like(signed),
+        jnp.ones_like(signed),
     )
 
 
 def _feet_on_arcs(x, c, radius, mid, half, sg, s0):
     """The foot of the normal from x on each arc, as :func:`_feet_on_lines`: the radial
     projection, on the arc where x lies within its half-sweep of the mid-direction m,
-    m.(x - c) >= cos(half) |x - c|."""
+    m.(x - c) >= cos(half) |x - c|. The normal turns by -sg/r per unit of
+    tangential motion, and $s$ moves by radius/r of it."""
     m = np.stack([np.cos(mid), np.sin(mid)], axis=-1)  # (A, 2)
     rel = x[..., None, :] - c  # (..., A, 2)
     r = _safe_norm(rel)
@@ -229,27 +235,28 @@ def _feet_on_arcs(x, c, radius, mid, half, sg, s0):
         normal,
         s0 + radius * (alpha + half),
         tangent,
+        jnp.where(r > 0, -sg / rs[..., 0], 0.0),
+        radius / rs[..., 0],
     )
 
 
 def _at_corners(x, v, sv, bis):
-    """Distance to each corner point, signed by the side of the normals' bisector."""
+    """Distance to each corner point, signed by the side of the normals' bisector (the normal
+    turns by 1/distance per unit of tangential motion; s stays)."""
     w = x[..., None, :] - v  # (..., V, 2)
     r = _safe_norm(w)
     side = jnp.where(jnp.sum(w * bis, axis=-1) < 0, -1.0, 1.0)
     rs = jnp.where(r > 0, r, 1.0)[..., None]
     normal = jnp.where((r > 0)[..., None], side[..., None] * w / rs, bis)
     tangent = jnp.stack([normal[..., 1], -normal[..., 0]], axis=-1)
-    return r, side * r, normal, jnp.broadcast_to(sv, r.shape), tangent
+    kappa = jnp.where(r > 0, side / rs[..., 0], 0.0)
+    return r, side * r, normal, jnp.broadcast_to(sv, r.shape), tangent, kappa, jnp.zeros_like(r)
 
 
-def project_onto_segments(arrays, x) -> Projection:
-    """Closest-point projection of the points ``x`` (..., 2) onto a profile given by
-    :func:`segment_arrays` (pure JAX). The nearest point of a profile is the foot of a normal
-    on one of its segments or one of its corners (where two segments' normals differ, so
-    a C1 joint needs no candidate of its own): every candidate is computed, the nearest kept."""
+def _nearest(arrays, x):
+    """The nearest candidate of :func:`project_onto_segments`: ``(distance, normal, s,
+    tangent, kappa, lam)``, kappa and lam the derivative factors of its closed-form rule."""
     (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0), (cv, csv, cbis) = arrays
-    x = jnp.asarray(x, float)
     parts = []
     if lp0.shape[0]:
         parts.append(_feet_on_lines(x, lp0, lp1, ls0))
@@ -257,8 +264,8 @@ def project_onto_segments(arrays, x) -> Projection:
         parts.append(_feet_on_arcs(x, ac, ar, amid, ahalf, asg, as0))
     if cv.shape[0]:
         parts.append(_at_corners(x, cv, csv, cbis))
-    absd, signed, normal, s, tang = (
-        jnp.concatenate([p[i] for p in parts], axis=x.ndim - 1) for i in range(5)
+    absd, signed, normal, s, tang, kappa, lam = (
+        jnp.concatenate([p[i] for p in parts], axis=x.ndim - 1) for i in range(7)
     )
     # the nearest candidate as a one-hot mask (cheaper than a gather and its scatter-add
     # gradient on a handful of candidates); a tie keeps the first
@@ -268,4 +275,38 @@ def project_onto_segments(arrays, x) -> Projection:
         return jnp.sum(jnp.where(hot, a, 0.0), axis=-1)
     def pick2(a):
         return jnp.sum(jnp.where(hot[..., None], a, 0.0), axis=-2)
-    return Projection(distance=pick(signed), normal=pick2(normal), s=pick(s), tangent=pick2(tang))
+    return pick(signed), pick2(normal), pick(s), pick2(tang), pick(kappa), pick(lam)
+
+
+def project_onto_segments(arrays, x) -> Projection:
+    r"""Closest-point projection of the points ``x`` (..., 2) onto a profile given by
+    :func:`segment_arrays` (pure JAX). The nearest point of a profile is the foot of a normal
+    on one of its segments or one of its corners (where two segments' normals differ, so
+    a C1 joint needs no candidate of its own): every candidate is computed, the nearest kept.
+
+    Differentiated in closed form (a ``jax.custom_jvp``), not through the candidates: with
+    $\tau = t\cdot dx$, $dd = n\cdot dx$, $dn = \kappa\tau\,t$, $dt = -\kappa\tau\,n$,
+    $ds = \lambda\tau$, the foot's curvature factor $\kappa$ ($-\mathrm{sg}/r$ at a
+    distance $r$ from an arc's centre, $1/d$ from a corner, 0 on a line) and $\lambda$ (radius/r
+    on an arc, 1 on a line, 0 at a corner), with $d\kappa = -\kappa^2\,dd$ and $d\lambda =
+    -\lambda\kappa\,dd$ so the rule differentiates again. The penalty's force and Hessian
+    then cost one projection each, not a derivative pass through every candidate (a third of
+    the world's compile; docs/speed.md); tests/test_bodies.py holds the rule to finite
+    differences of the projection."""
+
+    @jax.custom_jvp
+    def nearest(x):
+        return _nearest(arrays, x)
+
+    @nearest.defjvp
+    def _rule(primals, tangents):
+        (x,), (dx,) = primals, tangents
+        out = nearest(x)
+        _, n, _, t, kappa, lam = out
+        dd = jnp.sum(n * dx, axis=-1)
+        tau = jnp.sum(t * dx, axis=-1)
+        kt = (kappa * tau)[..., None]
+        return out, (dd, kt * t, lam * tau, -kt * n, -kappa**2 * dd, -lam * kappa * dd)
+
+    d, n, s, t, _, _ = nearest(jnp.asarray(x, float))
+    return Projection(distance=d, normal=n, s=s, tangent=t)
