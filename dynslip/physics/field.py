@@ -91,15 +91,18 @@ def _f(x):
     return jnp.asarray(x, dtype=jnp.float64)
 
 
-def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None):
+def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, forces=None):
     """Rates and the quantities derived on the way (shared by the vector field and frames).
     ``vb``: the ball's velocity where the caller has solved for it at this state (the load
     step's converged increment), so the root search of a free ball with held friction is not
-    run again (None: solved here)."""
+    run again (None: solved here). ``forces``: ``(g, load)``, the energy gradient (n, 2) and
+    the held bodies' load at this state where the caller has them
+    (:func:`dynslip.physics.terms.forces`; None: computed here)."""
     model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
-    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal,
+                         grads=None if forces is None else _grads(forces))
     g_rho, g_z, _ = k["grads"]
     eta_a = k["eta_a"]
     u = k["u"]
@@ -121,7 +124,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None):
     # the sheet's pull on the ball: the held bodies carry the rest, by pressure (held_load) and
     # by friction (its axial part, which depends on the ball's velocity: bodies.held); a body
     # that moves with the ball (the bottle) is displaced by zb, and its load goes to the lab
-    c_pen = cz - model.held_load(rho, z, zb)
+    c_pen = cz - (model.held_load(rho, z, zb) if forces is None else forces[1])
     hdelta = layout.held_internal(y)
     hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb, hdelta)
     if hf is None:
@@ -177,7 +180,14 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None):
         "z": z,
         "zb": zb,
         "kin": k,
+        "held_frame": hf,
     }
+
+
+def _grads(forces):
+    """:meth:`SheetModel.kinematics`' ``grads`` from ``(g, load)`` (its dE/dzb unread here)."""
+    g, _ = forces
+    return g[:, 0], g[:, 1], None
 
 
 def place_state(model: SheetModel, layout: Layout, y, args: StageArgs, t):
@@ -318,7 +328,8 @@ def sheet_structure(layout: Layout) -> Structure:
     )
 
 
-def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=None, vb=None):
+def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=None, vb=None,
+         forces=None):
     """The friction laws' reset of the per-node state where a node is stuck again: slip rate
     $|S|/(\\eta A) \\le$ ``heal_rate`` (R/s) or out of contact
     (:func:`dynslip.physics.friction.heals`, the one criterion of both solvers): the ball's
@@ -326,7 +337,8 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=Non
     (:meth:`dynslip.physics.bodies.held.HeldFrame.reset`). Unchanged for memoryless laws.
     ``t``: the time of ``y``, where the stage-moved bodies are placed (None: ``model`` is
     placed already). ``vb``: the ball's velocity, which the slip relative to a held body reads
-    (None: :func:`evaluate`'s at ``t``, or at the stage's start when ``t`` is None)."""
+    (None: :func:`evaluate`'s at ``t``, or at the stage's start when ``t`` is None);
+    ``forces`` as :func:`evaluate`'s."""
     if layout.n_int == 0 and layout.n_held_int == 0:
         return y
     if layout.n_held_int and vb is None:
@@ -335,7 +347,8 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=Non
         model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
-    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal)
+    k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal,
+                         grads=None if forces is None else _grads(forces))
     if layout.n_int:
         y = layout.with_internal(
             y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate)

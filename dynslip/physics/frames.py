@@ -33,7 +33,8 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(
-        rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y)
+        rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y),
+        kin=aux["kin"],
     )
     acc = layout.unpack(y)[3]
     contact = d["contact"]
@@ -48,7 +49,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     g_rho, g_z, _ = aux["kin"]["grads"]
     per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
                                 args.drag, args.eps, contact_threshold,
-                                layout.held_internal(y))
+                                layout.held_internal(y), hf=aux["held_frame"])
     return {
         "rho": rho,
         "z": z,

@@ -290,13 +290,14 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load):
 
 def residual_and_state(model, friction, inc: Increment, q, zb):
     """:func:`residual` and what the increment's end reads from the same evaluation: the
-    energy gradient ``g`` (n, 2), the ball's velocity and the slip distances at the increment's
-    end (None: memoryless law), ``(r_q, r_z, (g, vb, delta1))``. Newton carries the last
+    energy gradient ``g`` (n, 2), the ball's velocity, the slip distances at the increment's
+    end (None: memoryless law) and the held bodies' load, ``(r_q, r_z, (g, vb, delta1,
+    load))``. Newton carries the last
     accepted trial's, so the converged state's rates are not evaluated again (each call site of
     the residual is compiled anew: docs/speed.md)."""
     g, load = forces(model, q, zb)
     u, vb, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
-    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, (g, vb, delta1)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, (g, vb, delta1, load)
 
 
 def residual(model, friction, inc: Increment, q, zb):

@@ -311,7 +311,7 @@ class MotionNewton(eqx.Module):
         state = None
         if not nf:
             state = (jnp.zeros_like(q), jnp.zeros_like(zb0),
-                     None if delta0 is None else jnp.zeros_like(delta0))
+                     None if delta0 is None else jnp.zeros_like(delta0), jnp.zeros_like(zb0))
         init = (
             q, zb, jnp.zeros_like(q), jnp.zeros_like(zb), jnp.array(0, jnp.int32),
             jnp.array(False), jnp.array(False), free_mode, jnp.zeros(n, jnp.int32), free_mode,
@@ -327,7 +327,7 @@ class MotionNewton(eqx.Module):
             _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
         else:
             # the converged state's gradient and rates, from the residual's last evaluation
-            g, vb1, delta1 = state
+            g, vb1, delta1, load = state
         hdelta1 = None
         if hdelta0 is not None:
             # the held bodies' return map: delta1 = delta0 + h |S(G, mu(delta0) N)|/(eta A) in
@@ -339,9 +339,11 @@ class MotionNewton(eqx.Module):
         # friction power of fully mobilised nodes is counted at the weakened threshold, which
         # the motion never saw: 5x the work on the let-go path)
         y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk, hdelta0)
-        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1)
+        # (the energy gradient and the held load from the same evaluation: no third and fourth
+        # pass through the bodies' projections)
+        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1, forces=(g, load))
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
-        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1)
+        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=(g, load))
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
         return y1, ok, it, (q - q0, zb - zb0)
 

@@ -307,7 +307,8 @@ class SheetModel(eqx.Module):
         return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
 
     def kinematics(
-        self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None
+        self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None,
+        grads=None,
     ):
         """Node velocities relative to the ball and the force split, for the driver.
 
@@ -316,8 +317,9 @@ class SheetModel(eqx.Module):
         ``N`` (normal force), ``S`` (slip force), ``grads`` (dE/drho, dE/dz, dE/dzb).
         ``drag`` is eta (per reference area); time units follow from it. ``internal`` is
         the friction law's per-node state (slip distance), None for memoryless laws.
+        ``grads``: :meth:`gradients` where the caller has them at this state (None: computed).
         """
-        g_rho, g_z, g_zb = self.gradients(rho, z, zb)
+        g_rho, g_z, g_zb = self.gradients(rho, z, zb) if grads is None else grads
         f = -jnp.stack([g_rho, g_z])  # (2, N) driving force
         n, t = self.frame(rho, z, zb)
         fn = jnp.sum(f * n, axis=0)
@@ -352,9 +354,13 @@ class SheetModel(eqx.Module):
         drag=1.0,
         contact_threshold=1e-2,
         internal=None,
+        kin=None,
     ):
-        """Per-node fields of the trajectory contract (see docs/trajectory-contract.md)."""
-        k = self.kinematics(rho, z, zb, friction, eps_density, drag, internal)
+        """Per-node fields of the trajectory contract (see docs/trajectory-contract.md).
+        ``kin``: :meth:`kinematics` at this state where the caller has it (None: computed)."""
+        k = kin
+        if k is None:
+            k = self.kinematics(rho, z, zb, friction, eps_density, drag, internal)
         delta = jnp.zeros_like(rho) if internal is None else internal
         lt, lp = node_stretches(self.mesh, rho, z)
         tt, tp = relaxed_tensions(self.material, lt, lp)

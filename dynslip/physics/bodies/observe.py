@@ -54,12 +54,14 @@ STATE_MEANINGS = ("free", "stuck", "slipping_toward_decreasing_s",
 
 
 def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
-                     delta=None) -> dict:
+                     delta=None, hf=None) -> dict:
     """Per held body (leading axis K, :attr:`SheetModel.bodies` order) the fields of the module
     docstring, for node positions ``rho, z`` (N,), ball height ``zb``, driving forces ``f``
     (2, N), ball velocity ``vb``, the drag ``eta``, the smoothing ``eps`` (force density) and
     ``contact_threshold`` (pressure, G h0 / R), ``delta`` (K_mem, N) the slip distances of the
-    held bodies whose law has memory (None: none has). ``{}`` without held bodies."""
+    held bodies whose law has memory (None: none has); ``hf`` the held friction's frame at this
+    state where the caller has it (:meth:`SheetModel.held_friction`; None: computed here).
+    ``{}`` without held bodies."""
     entries = held_entries(model.bodies)
     if not entries:
         return {}
@@ -68,7 +70,8 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
     x = jnp.stack([rho, z], axis=-1)
     lt, lp = node_stretches(model.mesh, rho, z)
     def_area = model.mesh.area * lt * lp
-    hf = model.held_friction(rho, z, f, drag, eps, zb, delta)
+    if hf is None:
+        hf = model.held_friction(rho, z, f, drag, eps, zb, delta)
     slip = None if hf is None else hf.slip(vb)[1]  # (K_frictional, N)
     out = {"s": [], "contact": [], "state": []}
     j = 0
