@@ -29,7 +29,8 @@ from dynslip.physics.bodies import (
     overlap,
     penetration,
 )
-from dynslip.physics.bodies.segments import segment_arrays
+from dynslip.physics.bodies.base import project_profile
+from dynslip.physics.bodies.segments import padded_arrays, segment_arrays
 
 # the coin of issue 21 in units of a 20 mm ball radius: 24.26 mm across, 1.75 mm thick
 COIN = Disc(radius=12.13 / 20, thickness=1.75 / 20, edge_radius=0.3 / 20, centre_z=0.2)
@@ -497,3 +498,24 @@ def test_projection_derivatives_match_finite_differences(name):
     fd_h = (plus[1] - minus[1]) / (2 * eps)  # the normal is the distance's gradient
     np.testing.assert_allclose(np.einsum("pij,pj->pi", np.asarray(hess), d_)[same], fd_h[same],
                                atol=2e-6)
+
+
+@pytest.mark.parametrize("name", [k for k in sorted(BODIES) if k != "sphere"])
+def test_padded_arrays_project_the_same(name):
+    """segments.padded_arrays (inert candidates far away, so that profiles share one shape and
+    one compiled chord check) leaves every projection as it was, on points near the surface on
+    both sides and across the axis, to rounding (the arcs' cosines and the lines' lengths are
+    then computed by XLA, not numpy: 1 ulp); the shapes are multiples of 4."""
+    body = BODIES[name]
+    rng = np.random.default_rng(5)
+    p = body.point_at(rng.uniform(0, body.length, 50))
+    x = p + rng.uniform(-0.3, 0.6, (50, 2))
+    x[:5, 0] = -x[:5, 0]
+    arrays = segment_arrays(body.segments)
+    padded = padded_arrays(arrays)
+    for kind, kind_padded in zip(arrays, padded, strict=True):
+        assert kind_padded[0].shape[0] % 4 == 0 and kind_padded[0].shape[0] >= kind[0].shape[0]
+    got = jax.jit(project_profile)(padded, jnp.asarray(x), 0.2)
+    want = body.project(jnp.asarray(x), 0.2)
+    for g, w in zip(jax.tree_util.tree_leaves(got), jax.tree_util.tree_leaves(want), strict=True):
+        np.testing.assert_allclose(np.asarray(g), np.asarray(w), rtol=0, atol=1e-14)

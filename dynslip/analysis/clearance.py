@@ -21,19 +21,32 @@ import numpy as np
 import xarray as xr
 
 from dynslip.data.trajectory import body_shift
+from dynslip.physics.bodies.base import AbstractProfileBody, padded_profile, project_profile
 
 __all__ = ["body_contacts", "body_overlaps", "clearance", "contact_extent", "overlap_tolerance"]
 
 
 @functools.lru_cache(maxsize=64)
-def _distance_fn(bodies):
-    """The jitted (time, node) distance to ``bodies``; one per body tuple (bodies are static
-    and hashable), so summaries of many runs of one world compile it once."""
+def _distance_fn(body):
+    """The jitted (time, node) distance to a body in closed form (the sphere): one per body
+    (static and hashable), so summaries of many runs of one world compile it once."""
+    return jax.jit(jax.vmap(jax.vmap(body.distance, in_axes=(0, None)), in_axes=(0, 0)))
 
-    def d(x, z):
-        return jnp.min(jnp.stack([b.distance(x, z) for b in bodies]))
 
-    return jax.jit(jax.vmap(jax.vmap(d, in_axes=(0, None)), in_axes=(0, 0)))
+@jax.jit
+def _profile_distance(arrays, x, z):
+    """The (time, node) distance to a profile body given by its padded arrays (traced): one
+    compile for every profile body (:func:`~dynslip.physics.bodies.base.padded_profile`)."""
+    return jax.vmap(lambda xt, zt: project_profile(arrays, xt, zt).distance)(x, z)
+
+
+def _distance(bodies, x, z) -> np.ndarray:
+    """The (time, node) distance to the nearest of ``bodies``."""
+    return np.min(np.stack([
+        np.asarray(_profile_distance(padded_profile(b), x, z) if isinstance(b, AbstractProfileBody)
+                   else _distance_fn(b)(x, z))
+        for b in bodies
+    ]), axis=0)
 
 
 def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
@@ -43,7 +56,7 @@ def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
     the clamp's height (``clamp_z``) at each frame."""
     x = np.stack([ds["rho"].values, ds["z"].values], axis=-1)  # (time, node, 2)
     shift = ds["clamp_z"].values if moves_with_clamp else np.zeros(ds.sizes["time"])
-    d = np.asarray(_distance_fn(tuple(bodies))(jnp.asarray(x), jnp.asarray(shift)))
+    d = _distance(tuple(bodies), jnp.asarray(x), jnp.asarray(shift))
     k = np.unravel_index(int(np.argmin(d)), d.shape)
     return {
         "per_frame": d.min(axis=1),

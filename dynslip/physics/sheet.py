@@ -344,18 +344,8 @@ class SheetModel(eqx.Module):
             "theta_dir": t,
         }
 
-    def diagnostics(
-        self,
-        rho,
-        z,
-        zb,
-        friction: AbstractFriction,
-        eps_density=0.0,
-        drag=1.0,
-        contact_threshold=1e-2,
-        internal=None,
-        kin=None,
-    ):
+    def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
+                    contact_threshold=1e-2, internal=None, kin=None):
         """Per-node fields of the trajectory contract (see docs/trajectory-contract.md).
         ``kin``: :meth:`kinematics` at this state where the caller has it (None: computed)."""
         k = kin

@@ -28,9 +28,11 @@ distance and surface coordinate, the normal's and tangent's $\rho$ components ne
 from __future__ import annotations
 
 import abc
+import functools
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -38,11 +40,13 @@ from dynslip.physics.bodies.segments import (
     Arc,
     Line,
     Projection,
+    padded_arrays,
     project_onto_segments,
     segment_arrays,
 )
 
-__all__ = ["AbstractBody", "AbstractProfileBody", "BodyGeometryError", "check_profile"]
+__all__ = ["AbstractBody", "AbstractProfileBody", "BodyGeometryError", "check_profile",
+           "padded_profile", "project_profile"]
 
 #: joints closer than this (units of R) are connected; tangents closer than this (radians)
 #: are continuous
@@ -167,17 +171,33 @@ class AbstractProfileBody(AbstractBody):
     segment (:func:`~.segments.project_onto_segments`)."""
 
     def project(self, x, z=0.0) -> Projection:
-        x = jnp.asarray(x, float)
-        rho = x[..., 0]
-        mirror = rho < 0
-        xm = jnp.stack([jnp.where(mirror, -rho, rho), x[..., 1] - z], axis=-1)
-        p = project_onto_segments(segment_arrays(self.segments), xm)
-        flip = jnp.where(mirror, -1.0, 1.0)[..., None] * jnp.array([1.0, 0.0]) + jnp.array(
-            [0.0, 1.0]
-        )
-        return Projection(
-            distance=p.distance, normal=flip * p.normal, s=p.s, tangent=flip * p.tangent
-        )
+        return project_profile(segment_arrays(self.segments), x, z)
+
+
+@functools.lru_cache(maxsize=64)
+def padded_profile(body: AbstractProfileBody):
+    """The profile's :func:`~.segments.padded_arrays` as device arrays, once per body (bodies
+    are static and hashable): the traced argument of a function compiled once for every
+    profile (the chord check, the summary's clearance) with :func:`project_profile`."""
+    return jax.tree_util.tree_map(jnp.asarray, padded_arrays(segment_arrays(body.segments)))
+
+
+def project_profile(arrays, x, z=0.0) -> Projection:
+    """:meth:`AbstractProfileBody.project` of the profile given by its arrays
+    (:func:`~.segments.segment_arrays`, constants; or :func:`~.segments.padded_arrays` passed
+    traced, so that one compiled function serves every profile: :mod:`.chords`): a point
+    across the axis is its mirror image (module docstring)."""
+    x = jnp.asarray(x, float)
+    rho = x[..., 0]
+    mirror = rho < 0
+    xm = jnp.stack([jnp.where(mirror, -rho, rho), x[..., 1] - z], axis=-1)
+    p = project_onto_segments(arrays, xm)
+    flip = jnp.where(mirror, -1.0, 1.0)[..., None] * jnp.array([1.0, 0.0]) + jnp.array(
+        [0.0, 1.0]
+    )
+    return Projection(
+        distance=p.distance, normal=flip * p.normal, s=p.s, tangent=flip * p.tangent
+    )
 
 
 def _samples(seg, m=64):

@@ -43,7 +43,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.bodies.base import AbstractBody
+from dynslip.physics.bodies.base import (
+    AbstractBody,
+    AbstractProfileBody,
+    padded_profile,
+    project_profile,
+)
 
 __all__ = [
     "chord_depths",
@@ -59,20 +64,19 @@ _INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
 _BISECT_STEPS = 50
 
 
-@eqx.filter_jit
-def _chords(body: AbstractBody, a, b, zpos):
-    """``(depth, s_in, s_out)`` of the chords from ``a`` to ``b`` (M, 2), body displaced by
-    ``zpos`` (M,): the depth of the deepest point (fraction u in [0, 1] along the chord), and
-    the arc lengths along the profile where the chord enters and leaves the body, by bisection
-    between the deepest point (inside) and each node (a node inside the body: the node itself);
-    the closest points' s.
+def _search(project, a, b, zpos):
+    """``(depth, s_in, s_out)`` of the chords from ``a`` to ``b`` (M, 2), the body whose
+    ``project(x, z)`` is given displaced by ``zpos`` (M,): the depth of the deepest point
+    (fraction u in [0, 1] along the chord), and the arc lengths along the profile where the
+    chord enters and leaves the body, by bisection between the deepest point (inside) and each
+    node (a node inside the body: the node itself); the closest points' s.
 
-    One compiled function per body, its body evaluated at six call sites (the samples, the
-    golden-section pair, the deepest point, the bisection pair, the chord's ends, the
-    projection): each call site of a body's distance is compiled anew, and the main job checks
-    four bodies (docs/speed.md, "the chord check")."""
+    The body's distance is evaluated at six call sites (the samples, the golden-section pair,
+    the deepest point, the bisection pair, the chord's ends, the projection): each call site is
+    compiled anew (docs/speed.md, "the chord check")."""
     def depth(u):  # u (..., M): the depth at the fractions u along each chord
-        return -body.distance(a + u[..., None] * (b - a), jnp.broadcast_to(zpos, u.shape))
+        x = a + u[..., None] * (b - a)
+        return -project(x, jnp.broadcast_to(zpos, u.shape)).distance
 
     u = jnp.linspace(0.0, 1.0, _SAMPLES)
     samples = depth(jnp.broadcast_to(u[:, None], (_SAMPLES,) + zpos.shape))  # (S, M)
@@ -104,8 +108,31 @@ def _chords(body: AbstractBody, a, b, zpos):
 
     lo, hi = jax.lax.fori_loop(0, _BISECT_STEPS, bisect, (jnp.stack([um, um]), ends))
     cross = jnp.where(depth(ends) > 0, ends, 0.5 * (lo + hi))
-    s = body.project(a + cross[..., None] * (b - a), jnp.broadcast_to(zpos, cross.shape)).s
+    s = project(a + cross[..., None] * (b - a), jnp.broadcast_to(zpos, cross.shape)).s
     return deepest, s[0], s[1]
+
+
+@eqx.filter_jit
+def _chords(body: AbstractBody, a, b, zpos):
+    """:func:`_search` of a body in closed form (the sphere): one compiled function per body."""
+    return _search(body.project, a, b, zpos)
+
+
+@jax.jit
+def _profile_chords(arrays, a, b, zpos):
+    """:func:`_search` of a profile body given by its padded arrays (traced): one compiled
+    function for every profile of a few segments (the main job's four held bodies share it:
+    a compile each before, 2.8 s in all)."""
+    return _search(lambda x, z: project_profile(arrays, x, z), a, b, zpos)
+
+
+def _chord_fn(body: AbstractBody):
+    """``f(a, b, zpos)``: :func:`_search` of ``body``, compiled as :func:`_profile_chords` for a
+    profile body, else :func:`_chords`."""
+    if isinstance(body, AbstractProfileBody):
+        arrays = padded_profile(body)
+        return lambda a, b, zpos: _profile_chords(arrays, a, b, zpos)
+    return lambda a, b, zpos: _chords(body, a, b, zpos)
 
 
 def _per_frame(body: AbstractBody, rho, z, zpos):
@@ -117,9 +144,8 @@ def _per_frame(body: AbstractBody, rho, z, zpos):
     lead, n = x.shape[:-2], x.shape[-2]
     zp = np.broadcast_to(np.asarray(zpos, float), lead).reshape(-1)
     x = x.reshape((-1, n, 2))
-    out = [
-        _chords(body, xf[:-1], xf[1:], np.full(n - 1, zf)) for xf, zf in zip(x, zp, strict=True)
-    ]
+    chords = _chord_fn(body)
+    out = [chords(xf[:-1], xf[1:], np.full(n - 1, zf)) for xf, zf in zip(x, zp, strict=True)]
     return tuple(np.stack([np.asarray(o[j]) for o in out]).reshape(lead + (n - 1,))
                  for j in range(3))
 

@@ -34,7 +34,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["Arc", "Line", "Projection", "project_onto_segments", "segment_arrays"]
+__all__ = ["Arc", "Line", "Projection", "padded_arrays", "project_onto_segments",
+           "segment_arrays"]
 
 
 class Line(eqx.Module):
@@ -180,6 +181,40 @@ def segment_arrays(segments):
     return (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0), _corners(tuple(segments))
 
 
+#: where padded_arrays puts its inert candidates (units of R): far from any profile
+_FAR = 1e6
+
+
+def padded_arrays(arrays, multiple: int = 4):
+    """:func:`segment_arrays` with each kind's count rounded up to a multiple of ``multiple``
+    (at least one multiple) by inert candidates far away (a line and an arc whose foot never
+    falls on them, a corner at distance ~1e6 R), so that profiles of a few segments share one
+    shape: a function taking the arrays as traced arguments compiles once for all of them
+    (the chord check, :mod:`.chords`). Projections are unchanged."""
+    (lp0, lp1, ls0), (ac, ar, amid, ahalf, asg, as0), (cv, csv, cbis) = arrays
+
+    def size(k):
+        return max(multiple, -(-k // multiple) * multiple)
+
+    def pad(a, m, value):
+        extra = np.broadcast_to(np.asarray(value, float), (m - a.shape[0],) + a.shape[1:])
+        return np.concatenate([a, extra], axis=0)
+
+    far = (_FAR, _FAR)
+    nl, na, nv = size(lp0.shape[0]), size(ac.shape[0]), size(cv.shape[0])
+    return (
+        (pad(lp0, nl, far), pad(lp1, nl, (_FAR + 1.0, _FAR)), pad(ls0, nl, 0.0)),
+        (pad(ac, na, far), pad(ar, na, 1.0), pad(amid, na, 0.0), pad(ahalf, na, 0.0),
+         pad(asg, na, 1.0), pad(as0, na, 0.0)),
+        (pad(cv, nv, far), pad(csv, nv, 0.0), pad(cbis, nv, (1.0, 0.0))),
+    )
+
+
+def _xp(a):
+    """numpy for a profile's own (constant) arrays, jax.numpy for traced ones."""
+    return np if isinstance(a, np.ndarray) else jnp
+
+
 def _safe_norm(v):
     """|v| over the last axis with a finite gradient at v = 0 (the double-where trick)."""
     sq = jnp.sum(v * v, axis=-1)
@@ -192,10 +227,11 @@ def _feet_on_lines(x, p0, p1, s0):
     the line), signed distance, normal, s, tangent, and the derivative factors of
     :func:`project_onto_segments` (curvature 0, ``ds/d(t.x)`` 1); shapes (..., L) and
     (..., L, 2)."""
+    xp = _xp(p0)
     d = p1 - p0  # (L, 2)
-    length = np.sqrt(np.sum(d * d, axis=-1))  # (L,)
+    length = xp.sqrt(xp.sum(d * d, axis=-1))  # (L,)
     t = d / length[:, None]
-    n = np.stack([-t[:, 1], t[:, 0]], axis=-1)  # outward: the tangent turned counter-clockwise
+    n = xp.stack([-t[:, 1], t[:, 0]], axis=-1)  # outward: the tangent turned counter-clockwise
     rel = x[..., None, :] - p0  # (..., L, 2)
     u = jnp.sum(rel * t, axis=-1)  # (..., L) arc length of the foot from the line's start
     ok = (u >= -_SLACK * length) & (u <= (1 + _SLACK) * length)
@@ -217,11 +253,12 @@ def _feet_on_arcs(x, c, radius, mid, half, sg, s0):
     projection, on the arc where x lies within its half-sweep of the mid-direction m,
     m.(x - c) >= cos(half) |x - c|. The normal turns by -sg/r per unit of
     tangential motion, and $s$ moves by radius/r of it."""
-    m = np.stack([np.cos(mid), np.sin(mid)], axis=-1)  # (A, 2)
+    xp = _xp(mid)
+    m = xp.stack([xp.cos(mid), xp.sin(mid)], axis=-1)  # (A, 2)
     rel = x[..., None, :] - c  # (..., A, 2)
     r = _safe_norm(rel)
     along = jnp.sum(rel * m, axis=-1)
-    ok = along >= (np.cos(half) - _SLACK) * r
+    ok = along >= (xp.cos(half) - _SLACK) * r
     signed = -sg * (r - radius)  # +radial outward for an arc bulging out of the solid
     rs = jnp.where(r > 0, r, 1.0)[..., None]
     radial = jnp.where((r > 0)[..., None], rel / rs, m)
