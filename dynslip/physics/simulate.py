@@ -73,6 +73,8 @@ __all__ = [
     "solver_for",
     "segment_solver",
     "segment_step",
+    "compile_step",
+    "COMPILER_OPTIONS",
     "simulate",
     "drive",
     "stack",
@@ -100,6 +102,25 @@ def segment_solver(settings: Settings):
     return _SOLVE_CACHE[solver]
 
 
+
+
+#: XLA's compile options for the segment step: with the CPU backend's fusion emitters off the
+#: step compiles about 30% faster (the main job's 8.8 -> 7.0 s of XLA, the let-go path's 5.9
+#: -> 4.1 s) and runs about 10% slower (the let-go path at N = 200 and 800); one setting for
+#: every run, single or batched, so that their iterates agree (docs/speed.md, "fifth
+#: session"). A jaxlib that does not know an option compiles with its defaults.
+COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+def compile_step(lowered):
+    """``lowered.compile()`` with :data:`COMPILER_OPTIONS` (without them where this jaxlib
+    refuses one)."""
+    try:
+        return lowered.compile(compiler_options=COMPILER_OPTIONS)
+    except jax.errors.JaxRuntimeError as err:
+        if "No such compile option" not in str(err):
+            raise
+        return lowered.compile()
 
 
 def _compiled(key, compile_fn, stats_list):
@@ -197,7 +218,7 @@ def drive(runs: list[MemberRun]) -> list[Result]:
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(
             key,
-            lambda inputs=inputs: step.lower(*inputs).compile(),
+            lambda inputs=inputs: compile_step(step.lower(*inputs)),
             [runs[b].stats for b in active],
         )
         r0 = _time.perf_counter()

@@ -1,0 +1,32 @@
+"""The segment step's XLA compile options (simulate.COMPILER_OPTIONS, docs/speed.md): the pinned
+jaxlib accepts them and they change the code, not the answer (to rounding); a jaxlib that does
+not know one compiles with its defaults instead of failing."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import dynslip.physics.simulate as sim
+
+
+def _f(x):
+    # a fused elementwise-and-reduce program, the kind the fusion emitters compile
+    return jnp.sum(jnp.tanh(x) * jnp.exp(-x * x)) + jnp.cumsum(jnp.sin(x))
+
+
+X = jnp.linspace(-2.0, 2.0, 257)
+
+
+def test_options_known_to_the_pinned_jaxlib():
+    lowered = jax.jit(_f).lower(X)
+    lowered.compile(compiler_options=sim.COMPILER_OPTIONS)  # raises on an unknown option
+    np.testing.assert_allclose(sim.compile_step(lowered)(X), lowered.compile()(X), rtol=1e-14)
+
+
+def test_unknown_option_falls_back_to_the_defaults(monkeypatch):
+    lowered = jax.jit(_f).lower(X)
+    monkeypatch.setattr(sim, "COMPILER_OPTIONS", {"xla_cpu_no_such_option_here": True})
+    with pytest.raises(jax.errors.JaxRuntimeError, match="No such compile option"):
+        lowered.compile(compiler_options=sim.COMPILER_OPTIONS)
+    np.testing.assert_allclose(sim.compile_step(lowered)(X), _f(X), rtol=1e-14)
