@@ -43,16 +43,17 @@ def _node_penalty(pen, ball, area, q):
     return area * penalty_energy(pen, contact_gap(ball, q)[0])
 
 
+def _body_penalty(model: SheetModel, entry, area, x, zb=0.0):
+    """Penalty energy of one node at absolute position ``x`` against one held body ``entry``
+    (displaced by :meth:`~dynslip.physics.bodies.held.Held.shift`)."""
+    return area * penalty_energy(model.penalty, contact_gap(entry.body, x, entry.shift(zb))[0])
+
+
 def _held_penalty(model: SheetModel, area, x, zb=0.0):
     """Penalty energy of one node at absolute position ``x`` against every held body (a body
     that moves with the ball displaced by ``zb``)."""
-    return sum(
-        (
-            area * penalty_energy(model.penalty, contact_gap(e.body, x, e.shift(zb))[0])
-            for e in held_entries(model.bodies)
-        ),
-        jnp.zeros(()),
-    )
+    return sum((_body_penalty(model, e, area, x, zb) for e in held_entries(model.bodies)),
+               jnp.zeros(()))
 
 
 def forces(model: SheetModel, q, zb):
@@ -118,9 +119,7 @@ def forces_and_hessians(model: SheetModel, q, zb):
         # world's compile)
         entries = held_entries(model.bodies)
         parts = [
-            jax.vmap(lambda a, x, e=e: second(
-                lambda x: a * penalty_energy(model.penalty, contact_gap(e.body, x,
-                                                                        e.shift(zb))[0]), x))(
+            jax.vmap(lambda a, x, e=e: second(lambda x: _body_penalty(model, e, a, x, zb), x))(
                 m.area, x)
             for e in entries
         ]
