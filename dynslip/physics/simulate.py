@@ -75,6 +75,7 @@ __all__ = [
     "segment_step",
     "compile_step",
     "COMPILER_OPTIONS",
+    "FAST_COMPILE_NODES",
     "simulate",
     "drive",
     "stack",
@@ -104,17 +105,23 @@ def segment_solver(settings: Settings):
 
 
 
-#: XLA's compile options for the segment step: with the CPU backend's fusion emitters off the
-#: step compiles about 30% faster (the main job's 8.8 -> 7.0 s of XLA, the let-go path's 5.9
-#: -> 4.1 s) and runs about 10% slower (the let-go path at N = 200 and 800); one setting for
-#: every run, single or batched, so that their iterates agree (docs/speed.md, "fifth
-#: session"). A jaxlib that does not know an option compiles with its defaults.
+#: XLA's compile options for the segment step of a mesh of at most :data:`FAST_COMPILE_NODES`
+#: nodes: with the CPU backend's fusion emitters off the step compiles about 35% faster (the
+#: main job's 8.8 -> 7.0 s of XLA, the let-go path's 6.5-7.2 -> 3.8-4.5 s) and runs up to about
+#: 15% slower at 400 and 800 nodes (the same at 50-200, within the noise), so a small mesh's
+#: run, which its compile dominates, takes them and a large one keeps XLA's defaults
+#: (docs/speed.md, "fifth session"). By the mesh alone, so a run and a batch of the same mesh
+#: compile alike and their iterates agree. A jaxlib that does not know an option compiles with
+#: its defaults.
 COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+FAST_COMPILE_NODES = 200
 
 
-def compile_step(lowered):
-    """``lowered.compile()`` with :data:`COMPILER_OPTIONS` (without them where this jaxlib
-    refuses one)."""
+def compile_step(lowered, nodes: int):
+    """``lowered.compile()``, with :data:`COMPILER_OPTIONS` for a mesh of ``nodes`` <=
+    :data:`FAST_COMPILE_NODES` (without them where this jaxlib refuses one)."""
+    if nodes > FAST_COMPILE_NODES:
+        return lowered.compile()
     try:
         return lowered.compile(compiler_options=COMPILER_OPTIONS)
     except jax.errors.JaxRuntimeError as err:
@@ -218,7 +225,7 @@ def drive(runs: list[MemberRun]) -> list[Result]:
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(
             key,
-            lambda inputs=inputs: compile_step(step.lower(*inputs)),
+            lambda inputs=inputs: compile_step(step.lower(*inputs), layout.n),
             [runs[b].stats for b in active],
         )
         r0 = _time.perf_counter()
