@@ -14,7 +14,7 @@ import jax.numpy as jnp
 
 from dynslip.physics.bodies.held import held_entries
 from dynslip.physics.materials import relaxed_energy
-from dynslip.physics.sheet import SheetModel, penalty_energy
+from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
 __all__ = ["contact_gap", "element_energy", "forces", "forces_and_hessians"]
 
@@ -41,6 +41,21 @@ def contact_gap(body, q, z=0.0):
 
 def _node_penalty(pen, ball, area, q):
     return area * penalty_energy(pen, contact_gap(ball, q)[0])
+
+
+def _penalty_second(pen, area, p):
+    r"""The penalty of nodes against a body from their projection ``p`` in closed form: energy
+    $E = A\,\phi(-d)$, gradient $-A\,\phi'(-d)\,n$ and Hessian $A\,\phi''(-d)\,n n^T -
+    A\,\phi'(-d)\,\kappa\,t t^T$ (the distance's Hessian $\kappa\,t t^T$, ``p.curvature``):
+    one projection, no derivative pass through it (each is compiled anew: docs/speed.md)."""
+    d = -p.distance
+    dphi, ddphi = jax.vmap(jax.value_and_grad(lambda v: penalty_pressure(pen, v)))(d)
+    n, t = p.normal, p.tangent
+    nn = jnp.einsum("...i,...j->...ij", n, n)
+    tt = jnp.einsum("...i,...j->...ij", t, t)
+    a = area[..., None, None]
+    h = a * (ddphi[..., None, None] * nn - (dphi * p.curvature)[..., None, None] * tt)
+    return area * penalty_energy(pen, d), -(area * dphi)[..., None] * n, h
 
 
 def _body_penalty(model: SheetModel, entry, area, x, zb=0.0):
@@ -102,27 +117,16 @@ def forces_and_hessians(model: SheetModel, q, zb):
 
     e, ge, he = jax.vmap(el)(m.dr, rsum, m.area_el, jnp.concatenate([q[:-1], q[1:]], axis=1))
 
-    def second(f, x):
-        gfun = jax.grad(f)
-        h, g = jax.jacfwd(lambda x: (gfun(x), gfun(x)), has_aux=True)(x)
-        return f(x), g, h
-
-    ep, gp, hp = jax.vmap(
-        lambda a, x: second(lambda x: _node_penalty(model.penalty, model.ball, a, x), x)
-    )(m.area, q)
+    ep, gp, hp = _penalty_second(model.penalty, m.area, model.ball.project(q))
     load, hh = jnp.zeros(()), None
     if model.bodies:
         x = q + jnp.stack([jnp.zeros(()), zb])
         # per body, summed here: the Hessian of the bodies at rest is the part that moves with
-        # zb at fixed q, so each body's projection is differentiated twice once, not again
-        # for that part (each derivative pass through a profile's projection is large: the
-        # world's compile)
+        # zb at fixed q; each body's projection evaluated once, its penalty's derivatives in
+        # closed form (_penalty_second)
         entries = held_entries(model.bodies)
-        parts = [
-            jax.vmap(lambda a, x, e=e: second(lambda x: _body_penalty(model, e, a, x, zb), x))(
-                m.area, x)
-            for e in entries
-        ]
+        parts = [_penalty_second(model.penalty, m.area, e.body.project(x, e.shift(zb)))
+                 for e in entries]
         eh, gh, hh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(3))
         ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
         hz = sum((p[2] for p, e in zip(parts, entries, strict=True) if not e.moves_with_ball),

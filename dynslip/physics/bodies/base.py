@@ -195,9 +195,8 @@ def project_profile(arrays, x, z=0.0) -> Projection:
     flip = jnp.where(mirror, -1.0, 1.0)[..., None] * jnp.array([1.0, 0.0]) + jnp.array(
         [0.0, 1.0]
     )
-    return Projection(
-        distance=p.distance, normal=flip * p.normal, s=p.s, tangent=flip * p.tangent
-    )
+    return Projection(distance=p.distance, normal=flip * p.normal, s=p.s,
+                      tangent=flip * p.tangent, curvature=p.curvature)
 
 
 def _samples(seg, m=64):

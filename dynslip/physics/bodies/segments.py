@@ -109,17 +109,20 @@ class Arc(eqx.Module):
 
 
 class Projection(eqx.Module):
-    """The closest point of a body's surface to a point x of the meridian plane.
+    r"""The closest point of a body's surface to a point x of the meridian plane.
 
     ``distance`` signed (negative inside the solid), ``normal`` the outward unit normal
     (the gradient of ``distance``), ``s`` the arc length along the profile of the closest
     point, ``tangent`` the unit tangent there (toward increasing ``s``); leading shapes those
-    of x, the last axis of ``normal`` and ``tangent`` (rho, z)."""
+    of x, the last axis of ``normal`` and ``tangent`` (rho, z). ``curvature`` $\kappa$: the
+    normal's turn per unit of motion along the tangent, so the distance's Hessian is $\kappa\,t
+    t^T$ (:func:`project_onto_segments`; None where a body does not give it)."""
 
     distance: jnp.ndarray
     normal: jnp.ndarray
     s: jnp.ndarray
     tangent: jnp.ndarray
+    curvature: jnp.ndarray | None = None
 
 
 #: relative slack of the in-range tests (a foot a rounding error past a joint still counts)
@@ -345,5 +348,5 @@ def project_onto_segments(arrays, x) -> Projection:
         kt = (kappa * tau)[..., None]
         return out, (dd, kt * t, lam * tau, -kt * n, -kappa**2 * dd, -lam * kappa * dd)
 
-    d, n, s, t, _, _ = nearest(jnp.asarray(x, float))
-    return Projection(distance=d, normal=n, s=s, tangent=t)
+    d, n, s, t, kappa, _ = nearest(jnp.asarray(x, float))
+    return Projection(distance=d, normal=n, s=s, tangent=t, curvature=kappa)

@@ -66,4 +66,5 @@ class Sphere(AbstractBody):
             normal=n,
             s=self.radius * jnp.arctan2(jnp.abs(rho), dz),
             tangent=t,
+            curvature=jnp.where(pos, 1.0 / rs, 0.0),  # the normal's turn, 1/|x - x_c|
         )
