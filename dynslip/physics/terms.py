@@ -1,7 +1,7 @@
 r"""The increment's element and node terms (:mod:`dynslip.physics.newton`): the elastic
 energy of one element, the contact gap against a body, the penalties, and the energy's
-gradient and Hessian blocks from them (``vmap`` of ``jacfwd`` of ``grad`` per element and per
-node; no pass over the whole field).
+gradient and Hessian blocks from them (``vmap`` of ``jacfwd`` of ``grad`` per element; the
+penalties' in closed form from one projection per body; no pass over the whole field).
 
 The held bodies (:attr:`SheetModel.bodies`) see a node at its absolute position
 $q + z_b e_z$; the ball sees the relative position $q$.
@@ -32,43 +32,39 @@ def contact_gap(body, q, z=0.0):
     """Penetration $-d$ of a node at ``q`` = (rho, z) into ``body`` (an
     :class:`~dynslip.physics.bodies.base.AbstractBody` displaced by ``z``), and the body's
     outward normal and tangent (toward increasing arc length: for the unit sphere,
-    ``1 - |q|`` about its centre and the tangent toward the equator). The one place the
-    contact geometry is asked for: the ball at ``q`` relative to its reference placement,
-    the held bodies at the node's absolute position."""
+    ``1 - |q|`` about its centre and the tangent toward the equator): the ball at ``q``
+    relative to its reference placement, the held bodies at the node's absolute position. The
+    penalties read the projection itself (:func:`_penalty`: its curvature too)."""
     p = body.project(q, z)
     return -p.distance, p.normal, p.tangent
 
 
-def _node_penalty(pen, ball, area, q):
-    return area * penalty_energy(pen, contact_gap(ball, q)[0])
-
-
-def _penalty_second(pen, area, p):
+def _penalty(pen, area, p, hessian=False):
     r"""The penalty of nodes against a body from their projection ``p`` in closed form: energy
-    $E = A\,\phi(-d)$, gradient $-A\,\phi'(-d)\,n$ and Hessian $A\,\phi''(-d)\,n n^T -
-    A\,\phi'(-d)\,\kappa\,t t^T$ (the distance's Hessian $\kappa\,t t^T$, ``p.curvature``):
-    one projection, no derivative pass through it (each is compiled anew: docs/speed.md)."""
+    $E = A\,\phi(-d)$ and gradient $-A\,\phi'(-d)\,n$, with ``hessian`` also the Hessian
+    $A\,\phi''(-d)\,n n^T - A\,\phi'(-d)\,\kappa\,t t^T$ (the distance's Hessian $\kappa\,t
+    t^T$, ``p.curvature``): one projection, no derivative pass through it (each would be
+    compiled anew: docs/speed.md)."""
     d = -p.distance
     dphi, ddphi = jax.vmap(jax.value_and_grad(lambda v: penalty_pressure(pen, v)))(d)
+    energy, grad = area * penalty_energy(pen, d), -(area * dphi)[..., None] * p.normal
+    if not hessian:
+        return energy, grad
     n, t = p.normal, p.tangent
     nn = jnp.einsum("...i,...j->...ij", n, n)
     tt = jnp.einsum("...i,...j->...ij", t, t)
     a = area[..., None, None]
-    h = a * (ddphi[..., None, None] * nn - (dphi * p.curvature)[..., None, None] * tt)
-    return area * penalty_energy(pen, d), -(area * dphi)[..., None] * n, h
+    return energy, grad, a * (ddphi[..., None, None] * nn
+                              - (dphi * p.curvature)[..., None, None] * tt)
 
 
-def _body_penalty(model: SheetModel, entry, area, x, zb=0.0):
-    """Penalty energy of one node at absolute position ``x`` against one held body ``entry``
-    (displaced by :meth:`~dynslip.physics.bodies.held.Held.shift`)."""
-    return area * penalty_energy(model.penalty, contact_gap(entry.body, x, entry.shift(zb))[0])
-
-
-def _held_penalty(model: SheetModel, area, x, zb=0.0):
-    """Penalty energy of one node at absolute position ``x`` against every held body (a body
-    that moves with the ball displaced by ``zb``)."""
-    return sum((_body_penalty(model, e, area, x, zb) for e in held_entries(model.bodies)),
-               jnp.zeros(()))
+def _held_parts(model: SheetModel, q, zb, hessian=False):
+    """:func:`_penalty` of the nodes at relative positions ``q`` against each held body, in
+    held order (a body sees the node at $q + z_b e_z$, displaced by its
+    :meth:`~dynslip.physics.bodies.held.Held.shift`)."""
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    return [_penalty(model.penalty, model.mesh.area, e.body.project(x, e.shift(zb)), hessian)
+            for e in held_entries(model.bodies)]
 
 
 def forces(model: SheetModel, q, zb):
@@ -83,15 +79,11 @@ def forces(model: SheetModel, q, zb):
         return jax.value_and_grad(element_energy, argnums=(4, 5))(model.material, dr, rs, a, xa, xb)
 
     e, (ga, gb) = jax.vmap(el)(m.dr, rsum, m.area_el, q[:-1], q[1:])
-    ep, gp = jax.vmap(jax.value_and_grad(_node_penalty, argnums=3), in_axes=(None, None, 0, 0))(
-        model.penalty, model.ball, m.area, q
-    )
+    ep, gp = _penalty(model.penalty, m.area, model.ball.project(q))
     load = jnp.zeros(())
     if model.bodies:
-        x = q + jnp.stack([jnp.zeros(()), zb])
-        eh, gh = jax.vmap(
-            jax.value_and_grad(lambda a, xi: _held_penalty(model, a, xi, zb), argnums=1)
-        )(m.area, x)
+        parts = _held_parts(model, q, zb)
+        eh, gh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(2))
         ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ga).at[1:].add(gb)
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
@@ -117,16 +109,13 @@ def forces_and_hessians(model: SheetModel, q, zb):
 
     e, ge, he = jax.vmap(el)(m.dr, rsum, m.area_el, jnp.concatenate([q[:-1], q[1:]], axis=1))
 
-    ep, gp, hp = _penalty_second(model.penalty, m.area, model.ball.project(q))
+    ep, gp, hp = _penalty(model.penalty, m.area, model.ball.project(q), hessian=True)
     load, hh = jnp.zeros(()), None
     if model.bodies:
-        x = q + jnp.stack([jnp.zeros(()), zb])
         # per body, summed here: the Hessian of the bodies at rest is the part that moves with
-        # zb at fixed q; each body's projection evaluated once, its penalty's derivatives in
-        # closed form (_penalty_second)
+        # zb at fixed q
         entries = held_entries(model.bodies)
-        parts = [_penalty_second(model.penalty, m.area, e.body.project(x, e.shift(zb)))
-                 for e in entries]
+        parts = _held_parts(model, q, zb, hessian=True)
         eh, gh, hh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(3))
         ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
         hz = sum((p[2] for p, e in zip(parts, entries, strict=True) if not e.moves_with_ball),
