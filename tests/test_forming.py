@@ -408,39 +408,6 @@ def test_runner_raises_computation_error_not_a_verdict(tmp_path):
         run_scenario(sc, tmp_path, None)
 
 
-@pytest.mark.parametrize("seconds", [0.0, 1e9])
-def test_partial_trajectory_written_by_wall_time(tmp_path, monkeypatch, seconds):
-    """The running trajectory's partial file is rewritten (complete = 0) once FLUSH_SECONDS of
-    wall time have passed since the last write: at every frame when 0, never within a short
-    run when large (then only the failed run's own write)."""
-    import dynslip.app.forming as forming
-    from dynslip.app.outputs import Outputs
-
-    writes = []
-    real = Outputs.netcdf
-
-    def spy(self, ds, name):
-        writes.append((name, int(ds.attrs["complete"]), ds.sizes["time"]))
-        return real(self, ds, name)
-
-    monkeypatch.setattr(Outputs, "netcdf", spy)
-    monkeypatch.setattr(forming, "FLUSH_SECONDS", seconds)
-    sc = validate_data(
-        {"kind": "forming", "numerics": {"nodes": 12, "max_steps": 100, "solver": "kvaerno5"}}, "x"
-    )
-    with pytest.raises(ComputationError):
-        run_scenario(sc, tmp_path, None)
-    traj = [w for w in writes if w[0] == "trajectory.nc"]
-    assert all(c == 0 for _, c, _ in traj)  # the run failed: every write is partial
-    frames = traj[-1][2]
-    assert frames >= 3  # the run saved frames before it failed
-    if seconds == 0.0:
-        # one write per frame as it came (1, 2, ... frames), then the failure's
-        assert [t for _, _, t in traj[:-1]] == list(range(1, frames + 1))
-    else:
-        assert len(traj) == 1
-
-
 # ----------------------------------------------------------------------------- slow checks
 
 

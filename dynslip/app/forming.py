@@ -1,20 +1,15 @@
 """Runner of ``kind: forming`` scenarios: core objects, progress bar, trajectory.nc, summary,
 figures.
 
-The CLI hands :func:`run_forming` its staging folder and swaps it in on success. While the
-run goes on, the trajectory is rewritten (atomically, ``complete = 0``) once ``FLUSH_SECONDS``
-of wall time have passed since it was last written, so a run killed outright (SIGKILL, out of
-memory) leaves a readable partial file at most that old; an interrupted run (SIGINT, SIGTERM,
-any error) writes what it has before it stops, and a failed run writes what it has and raises
-:class:`dynslip.errors.ComputationError` (exit 3). By wall time, not by frames: a run of a few
-seconds (the main job) writes its trajectory once (each partial write of the main job's cost
-0.3 s, docs/speed.md).
+The CLI hands :func:`run_forming` its staging folder and swaps it in on success. The
+trajectory is rewritten (atomically, ``complete = 0``) at every stage end and every
+``FLUSH_FRAMES`` frames, so an interrupted run leaves a readable partial file; a failed
+run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit 3).
 """
 
 from __future__ import annotations
 
 import math
-import time
 
 import jax.numpy as jnp
 import numpy as np
@@ -26,10 +21,9 @@ from dynslip.data import trajectory
 from dynslip.errors import ComputationError
 
 __all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "summarize",
-           "FLUSH_SECONDS"]
+           "FLUSH_FRAMES"]
 
-#: a running trajectory's partial file is rewritten once it is this many seconds (wall) old
-FLUSH_SECONDS = 30.0
+FLUSH_FRAMES = 25
 
 
 def _held_law(mu, eps):
@@ -205,7 +199,7 @@ def run_forming(sc, out, console=None) -> dict:
     total = sum(s.max_duration for s in protocol.stages)
     frames_seen: list = []
     prog, task = _progress(console, total)
-    state = {"e0": None, "written": time.monotonic()}
+    state = {"e0": None}
 
     def flush(frames, complete=False):
         if not frames:
@@ -229,9 +223,8 @@ def run_forming(sc, out, console=None) -> dict:
             t=rec["time"],
             description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})",
         )
-        if outs.writes and time.monotonic() - state["written"] >= FLUSH_SECONDS:
-            flush(frames_seen)  # a readable partial file
-            state["written"] = time.monotonic()
+        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file
+            flush(frames_seen)
 
     try:
         with prog:
