@@ -2,9 +2,13 @@
 figures.
 
 The CLI hands :func:`run_forming` its staging folder and swaps it in on success. The
-trajectory is rewritten (atomically, ``complete = 0``) at every stage end and every
-``FLUSH_FRAMES`` frames, so an interrupted run leaves a readable partial file; a failed
-run writes what it has and raises :class:`dynslip.errors.ComputationError` (exit 3).
+trajectory is rewritten (atomically, ``complete = 0``) every ``FLUSH_FRAMES`` frames, so a run
+killed outright leaves a readable partial file, and a run whose final write fails (a full disk)
+keeps the last one (tests/test_faults.py); an interrupted run (SIGINT, SIGTERM, any error)
+writes what it has before it stops, and a failed run writes what it has and raises
+:class:`dynslip.errors.ComputationError` (exit 3). By frames, not by wall time: the main job's
+three partial writes cost about 0.6 s of its cold run, but a short run's earlier flush is what
+a failed final write keeps (docs/speed.md, "fifth session").
 """
 
 from __future__ import annotations
