@@ -136,10 +136,10 @@ def _chord_fn(body: AbstractBody):
 
 
 def _per_frame(body: AbstractBody, rho, z, zpos):
-    """:func:`_chords` of every frame (leading shape (...)) of node positions ``rho, z`` (..., N),
+    """:func:`_search` of every frame (leading shape (...)) of node positions ``rho, z`` (..., N),
     the body displaced by ``zpos`` (...): three arrays (..., N-1). Frame by frame, so that a
     run's check (one frame at a time) and a trajectory's (every frame) share one compiled
-    function per body."""
+    function (:func:`_chord_fn`: one for every profile body)."""
     x = np.stack([np.asarray(rho, float), np.asarray(z, float)], axis=-1)
     lead, n = x.shape[:-2], x.shape[-2]
     zp = np.broadcast_to(np.asarray(zpos, float), lead).reshape(-1)
