@@ -157,7 +157,7 @@ def test_motion_newton_increment_is_the_full_state_increment(modes):
     assert diffrax.is_okay(res)
     solver = nw.MotionNewton(max_iter=40)
     zero = (jnp.zeros((N, 2)), jnp.zeros(()))
-    y_mot, ok, _it, _ = solver.increment(
+    y_mot, ok, _it, *_ = solver.increment(
         MODEL, layout, jnp.asarray(0.0), h, y0, args, zero, 1e-12, 1e-12
     )
     assert bool(ok)
@@ -245,7 +245,7 @@ def test_active_set_pass_ends_on_the_laws_own_root(modes):
     out = []
     for freeze in (0, 1, 2):
         solver = nw.MotionNewton(max_iter=60, freeze=freeze)
-        y1, ok, it, _ = solver.increment(
+        y1, ok, it, *_ = solver.increment(
             MODEL, layout, jnp.asarray(0.0), jnp.asarray(0.05), y0, args, zero, 1e-12, 1e-12
         )
         assert bool(ok)
@@ -307,7 +307,7 @@ def test_residual_floor_accepts_the_motion_resolved_to_the_step_tolerance(modes)
 
     def solve(atol, **kw):
         solver = nw.MotionNewton(max_iter=60, **kw)
-        y1, ok, it, _ = solver.increment(
+        y1, ok, it, *_ = solver.increment(
             MODEL, layout, jnp.asarray(0.0), jnp.asarray(0.05), y0, args, zero, 1e-9, atol
         )
         return np.asarray(y1), bool(ok), int(it)

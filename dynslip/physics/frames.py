@@ -25,11 +25,14 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 
 
 @eqx.filter_jit
-def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold):
+def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold,
+                 forces=None):
     """Everything saved per frame: per-node fields and per-time scalars (jnp), and per held
-    body (:mod:`dynslip.physics.bodies.observe`)."""
+    body (:mod:`dynslip.physics.bodies.observe`). ``forces``: the energy gradient and held load
+    at ``y`` where the solver has them (:class:`~dynslip.physics.newton.SegmentOutput`), else
+    computed here."""
     model = place_free_moving(model, layout, t, y, args)  # a frictional free body's velocity
-    dy, aux = evaluate(model, layout, t, y, args)
+    dy, aux = evaluate(model, layout, t, y, args, forces=forces)
     model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(

@@ -117,7 +117,10 @@ def increment_cap(args, max_increment, max_increment_free):
 class SegmentOutput(eqx.Module):
     """What a segment solve returns (both solvers): the end state, whether it reached the
     segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
-    (0 for the time-stepped solvers)."""
+    (0 for the time-stepped solvers), the predictor's rate, and ``forces``: the energy
+    gradient and the held bodies' load at the end state, ``(g, load)`` as
+    :func:`dynslip.physics.terms.forces` gives them, where the solver has them (Newton's last
+    evaluation: the frame takes them, :func:`dynslip.physics.frames.frame_record`), else None."""
 
     y: jax.Array
     ok: jax.Array
@@ -128,6 +131,7 @@ class SegmentOutput(eqx.Module):
     rate: (
         tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
     )
+    forces: tuple | None = None
 
 
 # --------------------------------------------------------------------------- the solver object
@@ -168,7 +172,10 @@ class MotionNewton(eqx.Module):
     def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
         rate``
-        (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0))``."""
+        (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0),
+        (g, load))``, the last two the energy gradient and the held load at ``y1``
+        (:func:`dynslip.physics.terms.forces`). With ``t1 == t0`` Newton stays at ``y0`` (a
+        zero-length increment: the forces at the start, :meth:`segment`)."""
         friction = args.friction
         # the stage-moved bodies where they are at the increment's end (implicit Euler)
         model = place_bodies(model, args.body_z0, args.body_v, args.t0, t1)
@@ -345,7 +352,7 @@ class MotionNewton(eqx.Module):
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=(g, load))
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
-        return y1, ok, it, (q - q0, zb - zb0)
+        return y1, ok, it, (q - q0, zb - zb0), (g, load)
 
     def next_size(self, dt, h, iters, ok, was_cut, h_fail, cap):
         """The increment controller: the size to try after an increment of ``h`` (``dt`` the
@@ -369,7 +376,12 @@ class MotionNewton(eqx.Module):
         self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None
     ) -> SegmentOutput:
         """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
-        ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment."""
+        ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment.
+        The output's ``forces`` are the last accepted increment's at its end. A zero-length
+        segment (``t1 == t0``: a run's initial frame) takes one zero-length increment, which
+        leaves ``y0``, the rate, the increment's size and the counts as they are and gives the
+        forces at ``y0``: so the frame has them from the one evaluation the loop compiles anyway
+        (the frame's own differentiation of the energy was 9% of the main job's step)."""
         cap = increment_cap(args, self.max_increment, self.max_increment_free)
         dt_min = MIN_FRACTION * (t1 - t0)
         zero = jnp.array(0, dtype=jnp.int32)
@@ -377,38 +389,47 @@ class MotionNewton(eqx.Module):
         rate0 = zero_rate(n) if rate is None else rate
 
         def cond(c):
-            t, _, _, dt, _, nacc, nrej, _, _ = c
-            return (t < t1) & (nacc + nrej < self.max_steps) & (dt >= dt_min)
+            t, _, _, dt, _, nacc, nrej, _, _, _, fresh = c
+            return ((t < t1) | fresh) & (nacc + nrej < self.max_steps) & (dt >= dt_min)
 
         def body(c):
-            t, y, rate, dt, was_cut, nacc, nrej, nit, h_fail = c
+            t, y, rate, dt, was_cut, nacc, nrej, nit, h_fail, f, _ = c
             left = t1 - t
             last = left <= 1.25 * dt
             h = jnp.where(last, left, dt)
             t_next = jnp.where(last, t1, t + h)
-            y1, ok, iters, (dq, dz) = self.increment(
+            y1, ok, iters, (dq, dz), f1 = self.increment(
                 model, layout, t, t_next, y, args, rate, rtol, atol
             )
-            dt_new, h_fail = self.next_size(dt, h, iters, ok, was_cut, h_fail, cap)
-            new_rate = (dq / h, dz / h)
-            rate = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_rate, rate)
+            moved = h > 0  # not the zero-length increment of a zero-length segment
+            took = ok & moved
+            dt_new, h_fail_new = self.next_size(dt, h, iters, ok, was_cut, h_fail, cap)
+            hs = jnp.where(moved, h, 1.0)
+            new_rate = (dq / hs, dz / hs)
+            keep = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
+                lambda a, b: jnp.where(took, a, b), new, old)
             return (
                 jnp.where(ok, t_next, t),
-                jnp.where(ok, y1, y),
-                rate,
-                dt_new,
-                ~ok,
-                nacc + ok,
+                keep(y1, y),
+                keep(new_rate, rate),
+                jnp.where(moved, dt_new, dt),
+                jnp.where(moved, ~ok, was_cut),
+                nacc + took,
                 nrej + (~ok),
-                nit + iters,
-                h_fail,
+                nit + jnp.where(moved, iters, 0),
+                jnp.where(moved, h_fail_new, h_fail),
+                jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), f1, f),
+                jnp.array(False),
             )
 
+        # the forces before any increment: not finite, so a frame can never read them as values
+        # (a segment that ends without an accepted increment has failed, and is not recorded)
+        unset = (jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan))
         init = (
             t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero,
-            jnp.array(jnp.inf),
+            jnp.array(jnp.inf), unset, jnp.array(True),
         )
-        t, y, rate, _, _, nacc, nrej, nit, _ = jax.lax.while_loop(cond, body, init)
+        t, y, rate, _, _, nacc, nrej, nit, _, f, _ = jax.lax.while_loop(cond, body, init)
         ok = (t >= t1) & jnp.all(jnp.isfinite(y))
         return SegmentOutput(
             y=y,
@@ -418,6 +439,7 @@ class MotionNewton(eqx.Module):
             rejected=nrej,
             newton_iterations=nit,
             rate=rate,
+            forces=f,
         )
 
 

@@ -228,8 +228,10 @@ def free_system(model, friction, inc: Increment, zk0):
     placed)``, ``placed(zk)`` the model with the bodies at ``zk``."""
     def placed(zk):
         # at the increment's end, moving at the increment's velocity (the slip relative to a
-        # frictional free body)
-        return place_free(model, zk, (zk - zk0) / inc.h)
+        # frictional free body); at rest over a zero-length increment (a segment's start)
+        moved = inc.h > 0
+        v = jnp.where(moved, zk - zk0, 0.0) / jnp.where(moved, inc.h, 1.0)
+        return place_free(model, zk, v)
 
     def body_res(q, zb, zk):
         m = placed(zk)
