@@ -185,6 +185,16 @@ def provenance(scenario_json: str, kind: str) -> dict:
     }
 
 
+def import_writers() -> None:
+    """Import what writing a trajectory imports on first use: the netCDF library, the units
+    library of :func:`check_units`, and the dask and distributed modules that xarray's
+    ``to_netcdf`` looks up for a scheduler (0.3 s of them). A warm-up: a run calls it while
+    its step compiles (:func:`dynslip.app.forming.run_forming`)."""
+    import dask.distributed  # noqa: F401
+    import netCDF4  # noqa: F401
+    import pint  # noqa: F401
+
+
 def check_units(ds: xr.Dataset) -> None:
     """Raise if a data variable or coordinate lacks a ``units`` string pint can parse."""
     import pint

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.physics.bodies.chords import deepest_chord_in
+from dynslip.physics.bodies.chords import prepare as prepare_chords
 from dynslip.physics.bodies.held import held_entries, n_free, n_memory, stage_moved
 from dynslip.physics.failures import (
     ContactUnresolved,
@@ -275,6 +276,13 @@ class MemberRun:
         self.y, self.t, self.rate = y1, seg.t1, out.rate
         self.seg += 1
         return True
+
+    def prepare(self) -> None:
+        """Compile the mesh check against the held bodies (:meth:`_unresolved`), which the first
+        frame after the initial one would compile: the driver runs this while the step
+        compiles (:func:`dynslip.physics.simulate.compile_step`)."""
+        if self.settings.max_chord_depth is not None and self.model.bodies:
+            prepare_chords([e.body for e in held_entries(self.model.bodies)], self.layout.n)
 
     @property
     def stage(self):

@@ -38,6 +38,7 @@ field, the solvers, the frames and the failures live in :mod:`dynslip.physics.fi
 
 from __future__ import annotations
 
+import threading
 import time as _time
 
 import equinox as eqx
@@ -117,17 +118,50 @@ COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 FAST_COMPILE_NODES = 200
 
 
-def compile_step(lowered, nodes: int):
+def compile_step(lowered, nodes: int, beside=()):
     """``lowered.compile()``, with :data:`COMPILER_OPTIONS` for a mesh of ``nodes`` <=
-    :data:`FAST_COMPILE_NODES` (without them where this jaxlib refuses one)."""
-    if nodes > FAST_COMPILE_NODES:
-        return lowered.compile()
-    try:
-        return lowered.compile(compiler_options=COMPILER_OPTIONS)
-    except jax.errors.JaxRuntimeError as err:
-        if "No such compile option" not in str(err):
-            raise
-        return lowered.compile()
+    :data:`FAST_COMPILE_NODES` (without them where this jaxlib refuses one). ``beside``:
+    callables run in a thread meanwhile (:class:`_Beside`)."""
+    with _Beside(beside):
+        if nodes > FAST_COMPILE_NODES:
+            return lowered.compile()
+        try:
+            return lowered.compile(compiler_options=COMPILER_OPTIONS)
+        except jax.errors.JaxRuntimeError as err:
+            if "No such compile option" not in str(err):
+                raise
+            return lowered.compile()
+
+
+class _Beside:
+    """Run ``work`` (callables) in a thread while the block runs, and wait for it at the block's
+    end: what a run will do anyway after the step's compile (import the output libraries,
+    compile the mesh check: :meth:`MemberRun.prepare`), done while XLA compiles the step, which
+    releases the GIL and keeps about 1.5 of this machine's 2 cores busy (docs/speed.md,
+    "sixth session": the main job cold about 1 s shorter). Only a warm-up: an error in ``work``
+    is dropped, and the call it warmed raises it where it belongs."""
+
+    def __init__(self, work):
+        self.work = tuple(work)
+        self.thread = None
+
+    def _run(self):
+        for w in self.work:
+            try:
+                w()
+            except Exception:  # noqa: BLE001, S110 - a warm-up; the real call reports it
+                pass
+
+    def __enter__(self):
+        if self.work:
+            self.thread = threading.Thread(target=self._run, name="dynslip-beside", daemon=True)
+            self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.thread is not None:
+            self.thread.join()
+        return False
 
 
 def _compiled(key, compile_fn, stats_list):
@@ -178,14 +212,16 @@ def stack(trees):
     return eqx.combine(stacked, static[0])
 
 
-def drive(runs: list[MemberRun]) -> list[Result]:
+def drive(runs: list[MemberRun], beside=()) -> list[Result]:
     """The host loop of one run (``len(runs) == 1``: :func:`segment_step` as compiled) or of
     B members in lockstep (the step vmapped over them, one call per save segment for all:
     :mod:`dynslip.physics.batch`). Each tick asks every member for its next segment, solves
     them together, and hands each active member its output and frame
     (:meth:`MemberRun.advance`, :meth:`MemberRun.record`); the first tick is a zero-length
     segment per member, whose frame is the initial one. Raises ``ValueError`` when the
-    members need different compiled steps (:func:`static_key`)."""
+    members need different compiled steps (:func:`static_key`). ``beside``: the caller's
+    work to run while the step compiles (:func:`compile_step`), after the members' own
+    (:meth:`MemberRun.prepare`)."""
     first = runs[0]
     if any(r.key != first.key for r in runs[1:]):
         raise ValueError(
@@ -226,7 +262,9 @@ def drive(runs: list[MemberRun]) -> list[Result]:
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(
             key,
-            lambda inputs=inputs: compile_step(step.lower(*inputs), layout.n),
+            lambda inputs=inputs: compile_step(
+                step.lower(*inputs), layout.n, [r.prepare for r in runs] + list(beside)
+            ),
             [runs[b].stats for b in active],
         )
         r0 = _time.perf_counter()
@@ -258,10 +296,12 @@ def simulate(model: SheetModel, protocol: Protocol, **kwargs) -> Result:
     Keyword arguments: ``friction`` (an :class:`~dynslip.physics.friction.AbstractFriction`),
     ``eps``, ``drag``, ``ball_drag``, ``pre_stretch``, ``z_sheet``, and optionally ``weight``,
     ``settings`` (:class:`Settings`), ``on_frame`` (called with every frame), ``start`` and
-    ``support_stiffness`` (:class:`MemberRun`).
+    ``support_stiffness`` (:class:`MemberRun`); ``beside``: callables to run while the step
+    compiles (:func:`drive`).
 
     Raises nothing on solver failure: the result's ``failed`` holds the message and
     ``frames`` what was computed before it (the runner turns it into exit 3). Many members
     of the same shape run in lockstep with :func:`dynslip.physics.batch.simulate_batch`.
     """
-    return drive([MemberRun(model, protocol, **kwargs)])[0]
+    beside = kwargs.pop("beside", ())
+    return drive([MemberRun(model, protocol, **kwargs)], beside)[0]
