@@ -26,13 +26,18 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 
 @eqx.filter_jit
 def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold,
-                 forces=None):
+                 forces=None, vb=None):
     """Everything saved per frame: per-node fields and per-time scalars (jnp), and per held
-    body (:mod:`dynslip.physics.bodies.observe`). ``forces``: the energy gradient and held load
-    at ``y`` where the solver has them (:class:`~dynslip.physics.newton.SegmentOutput`), else
-    computed here."""
+    body (:mod:`dynslip.physics.bodies.observe`). ``forces``, ``vb``: the energy gradient and
+    held load at ``y``, and the ball's velocity, where the solver has them
+    (:class:`~dynslip.physics.newton.SegmentOutput`), else computed here. ``vb`` is taken only
+    where the state has no held slip distances and no free bodies: there the solver's velocity
+    is the state's (load stepping takes it at the increment's start slip distances, and at the
+    free bodies' velocity over the increment, where the frame solves the state's own)."""
     model = place_free_moving(model, layout, t, y, args)  # a frictional free body's velocity
-    dy, aux = evaluate(model, layout, t, y, args, forces=forces)
+    if layout.n_held_int or layout.n_free:
+        vb = None
+    dy, aux = evaluate(model, layout, t, y, args, vb=vb, forces=forces)
     model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(

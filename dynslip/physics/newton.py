@@ -117,10 +117,11 @@ def increment_cap(args, max_increment, max_increment_free):
 class SegmentOutput(eqx.Module):
     """What a segment solve returns (both solvers): the end state, whether it reached the
     segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
-    (0 for the time-stepped solvers), the predictor's rate, and ``forces``: the energy
-    gradient and the held bodies' load at the end state, ``(g, load)`` as
-    :func:`dynslip.physics.terms.forces` gives them, where the solver has them (Newton's last
-    evaluation: the frame takes them, :func:`dynslip.physics.frames.frame_record`), else None."""
+    (0 for the time-stepped solvers), the predictor's rate, and, where the solver has them
+    (Newton's last evaluation; else None), ``forces``: the energy gradient and the held bodies'
+    load at the end state, ``(g, load)`` as :func:`dynslip.physics.terms.forces` gives them, and
+    ``ball_velocity``, the ball's there: the frame takes them
+    (:func:`dynslip.physics.frames.frame_record`)."""
 
     y: jax.Array
     ok: jax.Array
@@ -132,6 +133,7 @@ class SegmentOutput(eqx.Module):
         tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
     )
     forces: tuple | None = None
+    ball_velocity: jax.Array | None = None
 
 
 # --------------------------------------------------------------------------- the solver object
@@ -173,9 +175,10 @@ class MotionNewton(eqx.Module):
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
         rate``
         (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0),
-        (g, load))``, the last two the energy gradient and the held load at ``y1``
-        (:func:`dynslip.physics.terms.forces`). With ``t1 == t0`` Newton stays at ``y0`` (a
-        zero-length increment: the forces at the start, :meth:`segment`)."""
+        (g, load, vb))``: the energy gradient and the held load at ``y1``
+        (:func:`dynslip.physics.terms.forces`) and the ball's velocity the increment took. With
+        ``t1 == t0`` Newton stays at ``y0`` (a zero-length increment: the forces at the start,
+        :meth:`segment`)."""
         friction = args.friction
         # the stage-moved bodies where they are at the increment's end (implicit Euler)
         model = place_bodies(model, args.body_z0, args.body_v, args.t0, t1)
@@ -352,7 +355,7 @@ class MotionNewton(eqx.Module):
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=(g, load))
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
-        return y1, ok, it, (q - q0, zb - zb0), (g, load)
+        return y1, ok, it, (q - q0, zb - zb0), (g, load, vb1)
 
     def next_size(self, dt, h, iters, ok, was_cut, h_fail, cap):
         """The increment controller: the size to try after an increment of ``h`` (``dt`` the
@@ -422,9 +425,10 @@ class MotionNewton(eqx.Module):
                 jnp.array(False),
             )
 
-        # the forces before any increment: not finite, so a frame can never read them as values
-        # (a segment that ends without an accepted increment has failed, and is not recorded)
-        unset = (jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan))
+        # the forces and velocity before any increment: not finite, so a frame can never read
+        # them as values (a segment that ends without an accepted increment has failed, and is
+        # not recorded)
+        unset = (jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan), jnp.full((), jnp.nan))
         init = (
             t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero,
             jnp.array(jnp.inf), unset, jnp.array(True),
@@ -439,7 +443,8 @@ class MotionNewton(eqx.Module):
             rejected=nrej,
             newton_iterations=nit,
             rate=rate,
-            forces=f,
+            forces=f[:2],
+            ball_velocity=f[2],
         )
 
 

@@ -190,7 +190,7 @@ def segment_step(solver, batched: bool = False):
         def step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold):
             out = solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
             return out, frame_record(model, layout, t1, out.y, args, contact_threshold,
-                                     forces=out.forces)
+                                     forces=out.forces, vb=out.ball_velocity)
 
         if batched:
             a = eqx.if_array(0)
