@@ -169,6 +169,17 @@ def cmd_fronts(args) -> int:
     return 0
 
 
+def _seconds(text: str) -> float:
+    """A positive, finite number of seconds (argparse ``type``: a bad one exits 2)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (0.0 < v < float("inf")):
+        raise argparse.ArgumentTypeError(f"{text!r}; allowed: a positive number of seconds")
+    return v
+
+
 def cmd_sweep(args) -> int:
     from dynslip.app.sweep import run_sweep
 
@@ -177,6 +188,7 @@ def cmd_sweep(args) -> int:
         out=Path(args.out) if args.out else None,
         mode=args.mode,
         scheduler=args.scheduler,
+        connect_timeout=args.connect_timeout,
         console=_console(),
         force=args.force,
     )
@@ -371,6 +383,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="dask.distributed scheduler address, e.g. tcp://HOST:8786 (implies --mode dask); "
         "default: a local cluster",
+    )
+    w.add_argument(
+        "--connect-timeout",
+        type=_seconds,
+        default=None,
+        metavar="SECONDS",
+        help="how long to wait for the --scheduler to answer (default: 10 s)",
     )
     w.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
     w.set_defaults(fn=cmd_sweep)

@@ -11,6 +11,9 @@ import json
 import subprocess
 import sys
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
@@ -223,24 +226,38 @@ def dense_blocks(lower, diag, upper, B, C, D):
     return j
 
 
-def newton_matrix_and_jacfwd(model, friction, inc, q, zb, exact=True):
-    """The increment's Newton matrix (``newton_blocks(exact=)``, dense, its auxiliary border
-    unknowns past ``z_b`` eliminated by their Schur complement) and ``jax.jacfwd`` of its
-    residual flattened over ``(q, zb)``: ``(got, ref)``, both (2n + 1, 2n + 1)."""
-    import jax
-    import jax.numpy as jnp
-
+@eqx.filter_jit
+def _jacfwd_residual(model, friction, inc, v):
+    """``jax.jacfwd`` of the increment's residual flattened over ``v = (q, zb)``, compiled whole
+    with the model and the increment traced (op by op, through the bodies' loops, it took 20-35 s
+    a test; compiled per model it was 10 s a parameter): one compile per model structure."""
     from dynslip.physics import increment as ni
-    from dynslip.physics import newton_matrix as nm
 
-    n = q.shape[0]
+    n = (v.shape[0] - 1) // 2
 
     def flat(v):
         rq, rz = ni.residual(model, friction, inc, v[:-1].reshape(n, 2), v[-1])
         return jnp.concatenate([rq.reshape(-1), rz[None]])
 
-    ref = np.asarray(jax.jacfwd(flat)(jnp.concatenate([q.reshape(-1), zb[None]])))
-    got = dense_blocks(*nm.newton_blocks(model, friction, inc, q, zb, exact=exact))
+    return jax.jacfwd(flat)(v)
+
+
+@eqx.filter_jit
+def _newton_blocks(model, friction, inc, q, zb, exact):
+    """``newton_blocks``, compiled as :func:`_jacfwd_residual`."""
+    from dynslip.physics import newton_matrix as nm
+
+    return nm.newton_blocks(model, friction, inc, q, zb, exact=exact)
+
+
+def newton_matrix_and_jacfwd(model, friction, inc, q, zb, exact=True):
+    """The increment's Newton matrix (``newton_blocks(exact=)``, dense, its auxiliary border
+    unknowns past ``z_b`` eliminated by their Schur complement) and ``jax.jacfwd`` of its
+    residual flattened over ``(q, zb)``: ``(got, ref)``, both (2n + 1, 2n + 1)."""
+    n = q.shape[0]
+    v = jnp.concatenate([q.reshape(-1), zb[None]])
+    ref = np.asarray(_jacfwd_residual(model, friction, inc, v))
+    got = dense_blocks(*_newton_blocks(model, friction, inc, q, zb, exact))
     k = 2 * n + 1
     if got.shape[0] > k:
         got = got[:k, :k] - got[:k, k:] @ np.linalg.solve(got[k:, k:], got[k:, :k])

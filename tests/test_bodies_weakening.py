@@ -263,6 +263,7 @@ def test_healing_resets_the_held_slip_distance():
                                       np.asarray(y[: layout.held_start]))
 
 
+@pytest.mark.slow  # the heaviest jacfwd cross-check (14 s); the quick loop keeps the node terms'
 @pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE])
 def test_newton_blocks_with_held_weakening_equal_jacfwd(ball_mode):
     """Newton's matrix with a held slip-weakening body (slip distances spread over [0, 2 d_c],

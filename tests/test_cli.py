@@ -54,6 +54,17 @@ def test_bad_override_syntax(tmp_path, capsys):
     assert "section.key=value" in one_line(err)
 
 
+@pytest.mark.parametrize("value", ["0", "-1", "inf", "nan", "soon"])
+def test_connect_timeout_is_a_positive_number_of_seconds(tmp_path, capsys, value):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_:
+        main(["sweep", str(tmp_path / "s.yaml"), "--connect-timeout", value, "--out", str(out)])
+    line = one_line(capsys.readouterr().err)
+    assert exit_.value.code == 2
+    assert "--connect-timeout" in line and repr(value) in line and "positive" in line
+    assert not out.exists()
+
+
 def test_parse_override_types():
     assert parse_override("numerics.nodes=40") == ("numerics.nodes", 40)
     assert parse_override("physics.material.model=gent") == ("physics.material.model", "gent")

@@ -482,10 +482,11 @@ def test_unreachable_scheduler_creates_nothing(tmp_path):
     out = tmp_path / "sw"
     r = subprocess.run(
         [sys.executable, "-m", "dynslip.cli", "sweep", str(_sweep_file(tmp_path)), "--out",
-         str(out), "--scheduler", "tcp://127.0.0.1:9"],
+         str(out), "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "1"],
         capture_output=True, text=True, timeout=300, cwd=tmp_path,
     )
     assert r.returncode == 2 and "cannot reach" in one_line(r.stderr), r.stderr
+    assert "within 1 s" in one_line(r.stderr)  # --connect-timeout, not the 10 s default
     assert not out.exists()
 
 

@@ -363,6 +363,7 @@ def test_cli_bad_input_exit_2(tmp_path, scenarios_dir):
     assert len((out.stderr + out.stdout).strip().splitlines()) == 1
 
 
+@pytest.mark.slow  # a Kvaerno5 compile in a fresh process (17 s); in-process: the test below
 def test_solver_failure_exit_3_keeps_partial_trajectory(tmp_path, scenarios_dir):
     """A step limit too small for the path (Kvaerno5, 100 steps per save segment): exit 3, a
     clear message, trajectory.nc kept

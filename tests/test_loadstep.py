@@ -118,6 +118,7 @@ def reference():
     return res
 
 
+@pytest.mark.slow  # the Kvaerno5 reference's compile (13 s of the quick loop): a cross-check
 @pytest.mark.parametrize("backtrack", [4, 0])
 def test_load_step_matches_kvaerno5_on_a_short_push_down(reference, backtrack):
     """Same end state (after the hold) within 1e-5 R in rho and z, with and without Newton's

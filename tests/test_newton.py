@@ -232,6 +232,7 @@ def test_frozen_branches_equal_the_law_on_them():
     assert float(held) == pytest.approx(-0.5 * thr, rel=1e-12)
 
 
+@pytest.mark.slow  # the active-set pass is off by default (its own compile: 14 s of the quick loop)
 @pytest.mark.parametrize("modes", MODES[:2])
 def test_active_set_pass_ends_on_the_laws_own_root(modes):
     """With nodes held on their branch after one or two stick/slip flips (``freeze`` 1, 2),
@@ -351,3 +352,34 @@ def test_the_increment_controller_remembers_a_failed_size():
     assert float(dt) == pytest.approx(0.3)
     dt, _ = s.next_size(0.3, 0.3, 19, jnp.asarray(True), jnp.asarray(False), inf, cap)
     assert float(dt) == pytest.approx(0.21)
+
+
+@pytest.mark.slow  # a whole segment's compile (11 s); every run's initial frame goes through it
+def test_a_zero_length_segment_keeps_the_state_and_gives_its_forces():
+    """A zero-length segment (a run's initial frame) takes one zero-length increment: the state,
+    the predictor's rate and the counts stay as they were, and the output carries the energy
+    gradient, held load and ball velocity at the start, which the frame takes instead of
+    evaluating them again (``SegmentOutput.forces``, ``.ball_velocity``): equal to
+    ``terms.forces`` there and to the vector field's ball velocity."""
+    from dynslip.physics.field import evaluate
+
+    layout = Layout(N, 1)
+    y0 = _state(layout, seed=4)
+    args = _args(WEAK, BALL_FORCE, CLAMP_POSITION)
+    rate = (jnp.full((N, 2), 0.3), jnp.asarray(0.2))
+    t = jnp.asarray(0.7)
+    segment = eqx.filter_jit(nw.MotionNewton().segment)
+    out = segment(MODEL, layout, y0, t, t, jnp.asarray(0.05), args, 1e-9, 1e-9, rate)
+    assert bool(out.ok) and int(out.steps) == 0 and int(out.newton_iterations) == 0
+    np.testing.assert_array_equal(np.asarray(out.y), np.asarray(y0))
+    for got, was in zip(out.rate, rate, strict=True):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(was))
+    rho, z, zb, _ = layout.unpack(y0)
+    g, load = nt.forces(MODEL, jnp.stack([rho, z - zb], axis=1), zb)
+    scale = float(jnp.max(jnp.abs(g)))
+    np.testing.assert_allclose(np.asarray(out.forces[0]), np.asarray(g), rtol=0,
+                               atol=1e-12 * scale)
+    np.testing.assert_allclose(float(out.forces[1]), float(load), rtol=0, atol=1e-12 * scale)
+    vb = evaluate(MODEL, layout, t, y0, args)[1]["ball_v"]
+    assert abs(float(vb)) > 0
+    np.testing.assert_allclose(float(out.ball_velocity), float(vb), rtol=1e-10)

@@ -451,7 +451,7 @@ def test_bad_inputs_against_the_forming_schema_exit_2(tmp_path, monkeypatch):
         ({"grid": {"physics.friction.mu": []}}, [], "empty range"),
         (
             {"grid": {"physics.friction.mu": [0.5]}},
-            ["--scheduler", "tcp://127.0.0.1:9"],
+            ["--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "1"],
             "cannot reach",
         ),
     ]

@@ -148,6 +148,7 @@ def run_sweep(
     out: Path | None = None,
     mode: str | None = None,
     scheduler: str | None = None,
+    connect_timeout: float | None = None,
     console=None,
     member_fn: Callable | None = None,
     validate_fn: Callable | None = None,
@@ -158,7 +159,9 @@ def run_sweep(
 
     Writes ``<out>/members/*.json`` (one per member, as each finishes), ``<out>/sweep.nc``,
     ``<out>/sweep.png`` and ``<out>/summary.json``; returns the summary. Raises
-    :class:`InputError` for a bad sweep file, member or scheduler (before anything runs),
+    :class:`InputError` for a bad sweep file, member or scheduler (before anything runs;
+    ``connect_timeout``: seconds to wait for ``scheduler``, default
+    :data:`~dynslip.app.sweep_runners.CONNECT_TIMEOUT_S`),
     :class:`ComputationError` when every member failed. ``member_fn(data, out_dir,
     console) -> summary`` replaces the real simulator (tests, benchmarks). ``out`` must be
     new, empty or a dynslip result (a sweep resumes in it); ``force`` allows writing into
@@ -217,7 +220,7 @@ def run_sweep(
     with contextlib.ExitStack() as stack:
         client = None
         if mode == "dask" and pending:  # before anything is printed: unreachable is bad input
-            client, cluster = _connect(scheduler)
+            client, cluster = _connect(scheduler, connect_timeout)
             stack.callback(client.close)
             if cluster is not None:
                 stack.callback(cluster.close)

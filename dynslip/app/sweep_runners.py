@@ -125,8 +125,9 @@ def _shape_key(resolved: Any) -> Any:
 # Runners
 
 
-def _connect(scheduler: str | None):
-    """A dask client: to ``scheduler``, or to a new LocalCluster on loopback."""
+def _connect(scheduler: str | None, timeout: float | None = None):
+    """A dask client: to ``scheduler`` (waiting ``timeout`` s for it, default
+    :data:`CONNECT_TIMEOUT_S`), or to a new LocalCluster on loopback."""
     from distributed import Client, LocalCluster
 
     if scheduler is None:
@@ -138,13 +139,14 @@ def _connect(scheduler: str | None):
             dashboard_address=None,
         )
         return Client(cluster), cluster
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
     try:
-        return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
+        return Client(scheduler, timeout=timeout), None
     except Exception as err:  # noqa: BLE001 - OSError, TimeoutError, ValueError for a bad address
         reason = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise InputError(
             f"--scheduler {scheduler!r}: cannot reach a dask scheduler within "
-            f"{CONNECT_TIMEOUT_S:g} s "
+            f"{timeout:g} s "
             f"({reason[:120]}); give an address like tcp://HOST:8786"
         ) from None
 
