@@ -52,10 +52,10 @@ from dynslip.physics.bodies.base import (
 
 __all__ = [
     "chord_depths",
-    "prepare",
     "deepest_chord_in",
     "deepest_chords_in",
     "deepest_relative_chord_in",
+    "prepare",
     "relative_chord_depths",
 ]
 
