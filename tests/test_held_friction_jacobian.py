@@ -26,7 +26,7 @@ from dynslip.physics.materials import make_material
 from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.terms import forces
+from dynslip.physics.terms import forces, held_projections
 from helpers import check_newton_matrix
 from test_bodies_friction import _args, _small_state
 
@@ -89,10 +89,12 @@ def _node_terms_and_jacfwd(friction, inc, q, g, zb, vb):
         idx, q, g, inc.delta0, zb, vb)
     ref_a = jax.vmap(jax.jacfwd(axial, argnums=(1, 2, 3, 4)), in_axes=(0, 0, 0, None, None))(
         idx, q, g, zb, vb)
+    # the held bodies' projections computed once and moved with each node to first order (the
+    # reference projects inside every derivative)
     got = jax.vmap(
-        lambda i, qi, gi, di: nm._held_node_terms(MODEL, friction, inc, moving, i, qi, gi, di,
-                                                  zb, vb)
-    )(idx, q, g, inc.delta0)
+        lambda i, qi, gi, di, pi: nm._held_node_terms(MODEL, friction, inc, moving, i, qi, gi,
+                                                      di, zb, vb, pi)
+    )(idx, q, g, inc.delta0, held_projections(MODEL, q, zb))
     return got, ref, ref_a
 
 

@@ -95,9 +95,10 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     """Rates and the quantities derived on the way (shared by the vector field and frames).
     ``vb``: the ball's velocity where the caller has solved for it at this state (the load
     step's converged increment), so the root search of a free ball with held friction is not
-    run again (None: solved here). ``forces``: ``(g, load)``, the energy gradient (n, 2) and
-    the held bodies' load at this state where the caller has them
-    (:func:`dynslip.physics.terms.forces`; None: computed here)."""
+    run again (None: solved here). ``forces``: ``(g, load, projections)``, the energy gradient
+    (n, 2), the held bodies' load and their projections of the nodes (None without held
+    bodies) at this state where the caller has them (:func:`dynslip.physics.terms.forces`,
+    :func:`dynslip.physics.terms.held_projections`; None: computed here)."""
     model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)
     internal = layout.internal(y)
@@ -126,7 +127,8 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     # that moves with the ball (the bottle) is displaced by zb, and its load goes to the lab
     c_pen = cz - (model.held_load(rho, z, zb) if forces is None else forces[1])
     hdelta = layout.held_internal(y)
-    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb, hdelta)
+    hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb, hdelta,
+                             None if forces is None else forces[2])
     if hf is None:
         vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
         c_ball = c_pen
@@ -185,8 +187,9 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
 
 
 def _grads(forces):
-    """:meth:`SheetModel.kinematics`' ``grads`` from ``(g, load)`` (its dE/dzb unread here)."""
-    g, _ = forces
+    """:meth:`SheetModel.kinematics`' ``grads`` from ``(g, load, projections)`` (its dE/dzb
+    unread here)."""
+    g = forces[0]
     return g[:, 0], g[:, 1], None
 
 
@@ -356,6 +359,6 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=Non
     if layout.n_held_int:
         g_rho, g_z, _ = k["grads"]
         hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb,
-                                 layout.held_internal(y))
+                                 layout.held_internal(y), None if forces is None else forces[2])
         y = layout.with_held_internal(y, hf.reset(vb, heal_rate))
     return y

@@ -28,8 +28,8 @@ __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
 def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, contact_threshold,
                  forces=None, vb=None):
     """Everything saved per frame: per-node fields and per-time scalars (jnp), and per held
-    body (:mod:`dynslip.physics.bodies.observe`). ``forces``, ``vb``: the energy gradient and
-    held load at ``y``, and the ball's velocity, where the solver has them
+    body (:mod:`dynslip.physics.bodies.observe`). ``forces``, ``vb``: the energy gradient, held
+    load and held bodies' projections at ``y``, and the ball's velocity, where the solver has them
     (:class:`~dynslip.physics.newton.SegmentOutput`), else computed here. ``vb`` is taken only
     where the state has no held slip distances and no free bodies: there the solver's velocity
     is the state's (load stepping takes it at the increment's start slip distances, and at the
@@ -38,6 +38,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     if layout.n_held_int or layout.n_free:
         vb = None
     dy, aux = evaluate(model, layout, t, y, args, vb=vb, forces=forces)
+    ps = None if forces is None else forces[2]
     model = place_state(model, layout, y, args, t)
     rho, z, zb = aux["rho"], aux["z"], aux["zb"]
     d = model.diagnostics(
@@ -57,7 +58,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     g_rho, g_z, _ = aux["kin"]["grads"]
     per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
                                 args.drag, args.eps, contact_threshold,
-                                layout.held_internal(y), hf=aux["held_frame"])
+                                layout.held_internal(y), hf=aux["held_frame"], projections=ps)
     return {
         "rho": rho,
         "z": z,
@@ -77,7 +78,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         "dissipation_friction": acc[3],
         "work_bodies": acc[4] if layout.n_acc > N_ACC else jnp.zeros(()),
         "energy_elastic": model.elastic_energy(rho, z),
-        "energy_penalty": model.penalty_energy(rho, z, zb),
+        "energy_penalty": model.penalty_energy(rho, z, zb, ps),
         "slip_max": slip_max,
         # each held body's axial displacement from its reference placement (R): the ball's height
         # for one moving with it, the stages' or the state's for a moved or free one, else 0

@@ -17,7 +17,7 @@ from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_pressure
-from dynslip.physics.terms import contact_gap, forces
+from dynslip.physics.terms import contact_gap, forces, held_projections
 
 __all__ = [
     "Increment",
@@ -129,23 +129,24 @@ def slip_signs(model: SheetModel, friction, inc: Increment, q, g):
     return jax.vmap(one)(idx, q, g, inc.delta0).astype(jnp.int32)
 
 
-def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb):
+def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
     """The held bodies' friction frame of node ``i`` at relative position ``q`` under the
     energy gradient ``g``, the ball at ``zb`` (held friction acts on neither the pole nor the
-    clamped edge)."""
+    clamped edge); ``projections`` the held bodies' of the node (None: projected here)."""
     live = (i > 0) & (i < model.mesh.n - 1)
     hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
     return _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), -g, model.mesh.area[i],
-                       inc.args, live, zb, hd)
+                       inc.args, live, zb, hd, projections)
 
 
 def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None,
-              held=True):
+              held=True, projections=None):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
     ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
     (:mod:`dynslip.physics.bodies.held`), needed only when one has friction; ``held=False``
-    leaves that friction out (the ball's part alone)."""
+    leaves that friction out (the ball's part alone); ``projections`` the held bodies' of the
+    node (None: projected here)."""
     args = inc.args
     pole = i == 0
     fn, ft, n, t, normal, area = node_contact(model, i, q, g)
@@ -159,7 +160,7 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
         s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
     if held and frictional(model.bodies):
-        u = u + node_held_frame(model, inc, i, q, g, zb).force(vb) / eta_a
+        u = u + node_held_frame(model, inc, i, q, g, zb, projections).force(vb) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1
 
@@ -192,9 +193,10 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     return jnp.where(pole, jnp.stack([jnp.zeros(2), lg[1]]), lg)
 
 
-def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None):
+def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None):
     """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
-    ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory)."""
+    ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory),
+    the held bodies' ``projections`` of ``x`` (None: projected here)."""
     return held_frame(
         model.bodies,
         x,
@@ -206,29 +208,32 @@ def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None):
         live,
         zb,
         delta,
+        projections,
     )
 
 
-def sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None):
+def sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None, projections=None):
     """The held bodies' friction frame of the whole sheet at relative positions ``q`` under the
     energy gradient ``g`` (not the pole nor the clamped edge), the ball at ``zb``, the held slip
-    distances ``delta`` (K_mem, n)."""
+    distances ``delta`` (K_mem, n), the held bodies' ``projections``
+    (:func:`dynslip.physics.terms.held_projections`; None: projected here)."""
     n = q.shape[0]
     idx = jnp.arange(n)
     x = q + jnp.stack([jnp.zeros(()), zb])
     return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb,
-                       delta)
+                       delta, projections)
 
 
-def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load):
+def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load, projections=None):
     """The ball's velocity: :func:`ball_rate`, with the held bodies' friction (its axial part
-    depends on the velocity itself: :func:`dynslip.physics.bodies.held.free_ball_velocity`)."""
+    depends on the velocity itself: :func:`dynslip.physics.bodies.held.free_ball_velocity`);
+    ``projections`` the held bodies' of the nodes (None: projected here)."""
     if not frictional(model.bodies):
         return ball_rate(inc, g[-1], zb, load)
     args = inc.args
 
     def free():
-        hf = sheet_held_frame(model, args, q, zb, g, inc.held_delta0)
+        hf = sheet_held_frame(model, args, q, zb, g, inc.held_delta0, projections)
         pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
         cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
         fb = args.ball_force(inc.t1) + args.support_force(zb)
@@ -268,21 +273,24 @@ def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load, vb=None, rho_
     return jnp.where(pinned | band, jnp.stack([args.vrhoc, args.vzc - vb + w]), free)
 
 
-def increment_rates(model, friction, inc: Increment, q, zb, g, load):
+def increment_rates(model, friction, inc: Increment, q, zb, g, load, projections=None):
     """Every node's rate relative to the ball (n, 2), the ball's velocity and the slip
-    distances at the increment's end, from the relative positions and energy gradient."""
+    distances at the increment's end, from the relative positions and energy gradient (and the
+    held bodies' ``projections`` of the nodes, :func:`held_projections`; None: projected
+    where needed)."""
     idx = jnp.arange(q.shape[0])
     d0 = inc.delta0
-    vb = ball_velocity(model, inc, q, zb, g, load)
+    ps = projections
+    vb = ball_velocity(model, inc, q, zb, g, load, ps)
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi: node_rate(model, friction, inc, i, qi, gi, None, zb, vb))(
-            idx, q, g
-        )
+        u, _ = jax.vmap(lambda i, qi, gi, pi: node_rate(model, friction, inc, i, qi, gi, None,
+                                                        zb, vb, projections=pi))(idx, q, g, ps)
         delta1 = None
     else:
         u, delta1 = jax.vmap(
-            lambda i, qi, gi, di: node_rate(model, friction, inc, i, qi, gi, di, zb, vb)
-        )(idx, q, g, d0)
+            lambda i, qi, gi, di, pi: node_rate(model, friction, inc, i, qi, gi, di, zb, vb,
+                                                projections=pi)
+        )(idx, q, g, d0, ps)
         delta1 = delta1.at[-1].set(d0[-1])
     u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load, vb, q[-1, 0]))
     return u, vb, delta1
@@ -291,13 +299,16 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load):
 def residual_and_state(model, friction, inc: Increment, q, zb):
     """:func:`residual` and what the increment's end reads from the same evaluation: the
     energy gradient ``g`` (n, 2), the ball's velocity, the slip distances at the increment's
-    end (None: memoryless law) and the held bodies' load, ``(r_q, r_z, (g, vb, delta1,
-    load))``. Newton carries the last
+    end (None: memoryless law), the held bodies' load and their projections of the nodes
+    (:func:`held_projections`; None without held bodies), ``(r_q, r_z, (g, vb, delta1, load,
+    projections))``. Newton carries the last
     accepted trial's, so the converged state's rates are not evaluated again (each call site of
     the residual is compiled anew: docs/speed.md)."""
-    g, load = forces(model, q, zb)
-    u, vb, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
-    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, (g, vb, delta1, load)
+    # the held bodies' projections once, for the penalty and the held friction
+    ps = held_projections(model, q, zb) if model.bodies else None
+    g, load = forces(model, q, zb, ps)
+    u, vb, delta1 = increment_rates(model, friction, inc, q, zb, g, load, ps)
+    return q - inc.q0 - inc.h * u, zb - inc.zb0 - inc.h * vb, (g, vb, delta1, load, ps)
 
 
 def residual(model, friction, inc: Increment, q, zb):

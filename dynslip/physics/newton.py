@@ -95,7 +95,7 @@ from dynslip.physics.increment import (
 from dynslip.physics.linalg import bordered_solve
 from dynslip.physics.newton_matrix import free_system, newton_blocks
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
-from dynslip.physics.terms import forces
+from dynslip.physics.terms import forces, held_projections
 
 __all__ = ["MotionNewton", "SegmentOutput", "increment_cap", "zero_rate"]
 
@@ -118,9 +118,11 @@ class SegmentOutput(eqx.Module):
     """What a segment solve returns (both solvers): the end state, whether it reached the
     segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
     (0 for the time-stepped solvers), the predictor's rate, and, where the solver has them
-    (Newton's last evaluation; else None), ``forces``: the energy gradient and the held bodies'
-    load at the end state, ``(g, load)`` as :func:`dynslip.physics.terms.forces` gives them, and
-    ``ball_velocity``, the ball's there: the frame takes them
+    (Newton's last evaluation; else None), ``forces``: the energy gradient, the held bodies'
+    load and their projections of the nodes at the end state, ``(g, load, projections)`` as
+    :func:`dynslip.physics.terms.forces` and :func:`~dynslip.physics.terms.held_projections`
+    give them (``projections`` None without held bodies), and ``ball_velocity``, the ball's
+    there: the frame takes them
     (:func:`dynslip.physics.frames.frame_record`)."""
 
     y: jax.Array
@@ -175,8 +177,9 @@ class MotionNewton(eqx.Module):
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
         rate``
         (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0),
-        (g, load, vb))``: the energy gradient and the held load at ``y1``
-        (:func:`dynslip.physics.terms.forces`) and the ball's velocity the increment took. With
+        ((g, load, projections), vb))``: the energy gradient, the held load and the held bodies'
+        projections at ``y1`` (:class:`SegmentOutput`'s ``forces``) and the ball's velocity the
+        increment took. With
         ``t1 == t0`` Newton stays at ``y0`` (a zero-length increment: the forces at the start,
         :meth:`segment`)."""
         friction = args.friction
@@ -321,7 +324,8 @@ class MotionNewton(eqx.Module):
         state = None
         if not nf:
             state = (jnp.zeros_like(q), jnp.zeros_like(zb0),
-                     None if delta0 is None else jnp.zeros_like(delta0), jnp.zeros_like(zb0))
+                     None if delta0 is None else jnp.zeros_like(delta0), jnp.zeros_like(zb0),
+                     _unset_projections(model, n, 0.0))
         init = (
             q, zb, jnp.zeros_like(q), jnp.zeros_like(zb), jnp.array(0, jnp.int32),
             jnp.array(False), jnp.array(False), free_mode, jnp.zeros(n, jnp.int32), free_mode,
@@ -333,16 +337,17 @@ class MotionNewton(eqx.Module):
         if nf:
             zb, zk = zb[0], zb[1:]
             model = placed(zk)
-            g, load = forces(model, q, zb)
+            ps = held_projections(model, q, zb) if model.bodies else None
+            g, load = forces(model, q, zb, ps)
             _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
         else:
             # the converged state's gradient and rates, from the residual's last evaluation
-            g, vb1, delta1, load = state
+            g, vb1, delta1, load, ps = state
         hdelta1 = None
         if hdelta0 is not None:
             # the held bodies' return map: delta1 = delta0 + h |S(G, mu(delta0) N)|/(eta A) in
             # contact with the body, the slip relative to it at the converged motion
-            hdelta1 = sheet_held_frame(model, args, q, zb, g, hdelta0).advance(vb1, h)
+            hdelta1 = sheet_held_frame(model, args, q, zb, g, hdelta0, ps).advance(vb1, h)
         y1 = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta1, zk, hdelta1)
         # the accumulators by the rectangle rule at x1, with the friction law the motion used: the
         # return map's coefficient at the increment's start, mu(delta0) (with mu(delta1) the
@@ -351,11 +356,11 @@ class MotionNewton(eqx.Module):
         y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk, hdelta0)
         # (the energy gradient and the held load from the same evaluation: no third and fourth
         # pass through the bodies' projections)
-        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1, forces=(g, load))
+        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1, forces=(g, load, ps))
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
-        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=(g, load))
+        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=(g, load, ps))
         ok = done & ~bad & jnp.all(jnp.isfinite(y1))
-        return y1, ok, it, (q - q0, zb - zb0), (g, load, vb1)
+        return y1, ok, it, (q - q0, zb - zb0), ((g, load, ps), vb1)
 
     def next_size(self, dt, h, iters, ok, was_cut, h_fail, cap):
         """The increment controller: the size to try after an increment of ``h`` (``dt`` the
@@ -428,7 +433,8 @@ class MotionNewton(eqx.Module):
         # the forces and velocity before any increment: not finite, so a frame can never read
         # them as values (a segment that ends without an accepted increment has failed, and is
         # not recorded)
-        unset = (jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan), jnp.full((), jnp.nan))
+        unset = ((jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan),
+                  _unset_projections(model, n, jnp.nan)), jnp.full((), jnp.nan))
         init = (
             t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero,
             jnp.array(jnp.inf), unset, jnp.array(True),
@@ -443,9 +449,19 @@ class MotionNewton(eqx.Module):
             rejected=nrej,
             newton_iterations=nit,
             rate=rate,
-            forces=f[:2],
-            ball_velocity=f[2],
+            forces=f[0],
+            ball_velocity=f[1],
         )
+
+
+def _unset_projections(model, n: int, fill):
+    """Placeholders of :func:`~dynslip.physics.terms.held_projections`' output for ``n`` nodes
+    (None without held bodies), every value ``fill``: a loop's carry before its first
+    evaluation."""
+    if not model.bodies:
+        return None
+    shapes = jax.eval_shape(lambda: held_projections(model, jnp.zeros((n, 2)), jnp.zeros(())))
+    return jax.tree_util.tree_map(lambda a: jnp.full(a.shape, fill, a.dtype), shapes)
 
 
 def zero_rate(n: int):

@@ -27,7 +27,7 @@ from dynslip.physics.increment import (
 )
 from dynslip.physics.linalg import small_matmul
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
-from dynslip.physics.terms import forces, forces_and_hessians
+from dynslip.physics.terms import forces, forces_and_hessians, held_projections
 
 __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
 
@@ -95,7 +95,8 @@ def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     return lower, diag, upper, B, C, D
 
 
-def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, zb, vb):
+def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, zb, vb,
+                     projections):
     r"""Node ``i``'s rate's derivatives in $(q_i, g_i, z_b, v_b)$ with held friction, and
     those of the axial friction force on it, $\sum_k f_{ik} t_{k,z}$ (the ball's velocity
     reads them): ``(lq, lg, lz, lv, aq, ag, az, av)``. The held bodies' friction $f_k = (S_k -
@@ -107,12 +108,17 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     position alone (two directions), per body, so that $\partial f_k/\partial z_b$ is the
     position's $z$ derivative for a body at rest and 0 for one that moves with the ball (its
     projection reads $x_z - z_b$). ``moving`` (static): per frictional body, whether it moves
-    with the ball."""
+    with the ball. ``projections``: the held bodies' of the node, computed once with the
+    penalty's and moved with the position here to first order
+    (:meth:`~dynslip.physics.bodies.segments.Projection.linearised`: their value and first
+    derivative, which is all a Jacobian reads)."""
     eta_a = inc.args.drag * model.mesh.area[i]
 
     def parts(qi):
         u = node_rate(model, friction, inc, i, qi, g, delta0, held=False)[0]
-        hf = node_held_frame(model, inc, i, qi, g, zb)
+        dx = qi - jax.lax.stop_gradient(qi)
+        ps = tuple(p.linearised(dx) for p in projections)
+        hf = node_held_frame(model, inc, i, qi, g, zb, ps)
         gk, sk = hf.slip(vb)
         fk = jnp.where(hf.live, sk - gk, 0.0)[:, None] * hf.t  # (K, 2)
         # the slopes at the primal point (no derivative of them is taken)
@@ -153,21 +159,23 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, e
     ``vb``: :func:`newton_blocks`'s."""
     n = q.shape[0]
     args = inc.args
-    g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb)
+    # the held bodies' projections once, for the penalty and the held friction
+    ps = held_projections(model, q, zb)
+    g, h_diag, h_up, load, hh = forces_and_hessians(model, q, zb, ps)
     if vb is None:
         # the ball's velocity (held: prescribed, the root search skipped by lax.cond)
-        vb = ball_velocity(model, inc, q, zb, g, load)
+        vb = ball_velocity(model, inc, q, zb, g, load, ps)
     idx = jnp.arange(n)
     mem = inc.delta0 is not None
     d0 = inc.delta0 if mem else jnp.zeros(n)
     moving = tuple(e.moves_with_ball for e in held_entries(model.bodies)
                    if e.friction is not None)
 
-    def local(i, qi, gi, di):
+    def local(i, qi, gi, di, pi):
         return _held_node_terms(model, friction, inc, moving, i, qi, gi, di if mem else None,
-                                zb, vb)
+                                zb, vb, pi)
 
-    lq, lg, lz, lv, aq, ag, az, av = jax.vmap(local)(idx, q, g, d0)
+    lq, lg, lz, lv, aq, ag, az, av = jax.vmap(local)(idx, q, g, d0, ps)
     eg, ev, er = jax.jacfwd(
         lambda ge, v, r: edge_rate(model, inc, ge, zb, load, v, r), argnums=(0, 1, 2)
     )(g[-1], vb, q[-1, 0])

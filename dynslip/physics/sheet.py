@@ -244,13 +244,17 @@ class SheetModel(eqx.Module):
         """Penetration of each node into the ball, minus its signed distance (R)."""
         return -self.ball.distance(jnp.stack([rho, z], axis=-1), zb)
 
-    def held_penalty_energy(self, rho, z, zb=0.0):
+    def held_penalty_energy(self, rho, z, zb=0.0, projections=None):
         """Penalty energy of the nodes against the held bodies (G h0 R^2; 0 without any), each
-        displaced by :meth:`~dynslip.physics.bodies.held.Held.shift` (``zb``, or its offset)."""
+        displaced by :meth:`~dynslip.physics.bodies.held.Held.shift` (``zb``, or its offset);
+        ``projections`` the bodies' of the nodes where the caller has them
+        (:func:`dynslip.physics.terms.held_projections`; None: projected here)."""
         x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
-        parts = (jnp.sum(a * penalty_energy(pen, -e.body.distance(x, e.shift(zb))))
-                 for e in _held_entries(self.bodies))  # fmt: skip
-        return sum(parts, jnp.zeros(()))
+        if projections is None:
+            ds = [e.body.distance(x, e.shift(zb)) for e in _held_entries(self.bodies)]
+        else:
+            ds = [p.distance for p in projections]
+        return sum((jnp.sum(a * penalty_energy(pen, -d)) for d in ds), jnp.zeros(()))
 
     def held_load(self, rho, z, zb=0.0):
         """Axial force of the sheet on the held bodies by contact pressure,
@@ -260,23 +264,25 @@ class SheetModel(eqx.Module):
             return jnp.zeros(())
         return jnp.sum(jax.grad(self.held_penalty_energy, argnums=1)(rho, z, zb))
 
-    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0, zb=0.0, delta=None):
+    def held_friction(self, rho, z, f, drag=1.0, eps_density=0.0, zb=0.0, delta=None,
+                      projections=None):
         """The friction of the held bodies at the nodes (:mod:`dynslip.physics.bodies.held`): a
         :class:`~dynslip.physics.bodies.held.HeldFrame` for node positions ``rho, z`` (N,) and
         driving forces ``f`` (2, N) (``zb``: the ball's height), or None when no held body has
         friction. Not on the pole node nor the clamped edge. ``delta`` (K_mem, N): the held
-        slip distances."""
+        slip distances; ``projections``: the held bodies' of the nodes (None: projected
+        here)."""
         from dynslip.physics.bodies.held import held_frame
 
         idx = jnp.arange(rho.shape[0])
         live = (idx > 0) & (idx < rho.shape[0] - 1)
         x, area, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
         return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
-                          eps_density, live, zb, delta)  # fmt: skip
+                          eps_density, live, zb, delta, projections)  # fmt: skip
 
-    def penalty_energy(self, rho, z, zb):
+    def penalty_energy(self, rho, z, zb, projections=None):
         d = self.penetration(rho, z, zb)
-        held = self.held_penalty_energy(rho, z, zb)
+        held = self.held_penalty_energy(rho, z, zb, projections)
         return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + held
 
     def energy(self, rho, z, zb):

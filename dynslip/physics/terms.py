@@ -16,7 +16,7 @@ from dynslip.physics.bodies.held import held_entries
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["contact_gap", "element_energy", "forces", "forces_and_hessians"]
+__all__ = ["contact_gap", "element_energy", "forces", "forces_and_hessians", "held_projections"]
 
 
 def element_energy(material, dr, rsum, area_el, xa, xb):
@@ -58,20 +58,29 @@ def _penalty(pen, area, p, hessian=False):
                               - (dphi * p.curvature)[..., None, None] * tt)
 
 
-def _held_parts(model: SheetModel, q, zb, hessian=False):
-    """:func:`_penalty` of the nodes at relative positions ``q`` against each held body, in
-    held order (a body sees the node at $q + z_b e_z$, displaced by its
-    :meth:`~dynslip.physics.bodies.held.Held.shift`)."""
+def held_projections(model: SheetModel, q, zb):
+    """Each held body's projection of the nodes at relative positions ``q``, in held order (a
+    body sees the node at $q + z_b e_z$, displaced by its
+    :meth:`~dynslip.physics.bodies.held.Held.shift`): computed once per residual and shared by
+    the penalty (:func:`forces`) and the held friction (its frame,
+    :func:`dynslip.physics.bodies.held.held_frame`); each call site of a projection is traced
+    and compiled anew (docs/speed.md)."""
     x = q + jnp.stack([jnp.zeros(()), zb])
-    return [_penalty(model.penalty, model.mesh.area, e.body.project(x, e.shift(zb)), hessian)
-            for e in held_entries(model.bodies)]
+    return tuple(e.body.project(x, e.shift(zb)) for e in held_entries(model.bodies))
 
 
-def forces(model: SheetModel, q, zb):
+def _held_parts(model: SheetModel, q, zb, hessian=False, projections=None):
+    """:func:`_penalty` of the nodes at relative positions ``q`` against each held body, in
+    held order, from ``projections`` (:func:`held_projections`; None: projected here)."""
+    ps = held_projections(model, q, zb) if projections is None else projections
+    return [_penalty(model.penalty, model.mesh.area, p, hessian) for p in ps]
+
+
+def forces(model: SheetModel, q, zb, projections=None):
     """$\\partial E/\\partial x$ per node, (n, 2), NaN everywhere where the energy is not finite
     (as :meth:`SheetModel.gradients`), and the held bodies' load
     (:meth:`SheetModel.held_load`; 0 without any). The held bodies see the node at
-    $q + z_b e_z$."""
+    $q + z_b e_z$ (``projections``: theirs, :func:`held_projections`; None: projected here)."""
     m = model.mesh
     rsum = m.rbar[1:] + m.rbar[:-1]
 
@@ -82,7 +91,7 @@ def forces(model: SheetModel, q, zb):
     ep, gp = _penalty(model.penalty, m.area, model.ball.project(q))
     load = jnp.zeros(())
     if model.bodies:
-        parts = _held_parts(model, q, zb)
+        parts = _held_parts(model, q, zb, projections=projections)
         eh, gh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(2))
         ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
     g = gp.at[:-1].add(ga).at[1:].add(gb)
@@ -90,7 +99,7 @@ def forces(model: SheetModel, q, zb):
     return jnp.where(bad, jnp.nan, g), load
 
 
-def forces_and_hessians(model: SheetModel, q, zb):
+def forces_and_hessians(model: SheetModel, q, zb, projections=None):
     """:func:`forces` and the blocks of the energy's Hessian: ``(g, h_diag, h_up, load, h_held)``,
     ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them), ``h_held`` the
     pair ``(hh, hz)``: ``hh[i]`` the held bodies' part of ``h_diag[i]``, ``hz[i]`` its part that
@@ -115,7 +124,7 @@ def forces_and_hessians(model: SheetModel, q, zb):
         # per body, summed here: the Hessian of the bodies at rest is the part that moves with
         # zb at fixed q
         entries = held_entries(model.bodies)
-        parts = _held_parts(model, q, zb, hessian=True)
+        parts = _held_parts(model, q, zb, hessian=True, projections=projections)
         eh, gh, hh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(3))
         ep, gp, hp, load = ep + eh, gp + gh, hp + hh, jnp.sum(gh[:, 1])
         hz = sum((p[2] for p, e in zip(parts, entries, strict=True) if not e.moves_with_ball),

@@ -321,17 +321,19 @@ class HeldFrame(eqx.Module):
 
 
 def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
-               delta=None) -> HeldFrame | None:
+               delta=None, projections=None) -> HeldFrame | None:
     """The :class:`HeldFrame` of the frictional held bodies at node positions ``x`` (..., 2)
     (absolute), driving forces ``f`` (..., 2), reference areas ``area`` (...); ``normal_of(d)``
     the penalty's normal force per reference area of a signed distance; ``live`` where held
     friction acts (not the pole, not the clamped edge); ``zb`` the ball's height (displaces a
     body that moves with the ball); ``delta`` (K_mem, ...) the slip distances of the bodies
-    whose law has memory (:func:`n_memory`, in held order; None: none has, or each at 0). None
-    when no held body has friction."""
+    whose law has memory (:func:`n_memory`, in held order; None: none has, or each at 0);
+    ``projections`` every held body's projection of ``x`` (in held order: one evaluation shared
+    with the penalty's, :func:`dynslip.physics.terms.held_projections`; None: projected here).
+    None when no held body has friction."""
     laws, ts, ns, fts, moving, speeds, deltas = [], [], [], [], [], [], []
     j = 0
-    for e in held_entries(bodies):
+    for k, e in enumerate(held_entries(bodies)):
         if e.friction is None:
             continue
         if e.friction.n_internal() == 1:
@@ -339,7 +341,7 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
             j += 1
         else:
             deltas.append(None)
-        p = e.body.project(x, e.shift(zb))
+        p = e.body.project(x, e.shift(zb)) if projections is None else projections[k]
         laws.append(e.friction)
         moving.append(e.moves_with_ball)
         speeds.append(e.velocity)

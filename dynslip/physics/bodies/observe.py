@@ -54,14 +54,15 @@ STATE_MEANINGS = ("free", "stuck", "slipping_toward_decreasing_s",
 
 
 def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
-                     delta=None, hf=None) -> dict:
+                     delta=None, hf=None, projections=None) -> dict:
     """Per held body (leading axis K, :attr:`SheetModel.bodies` order) the fields of the module
     docstring, for node positions ``rho, z`` (N,), ball height ``zb``, driving forces ``f``
     (2, N), ball velocity ``vb``, the drag ``eta``, the smoothing ``eps`` (force density) and
     ``contact_threshold`` (pressure, G h0 / R), ``delta`` (K_mem, N) the slip distances of the
     held bodies whose law has memory (None: none has); ``hf`` the held friction's frame at this
-    state where the caller has it (:meth:`SheetModel.held_friction`; None: computed here).
-    ``{}`` without held bodies."""
+    state where the caller has it (:meth:`SheetModel.held_friction`; None: computed here), and
+    ``projections`` the bodies' of the nodes (:func:`dynslip.physics.terms.held_projections`;
+    None: projected here). ``{}`` without held bodies."""
     entries = held_entries(model.bodies)
     if not entries:
         return {}
@@ -71,12 +72,12 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
     lt, lp = node_stretches(model.mesh, rho, z)
     def_area = model.mesh.area * lt * lp
     if hf is None:
-        hf = model.held_friction(rho, z, f, drag, eps, zb, delta)
+        hf = model.held_friction(rho, z, f, drag, eps, zb, delta, projections)
     slip = None if hf is None else hf.slip(vb)[1]  # (K_frictional, N)
     out = {"s": [], "contact": [], "state": []}
     j = 0
-    for e in entries:
-        p = e.body.project(x, e.shift(zb))
+    for k, e in enumerate(entries):
+        p = e.body.project(x, e.shift(zb)) if projections is None else projections[k]
         pressure = model.mesh.area * penalty_pressure(model.penalty, -p.distance) / def_area
         contact = (pressure > contact_threshold) & (idx < n - 1)
         if e.friction is None:

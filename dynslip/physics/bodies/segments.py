@@ -124,6 +124,20 @@ class Projection(eqx.Module):
     tangent: jnp.ndarray
     curvature: jnp.ndarray | None = None
 
+    def linearised(self, dx) -> Projection:
+        r"""This projection moved by ``dx`` (..., 2) to first order, by the closed-form rule of
+        :func:`project_onto_segments` ($\tau = t\cdot dx$: $dd = n\cdot dx$, $dn = \kappa\tau\,t$,
+        $dt = -\kappa\tau\,n$, $d\kappa = -\kappa^2\,dd$; ``s`` is kept, its factor not being
+        carried). With ``dx = x - stop_gradient(x)`` its value is this projection and its first
+        derivative in x the projection's own: a projection computed once serves a derivative
+        taken later (the held friction's, :mod:`dynslip.physics.newton_matrix`). Needs
+        ``curvature``."""
+        dd = jnp.sum(self.normal * dx, axis=-1)
+        kt = (self.curvature * jnp.sum(self.tangent * dx, axis=-1))[..., None]
+        return Projection(distance=self.distance + dd, normal=self.normal + kt * self.tangent,
+                          s=self.s, tangent=self.tangent - kt * self.normal,
+                          curvature=self.curvature - self.curvature**2 * dd)
+
 
 #: relative slack of the in-range tests (a foot a rounding error past a joint still counts)
 _SLACK = 1e-12
