@@ -17,9 +17,6 @@ from dynslip.cli.commands import (
     cmd_window,
 )
 
-#: the first line of :mod:`dynslip.cli`'s docstring: ``dynslip --help``'s description
-DESCRIPTION = "The dynslip command line."
-
 
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit status 2 (bad input)."""
@@ -106,7 +103,10 @@ def _sub(sub, name: str, help: str):  # noqa: A002 - argparse's keyword
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="dynslip", description=DESCRIPTION,
+    import dynslip.cli  # the package's docstring, whose first line is --help's description
+
+    about = dynslip.cli.__doc__.splitlines()[0].replace("``", "")
+    p = _Parser(prog="dynslip", description=about,
                 epilog="dynslip COMMAND --help: the options of a command, with examples")
     p.add_argument("--version", action=_Version,
                    help="print the version and the git commit, and exit")

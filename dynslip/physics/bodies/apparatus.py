@@ -26,6 +26,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 import math
 
 from dynslip.physics.bodies.base import BodyGeometryError
@@ -35,6 +36,7 @@ from dynslip.physics.bodies.cylinder import Cylinder
 __all__ = ["bottle", "tube_wall", "deepest_rim"]
 
 
+@functools.lru_cache(maxsize=32)
 def bottle(
     ball_radius_mm: float,
     neck_od_mm: float = 25.4,
@@ -45,7 +47,9 @@ def bottle(
     body_height_mm: float = 140.0,
 ) -> tuple:
     """The bottle as three held bodies (neck tube with a rounded lip, conical shoulder,
-    cylindrical body), in units of R, the ball resting on the lip at the origin."""
+    cylindrical body), in units of R, the ball resting on the lip at the origin. Built once per
+    set of arguments (bodies are immutable; checking a profile costs milliseconds, and a run
+    asks for the bottle some ten times: the solver, the summary, the figures)."""
     R = float(ball_radius_mm)
     ro, w = neck_od_mm / 2 / R, neck_wall_mm / R
     if not 0 < w < ro:
@@ -74,6 +78,7 @@ def bottle(
     return (neck, shoulder, body)
 
 
+@functools.lru_cache(maxsize=32)
 def tube_wall(
     ball_radius_mm: float,
     od_mm: float = 101.6,
@@ -83,7 +88,8 @@ def tube_wall(
 ) -> Cylinder:
     """The tube's wall with a fully rounded end (a half torus of radius ``wall_mm / 2``, the
     outer wall a cylinder of radius ``od_mm / 2``), its rim (lowest point) at ``rim_z`` (units
-    of R; 0: displace it by the clamp's height). Units of R."""
+    of R; 0: displace it by the clamp's height). Units of R. Built once per set of arguments
+    (as :func:`bottle`)."""
     R = float(ball_radius_mm)
     ro, w = od_mm / 2 / R, wall_mm / R
     if not 0 < w < ro:
