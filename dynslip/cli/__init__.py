@@ -16,13 +16,20 @@ turns errors into exit statuses.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
-from dynslip.cli.parser import build_parser
+from dynslip.cli import parser as _parser
 from dynslip.errors import ComputationError, InputError, MaterialRangeError
 
 __all__ = ["build_parser", "main"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line's parser (:func:`dynslip.cli.parser.build_parser`), described by the
+    first line of this package's docstring."""
+    return _parser.build_parser(__doc__.splitlines()[0].replace("``", ""))
 
 
 def _kept(err) -> str:

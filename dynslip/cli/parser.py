@@ -102,11 +102,10 @@ def _sub(sub, name: str, help: str):  # noqa: A002 - argparse's keyword
                           formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    import dynslip.cli  # the package's docstring, whose first line is --help's description
-
-    about = dynslip.cli.__doc__.splitlines()[0].replace("``", "")
-    p = _Parser(prog="dynslip", description=about,
+def build_parser(description: str) -> argparse.ArgumentParser:
+    """The parser of every command; ``description`` heads ``dynslip --help`` (the first line of
+    :mod:`dynslip.cli`'s docstring, which builds it)."""
+    p = _Parser(prog="dynslip", description=description,
                 epilog="dynslip COMMAND --help: the options of a command, with examples")
     p.add_argument("--version", action=_Version,
                    help="print the version and the git commit, and exit")

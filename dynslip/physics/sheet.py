@@ -250,10 +250,8 @@ class SheetModel(eqx.Module):
         ``projections`` the bodies' of the nodes where the caller has them
         (:func:`dynslip.physics.terms.held_projections`; None: projected here)."""
         x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
-        if projections is None:
-            ds = [e.body.distance(x, e.shift(zb)) for e in _held_entries(self.bodies)]
-        else:
-            ds = [p.distance for p in projections]
+        ds = ([e.body.distance(x, e.shift(zb)) for e in _held_entries(self.bodies)]
+              if projections is None else [p.distance for p in projections])
         return sum((jnp.sum(a * penalty_energy(pen, -d)) for d in ds), jnp.zeros(()))
 
     def held_load(self, rho, z, zb=0.0):
