@@ -319,3 +319,28 @@ def test_prepare_compiles_what_a_frame_check_runs():
     assert _profile_chords._cache_size() == size
     deepest_chord_in(POST, np.linspace(0.0, 2.0, n + 1), np.zeros(n + 1), 0.0)
     assert _profile_chords._cache_size() == size + 1
+
+
+def test_a_frame_searched_again_is_taken_from_the_last_frames_searched():
+    """The summary's check of a trajectory takes each frame the run's check searched
+    (``chords._SEEN``, by the frame's exact values): the same depths as a fresh search; a frame
+    one rounding step away, another body, or another height is searched anew."""
+    from dynslip.physics.bodies import chords
+
+    th = np.linspace(0.1, 1.4, 9)
+    rho, z = np.stack([1.0 + 0.2 * np.cos(th)] * 3), np.stack([0.2 * np.sin(th)] * 3)
+    z[1] += 0.05
+    chords._SEEN.clear()
+    fresh = chords.chord_depths(POST, rho, z, np.zeros(3))
+    assert len(chords._SEEN) == 2  # frames 0 and 2 are one frame
+    again = chords.chord_depths(POST, rho, z, np.zeros(3))
+    np.testing.assert_array_equal(again, fresh)
+    assert len(chords._SEEN) == 2
+    nudged = rho.copy()
+    nudged[0, 4] = np.nextafter(nudged[0, 4], 2.0)
+    chords.chord_depths(POST, nudged[:1], z[:1], 0.0)
+    chords.chord_depths(RING, rho[:1], z[:1], 0.0)
+    chords.chord_depths(POST, rho[:1], z[:1], 1e-3)
+    assert len(chords._SEEN) == 5
+    chords._SEEN.clear()
+    np.testing.assert_array_equal(chords.chord_depths(POST, rho, z, np.zeros(3)), fresh)
