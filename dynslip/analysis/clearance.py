@@ -23,7 +23,8 @@ import xarray as xr
 from dynslip.data.trajectory import body_shift
 from dynslip.physics.bodies.base import AbstractProfileBody, padded_profile, project_profile
 
-__all__ = ["body_contacts", "body_overlaps", "clearance", "contact_extent", "overlap_tolerance"]
+__all__ = ["body_contacts", "body_overlaps", "clearance", "contact_extent", "overlap_tolerance",
+           "prepare"]
 
 
 @functools.lru_cache(maxsize=64)
@@ -35,18 +36,35 @@ def _distance_fn(body):
 
 @jax.jit
 def _profile_distance(arrays, x, z):
-    """The (time, node) distance to a profile body given by its padded arrays (traced): one
-    compile for every profile body (:func:`~dynslip.physics.bodies.base.padded_profile`)."""
-    return jax.vmap(lambda xt, zt: project_profile(arrays, xt, zt).distance)(x, z)
+    """One frame's (node,) distance to a profile body given by its padded arrays (traced), the
+    body at ``z``: one compile for every profile body and number of frames
+    (:func:`~dynslip.physics.bodies.base.padded_profile`), which :func:`prepare` makes while
+    the run's step compiles."""
+    return project_profile(arrays, x, z).distance
+
+
+def prepare(bodies, nodes: int) -> None:
+    """Compile the distance of a frame of ``nodes`` nodes to each profile body of ``bodies``
+    (what the summary's :func:`body_contacts` then runs: a run's app layer calls it while the
+    step compiles, :func:`dynslip.physics.simulate.compile_step`)."""
+    x, z = np.zeros((nodes, 2)), np.float64(0.0)  # as the frames give them (not weakly typed)
+    for b in bodies:
+        if isinstance(b, AbstractProfileBody):
+            np.asarray(_profile_distance(padded_profile(b), x, z))
 
 
 def _distance(bodies, x, z) -> np.ndarray:
-    """The (time, node) distance to the nearest of ``bodies``."""
-    return np.min(np.stack([
-        np.asarray(_profile_distance(padded_profile(b), x, z) if isinstance(b, AbstractProfileBody)
-                   else _distance_fn(b)(x, z))
-        for b in bodies
-    ]), axis=0)
+    """The (time, node) distance to the nearest of ``bodies``: a profile body's frame by frame
+    (one compiled function for any number of frames; a few hundred frames' calls cost less than
+    a compile for their number), a closed-form one's at once."""
+    def one(b):
+        if isinstance(b, AbstractProfileBody):
+            arrays = padded_profile(b)
+            return np.stack([np.asarray(_profile_distance(arrays, xt, zt))
+                             for xt, zt in zip(x, z, strict=True)])
+        return np.asarray(_distance_fn(b)(jnp.asarray(x), jnp.asarray(z)))
+
+    return np.min(np.stack([one(b) for b in bodies]), axis=0)
 
 
 def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
@@ -56,7 +74,7 @@ def clearance(ds: xr.Dataset, bodies, moves_with_clamp: bool = False) -> dict:
     the clamp's height (``clamp_z``) at each frame."""
     x = np.stack([ds["rho"].values, ds["z"].values], axis=-1)  # (time, node, 2)
     shift = ds["clamp_z"].values if moves_with_clamp else np.zeros(ds.sizes["time"])
-    d = _distance(tuple(bodies), jnp.asarray(x), jnp.asarray(shift))
+    d = _distance(tuple(bodies), x, np.asarray(shift, float))
     k = np.unravel_index(int(np.argmin(d)), d.shape)
     return {
         "per_frame": d.min(axis=1),

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.analysis.summary import summarize
+from dynslip.app import warmup
 from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data import trajectory
@@ -233,7 +234,7 @@ def run_forming(sc, out, console=None) -> dict:
     try:
         with prog:
             result = simulate(model, protocol, on_frame=on_frame, start=start,
-                              beside=[_import_outputs] if outs.writes else [], **kw)
+                              beside=warmup.beside(sc, model, outs.writes), **kw)
     except BaseException:  # interrupted (SIGINT, SIGTERM) or any error: keep what was computed
         try:
             flush(frames_seen)
@@ -250,17 +251,6 @@ def run_forming(sc, out, console=None) -> dict:
     summary = finish(sc, model, result, outs, names, start_info)
     _print_summary(console, summary)
     return summary
-
-
-def _import_outputs() -> None:
-    """Import what writing the results needs (:func:`dynslip.data.files.import_writers`, and
-    matplotlib's figures): about 0.7 s of a cold run, done while the step compiles
-    (:func:`dynslip.physics.simulate.compile_step`)."""
-    from dynslip.data.files import import_writers
-
-    import_writers()
-    import dynslip.plot.forming  # noqa: F401
-    import dynslip.plot.world  # noqa: F401
 
 
 def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
