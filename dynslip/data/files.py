@@ -10,6 +10,7 @@ and interrupted runs) are :mod:`dynslip.data.folders`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import signal
@@ -187,19 +188,26 @@ def provenance(scenario_json: str, kind: str) -> dict:
 
 def import_writers() -> None:
     """Import what writing a trajectory imports on first use: the netCDF library, the units
-    library of :func:`check_units`, and the dask and distributed modules that xarray's
-    ``to_netcdf`` looks up for a scheduler (0.3 s of them). A warm-up: a run calls it while
-    its step compiles (:func:`dynslip.app.forming.run_forming`)."""
+    library of :func:`check_units` with its registry, and the dask and distributed modules that
+    xarray's ``to_netcdf`` looks up for a scheduler (0.3 s of them). A warm-up: a run calls it
+    while its step compiles (:mod:`dynslip.app.warmup`)."""
     import dask.distributed  # noqa: F401
     import netCDF4  # noqa: F401
-    import pint  # noqa: F401
+
+    _units()
+
+
+@functools.lru_cache(maxsize=1)
+def _units():
+    """pint's unit registry, built once (0.15 s: its definitions parsed)."""
+    import pint
+
+    return pint.UnitRegistry()
 
 
 def check_units(ds: xr.Dataset) -> None:
     """Raise if a data variable or coordinate lacks a ``units`` string pint can parse."""
-    import pint
-
-    ureg = pint.UnitRegistry()
+    ureg = _units()
     for name, var in {**ds.coords, **ds.data_vars}.items():
         u = var.attrs.get("units")
         if u is None:
