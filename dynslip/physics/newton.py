@@ -339,7 +339,7 @@ class MotionNewton(eqx.Module):
             model = placed(zk)
             ps = held_projections(model, q, zb) if model.bodies else None
             g, load = forces(model, q, zb, ps)
-            _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load)
+            _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load, ps)
         else:
             # the converged state's gradient and rates, from the residual's last evaluation
             g, vb1, delta1, load, ps = state

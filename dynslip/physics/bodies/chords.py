@@ -39,6 +39,7 @@ Example::
 from __future__ import annotations
 
 import collections
+import threading
 
 import equinox as eqx
 import jax
@@ -141,23 +142,32 @@ def _chord_fn(body: AbstractBody):
 #: the last frames' searches, by body and frame content (:func:`_per_frame`)
 _SEEN: collections.OrderedDict = collections.OrderedDict()
 _SEEN_MAX = 1024
+_SEEN_LOCK = threading.Lock()  # a sweep's members may run in threads of one process
 
 
 def _frame(body: AbstractBody, xf, zf):
     """:func:`_search` of one frame (node positions ``xf`` (N, 2), the body at ``zf``), kept
     for the last ``_SEEN_MAX`` frames by the frame's exact values: the summary's check of a
     trajectory (every frame) finds the run's own check of each frame (the stop rule's, one
-    frame at a time; 0.3 s of the main job)."""
-    key = (body, xf.tobytes(), float(zf))
-    hit = _SEEN.get(key)
+    frame at a time; 0.3 s of the main job). A body that cannot be hashed (array fields) is
+    searched every time."""
+    try:
+        key = (body, xf.tobytes(), float(zf))
+        with _SEEN_LOCK:
+            hit = _SEEN.get(key)
+            if hit is not None:
+                _SEEN.move_to_end(key)
+    except TypeError:
+        key = hit = None
     if hit is not None:
-        _SEEN.move_to_end(key)
         return hit
     n = xf.shape[0]
     out = tuple(np.asarray(o) for o in _chord_fn(body)(xf[:-1], xf[1:], np.full(n - 1, zf)))
-    _SEEN[key] = out
-    if len(_SEEN) > _SEEN_MAX:
-        _SEEN.popitem(last=False)
+    if key is not None:
+        with _SEEN_LOCK:
+            _SEEN[key] = out
+            if len(_SEEN) > _SEEN_MAX:
+                _SEEN.popitem(last=False)
     return out
 
 
