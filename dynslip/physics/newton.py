@@ -147,7 +147,9 @@ class MotionNewton(eqx.Module):
     ``rtol``/``atol`` (max norm; converged when the last correction is below
     ``atol + rtol |x|`` and the residual below ``atol``), at most ``max_iter`` corrections
     per increment, ``backtrack`` halvings of a correction that raises the residual,
-    ``linear``: ``"cyclic"`` (block cyclic reduction) or ``"thomas"``. Increments grow by 1.5
+    ``linear``: ``"auto"`` (block Thomas up to 64 nodes, block cyclic reduction above:
+    :func:`dynslip.physics.linalg.block_tridiagonal_solve`), ``"cyclic"`` or ``"thomas"``.
+    Increments grow by 1.5
     after at most ``grow_below`` iterations and shrink by 0.7 after at least ``shrink_above``.
     ``freeze`` (0: off, the default): the active-set pass, a node whose friction against the
     ball flipped between stick and slip ``freeze`` times within an increment is held on its
@@ -160,7 +162,7 @@ class MotionNewton(eqx.Module):
 
     max_iter: int = eqx.field(static=True, default=20)
     backtrack: int = eqx.field(static=True, default=4)
-    linear: str = eqx.field(static=True, default="cyclic")
+    linear: str = eqx.field(static=True, default="auto")
     grow_below: int = eqx.field(static=True, default=12)
     shrink_above: int = eqx.field(static=True, default=18)
     max_increment: float = eqx.field(static=True, default=20.0)

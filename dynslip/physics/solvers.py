@@ -130,7 +130,8 @@ def _from_settings(cls, settings: Settings, **given):
 
 
 def _motion_newton(s: Settings) -> MotionNewton:
-    linear = "thomas" if s.linear_solver == "thomas" else "cyclic"
+    # the schema's "structured" (the default): the block solver by the mesh's size
+    linear = s.linear_solver if s.linear_solver in ("thomas", "cyclic") else "auto"
     return _from_settings(
         MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear,
         freeze=s.newton_freeze,
