@@ -37,9 +37,9 @@ def _distance_fn(body):
 @jax.jit
 def _profile_distance(arrays, x, z):
     """One frame's (node,) distance to a profile body given by its padded arrays (traced), the
-    body at ``z``: one compile for every profile body and number of frames
-    (:func:`~dynslip.physics.bodies.base.padded_profile`), which :func:`prepare` makes while
-    the run's step compiles."""
+    body at ``z``: one compile for every profile body and mesh size, whatever the number of
+    frames (:func:`~dynslip.physics.bodies.base.padded_profile`), which :func:`prepare` makes
+    while the run's step compiles."""
     return project_profile(arrays, x, z).distance
 
 
