@@ -17,6 +17,7 @@ flagged by it but not by the absolute limit.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax.numpy as jnp
@@ -155,11 +156,13 @@ def test_the_summary_places_each_held_body_at_its_height_in_each_frame():
 
 
 @pytest.mark.slow
-def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
+def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it(monkeypatch):
     """A sheet pushed down over the post's rounded edge (N = 24, the ball held 6 R above, out of
     reach) with a chord limit of 1e-3 R: the run stops at the first saved frame whose chord
     dips deeper into the post, as failed, with ContactUnresolved naming the post; that frame's
-    deepest chord into the post is the failure's depth, the frame before is within the limit."""
+    deepest chord into the post is the failure's depth, the frame before is within the limit.
+    The check runs beside the next segment (``meshcheck.Beside``) and the run comes back to
+    the failed frame: the result is the one the check made in line gives, field for field."""
     from dynslip.physics.friction import Coulomb
     from dynslip.physics.materials import make_material
     from dynslip.physics.protocols import Protocol, Stage, StopRule
@@ -171,12 +174,15 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
                        Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)), bodies=(POST,))
     stages = (Stage("push", StopRule("duration", duration=6.0), clamp_vz=-0.2),)
     protocol = Protocol(stages, clamp_rho0=2.54, clamp_z0=0.0, ball_z0=6.0)
-    res = simulate(
-        model, protocol, friction=Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(eps)), eps=eps,
-        drag=tau, ball_drag=tau * 4 * math.pi, pre_stretch=1.05, z_sheet=0.0,
-        settings=Settings(solver="load_step", save_interval=0.5, max_chord_depth=limit,
-                          body_names=("post",)),
-    )
+    def run(protocol=protocol):
+        return simulate(
+            model, protocol, friction=Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(eps)),
+            eps=eps, drag=tau, ball_drag=tau * 4 * math.pi, pre_stretch=1.05, z_sheet=0.0,
+            settings=Settings(solver="load_step", save_interval=0.5, max_chord_depth=limit,
+                              body_names=("post",)),
+        )
+
+    res = run()
     f = res.failure
     assert isinstance(f, ContactUnresolved), res.failed
     assert f.body == "post" and "'post'" in res.failed and not f.pole_crossed
@@ -187,6 +193,32 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
     rbar = np.asarray(model.mesh.rbar)
     assert f.element == (pytest.approx(rbar[k]), pytest.approx(rbar[k + 1]))
     assert float(deepest_chord_in(POST, before["rho"], before["z"], 0.0)[0]) <= limit
+    assert res.frames[-1]["time"] == f.t == res.stage_end[-1]["t_end"]
+    assert len(res.stage_end) == 1
+
+    class InLine:  # the check made in line, as before it ran beside the next segment
+        def __init__(self, fn, *args):
+            self.value = fn(*args)
+
+        def result(self):
+            return self.value
+
+    import dynslip.physics.member as member
+
+    # the failed frame made the last of a stage that another follows: the run comes back from
+    # the next stage to fail in this one
+    hold = Stage("hold", StopRule("duration", duration=1.0), clamp_vz=0.0)
+    two = Protocol((dataclasses.replace(stages[0], stop=StopRule("duration", duration=f.t)), hold),
+                   clamp_rho0=2.54, clamp_z0=0.0, ball_z0=6.0)
+    beside = run(two)
+    monkeypatch.setattr(member, "Beside", InLine)
+    for a, b in ((run(), res), (run(two), beside)):
+        assert str(a.failure) == str(b.failure) == str(f) and a.stage_end == b.stage_end
+        assert [r["time"] for r in a.frames] == [r["time"] for r in b.frames]
+        np.testing.assert_array_equal(a.frames[-1]["rho"], last["rho"])
+        for k in ("steps", "accepted", "rejected", "segments", "newton_iterations"):
+            assert a.stats[k] == b.stats[k], k
+    assert [e["name"] for e in beside.stage_end] == ["push"]
 
 
 def test_the_local_radius_of_each_kind_of_profile():

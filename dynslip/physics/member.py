@@ -16,21 +16,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.bodies.chords import deepest_chord_in
+from dynslip.physics.beside import Beside
 from dynslip.physics.bodies.chords import prepare as prepare_chords
 from dynslip.physics.bodies.held import held_entries, n_free, n_memory, stage_moved
-from dynslip.physics.failures import (
-    ContactUnresolved,
-    NonFinite,
-    RunFailure,
-    StepLimit,
-)
+from dynslip.physics.failures import NonFinite, RunFailure, StepLimit
 from dynslip.physics.field import N_ACC, N_ACC_MOVED, Layout, StageArgs, _f
 from dynslip.physics.frames import initial_state, state_from
 from dynslip.physics.friction import AbstractFriction
+from dynslip.physics.meshcheck import ball_unresolved, held_unresolved
 from dynslip.physics.newton import zero_rate
 from dynslip.physics.protocols import Protocol
-from dynslip.physics.sheet import SheetModel, deepest_chord
+from dynslip.physics.sheet import SheetModel
 from dynslip.physics.solvers import Settings, _counts_newton, solver_for
 
 __all__ = ["MemberRun", "Result", "Segment", "stage_args", "static_key"]
@@ -208,6 +204,7 @@ class MemberRun:
         self.e0: float | None = None
         self.si = -1
         self.done = False
+        self._pending = None  # the held bodies' mesh check of the last frame (_settle)
         self._begin_stage(0)
         self.key = static_key(settings, self.layout, model, self.args)
 
@@ -246,7 +243,10 @@ class MemberRun:
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
         """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
-        (and the run done, with ``failed`` set) where the solver did not reach the segment's end."""
+        (and the run done, with ``failed`` set) where the solver did not reach the segment's end,
+        or where the last frame's mesh check failed (:meth:`_settle`: the output is dropped)."""
+        if not self._settle():
+            return False
         y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
         if _counts_newton(self.solver):
             self.stats["newton_iterations"] += int(out.newton_iterations)
@@ -278,7 +278,7 @@ class MemberRun:
         return True
 
     def prepare(self) -> None:
-        """Compile the mesh check against the held bodies (:meth:`_unresolved`), which the first
+        """Compile the mesh check against the held bodies (:meth:`_settle`), which the first
         frame after the initial one would compile: the driver runs this while the step
         compiles (:func:`dynslip.physics.simulate.compile_step`)."""
         if self.settings.max_chord_depth is not None and self.model.bodies:
@@ -290,8 +290,9 @@ class MemberRun:
 
     # -- recording and the stop check
     def record(self, rec: dict) -> None:
-        """Keep the frame of the current state (``frame_record``'s values), then check the
-        stop rule: the stage ends when the rule is met or its last segment is done."""
+        """Keep the frame of the current state (``frame_record``'s values), check the mesh
+        (:meth:`_settle`), then the stop rule: the stage ends when it is met or its last
+        segment is done."""
         rec = _to_numpy(rec)
         rec["time"] = float(self.t)
         rec["stage"] = self.si
@@ -302,66 +303,62 @@ class MemberRun:
             self.e0 = float(rec["energy_elastic"] + rec["energy_penalty"])
             return  # the initial frame
         if not np.all(np.isfinite(rec["energy_elastic"])):
-            self._fail(
-                NonFinite(
-                    self.stage.name,
-                    self.t,
-                    "elastic energy not finite (a stretch outside the material's range)",
-                )
-            )
+            self._fail(NonFinite(self.stage.name, self.t, "elastic energy not finite (a "
+                                 "stretch outside the material's range)"))
             return
-        unresolved = self._unresolved(rec)
-        if unresolved is not None:
-            self._fail(unresolved)
-            return
+        limit = self.settings.max_chord_depth
+        held = None
+        if limit is not None:
+            why = ball_unresolved(self.model, rec, self.frames[0], limit, self.stage.name, self.t)
+            if why is not None:
+                self._fail(why)
+                return
+            if held_entries(self.model.bodies):
+                # the held bodies' chord search runs beside the next segment (module
+                # dynslip.physics.meshcheck); the run comes back to this frame if it fails
+                held = Beside(held_unresolved, self.model, self.settings.body_names, rec, limit,
+                              self.stage.name, self.t)
+                back = dict(self.__dict__, stage_end=list(self.stage_end), stats=dict(self.stats))
         met, self.stop_state = self.stage.stop.check(rec, self.t, self.stop_state)
         if met:
             self.met = True
         if met or self.seg >= len(self.seg_ts):
             self._end_stage()
+        if held is not None:
+            self._pending = (held, back)
+            if self.done:
+                self._settle()
 
     def _fail(self, failure: RunFailure) -> None:
         self.failure, self.failed = failure, str(failure)
         self._end_stage()
 
-    def _unresolved(self, rec: dict) -> ContactUnresolved | None:
-        """Why the frame ``rec`` is past what the mesh resolves, or None
-        (``Settings.max_chord_depth``): an element chord deeper than the limit inside the ball
-        or the pole through it (:func:`~dynslip.physics.sheet.deepest_chord`), else a chord
-        deeper than the limit inside a held body, each placed at its height in the frame
-        (``rec["body_z"]``; :func:`~dynslip.physics.bodies.chords.deepest_chord_in`). The pole's
-        crossing is the ball's only: a held body is off the axis or pressed by the pole from one
-        side (docs/bodies.md, "The mesh check against every body"). One limit for every body,
-        in R. No shipped scenario reaches it against a held body at its default mesh, nor the
-        main job at N = 30 (the same page), so the rule stops a run on any body; a chord straight
-        across a body thinner than twice the limit reads its half thickness and passes (the
-        tube's 3 mm wall: 0.075 R at N = 30). The depth relative to the profile's local radius,
-        which catches that, is reported in ``summary.json`` and the end table, not enforced here
-        (docs/bodies.md, "The relative test")."""
-        limit = self.settings.max_chord_depth
-        if limit is None:
-            return None
-        first = self.frames[0]
-        rbar = np.asarray(self.model.mesh.rbar)
-
-        def unresolved(depth, k, crossed, body=None):
-            return ContactUnresolved(
-                self.stage.name, self.t, float(depth), float(limit),
-                (float(rbar[k]), float(rbar[k + 1])), bool(crossed), body=body,
-            )
-
-        depth, k, crossed = deepest_chord(
-            rec["rho"], rec["z"], rec["ball_z"], np.sign(first["z"][0] - first["ball_z"]),
-            self.model.ball,
-        )
-        if crossed or depth > limit:
-            return unresolved(depth, k, crossed)
-        names = self.settings.body_names
-        for j, e in enumerate(held_entries(self.model.bodies)):
-            depth, k = deepest_chord_in(e.body, rec["rho"], rec["z"], rec["body_z"][j])
-            if depth > limit:
-                return unresolved(depth, k, False, names[j] if j < len(names) else f"held body {j}")
-        return None
+    def _settle(self) -> bool:
+        """Wait for the held bodies' mesh check of the last frame (:meth:`record`); where it
+        failed, put the run back as it was at that frame before its stop rule, fail it there
+        (the frame is kept, as a failed check in line keeps it) and return False. The run is
+        past what the mesh resolves against a held body when a chord is deeper than
+        ``Settings.max_chord_depth`` inside it, at its height in the frame
+        (:func:`~dynslip.physics.meshcheck.held_unresolved`); against the ball, or the pole
+        through it, :meth:`record` checks in line (:func:`~.meshcheck.ball_unresolved`). The
+        pole's crossing is the ball's only: a held body is off the axis or pressed by the pole
+        from one side (docs/bodies.md, "The mesh check against every body"). One limit for
+        every body, in R. No shipped scenario reaches it against a held body at its default
+        mesh, nor the main job at N = 30 (the same page), so the rule stops a run on any body;
+        a chord straight across a body thinner than twice the limit reads its half thickness
+        and passes (the tube's 3 mm wall: 0.075 R at N = 30). The depth relative to the
+        profile's local radius, which catches that, is reported in ``summary.json`` and the
+        end table, not enforced here (docs/bodies.md, "The relative test")."""
+        if self._pending is None:
+            return True
+        held, back = self._pending
+        self._pending = None
+        why = held.result()
+        if why is None:
+            return True
+        self.__dict__.update(back)
+        self._fail(why)
+        return False
 
     def _end_stage(self) -> None:
         last = self.frames[-1]
@@ -389,6 +386,7 @@ class MemberRun:
         self.stats["time_per_step_ms"] = 1e3 * self.stats["run_s"] / max(self.stats["steps"], 1)
 
     def result(self) -> Result:
+        self._settle()
         return Result(
             frames=self.frames,
             stage_end=self.stage_end,

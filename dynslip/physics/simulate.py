@@ -38,13 +38,13 @@ field, the solvers, the frames and the failures live in :mod:`dynslip.physics.fi
 
 from __future__ import annotations
 
-import threading
 import time as _time
 
 import equinox as eqx
 import jax
 import numpy as np
 
+from dynslip.physics.beside import Beside
 from dynslip.physics.failures import (
     ContactUnresolved,
     NonFinite,
@@ -154,13 +154,12 @@ class _Beside:
 
     def __enter__(self):
         if self.work:
-            self.thread = threading.Thread(target=self._run, name="dynslip-beside", daemon=True)
-            self.thread.start()
+            self.thread = Beside(self._run)
         return self
 
     def __exit__(self, *exc):
         if self.thread is not None:
-            self.thread.join()
+            self.thread.result()
         return False
 
 
