@@ -69,7 +69,8 @@ def _end(sc, model, protocol, result):
     """(trajectory dataset, summary) of a result, as ``dynslip run`` makes them."""
     import numpy as np
 
-    from dynslip.app.forming import summarize, to_dataset
+    from dynslip.analysis.summary import summarize
+    from dynslip.app.forming import to_dataset
 
     ds = to_dataset(
         sc,

@@ -322,17 +322,17 @@ def test_the_end_table_warns_of_a_held_body_not_resolved():
     """The end table's line for a held body the relative test flags: its radius, the span, the
     mesh needed (N times the span over 2 arccos(1 - limit)); at relative depth 1 the span is a
     lower bound ("at least"); a resolved body gets no line."""
-    from dynslip.app.forming import _unresolved_body_words
+    from dynslip.app.endtable import unresolved_body_words
 
     c = {"resolved": False, "max_relative_chord_depth": 0.25, "radius_mm": 1.5,
          "span_rad": 2 * math.acos(0.75), "relative_time_s": 55.2}
-    line = _unresolved_body_words("tube wall", c, 0.1, 50)
+    line = unresolved_body_words("tube wall", c, 0.1, 50)
     need = math.ceil(50 * 2 * math.acos(0.75) / (2 * math.acos(0.9)))
     assert line.startswith("tube wall: profile not resolved by the mesh where it curves to 1.5 mm")
     assert "spans 1.45 rad" in line and f"N >= about {need} needed" in line
     crossed = dict(c, max_relative_chord_depth=1.0, span_rad=math.pi)
-    assert "spans at least 3.14 rad" in _unresolved_body_words("tube wall", crossed, 0.1, 30)
-    assert _unresolved_body_words("tube wall", dict(c, resolved=True), 0.1, 50) is None
+    assert "spans at least 3.14 rad" in unresolved_body_words("tube wall", crossed, 0.1, 30)
+    assert unresolved_body_words("tube wall", dict(c, resolved=True), 0.1, 50) is None
 
 
 def test_prepare_compiles_what_a_frame_check_runs():

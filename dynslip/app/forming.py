@@ -13,20 +13,18 @@ a failed final write keeps (docs/speed.md, "fifth session").
 
 from __future__ import annotations
 
-import math
-
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.analysis.summary import summarize
 from dynslip.app import warmup
+from dynslip.app.endtable import print_end_table
 from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import ComputationError
+from dynslip.physics.beside import Beside
 
-__all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "summarize",
-           "FLUSH_FRAMES"]
+__all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "FLUSH_FRAMES"]
 
 FLUSH_FRAMES = 25
 
@@ -112,15 +110,6 @@ def build_core(sc):
         support_stiffness=nu.support_stiffness,
     )
     return model, protocol, kwargs
-
-
-def _touched_words(bodies: list) -> str:
-    """The end table's line on the held bodies: which the sheet touched, else the nearest."""
-    hit = [b["name"] for b in bodies if b["touched"]]
-    if hit:
-        return ", ".join(hit)
-    near = min(bodies, key=lambda b: b["closest_R"])
-    return f"none (nearest: {near['name']}, {near['closest_mm']:.3g} mm)"
 
 
 def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=None):
@@ -218,6 +207,13 @@ def run_forming(sc, out, console=None) -> dict:
         outs.netcdf(ds, "trajectory.nc")
         return ds
 
+    writing = [None]  # the partial file being written beside the run
+
+    def written():  # wait for it: the files are written in order, the last one last
+        w, writing[0] = writing[0], None
+        if w is not None:
+            w.result()
+
     def on_frame(rec):
         frames_seen.append(rec)
         if len(frames_seen) == 1:
@@ -228,8 +224,9 @@ def run_forming(sc, out, console=None) -> dict:
             t=rec["time"],
             description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})",
         )
-        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file
-            flush(frames_seen)
+        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file,
+            written()  # written beside the next segments (0.07 s each with the main job's)
+            writing[0] = Beside(flush, list(frames_seen))
 
     try:
         with prog:
@@ -237,19 +234,26 @@ def run_forming(sc, out, console=None) -> dict:
                               beside=warmup.beside(sc, model, outs.writes), **kw)
     except BaseException:  # interrupted (SIGINT, SIGTERM) or any error: keep what was computed
         try:
+            written()
+        except Exception:  # noqa: BLE001, S110 - the whole file is written next
+            pass
+        try:
             flush(frames_seen)
         except Exception:  # noqa: BLE001 - the original error is the one to report
             pass
         raise
+    written()
     if result.failed:
         ds = flush(result.frames)
         if ds is not None:
+            from dynslip.analysis.summary import summarize
+
             outs.json(summarize(sc, ds, result))
         raise ComputationError(
             f"{result.failed}; partial trajectory kept in {outs.where('trajectory.nc')}"
         )
     summary = finish(sc, model, result, outs, names, start_info)
-    _print_summary(console, summary)
+    print_end_table(console, summary)
     return summary
 
 
@@ -258,6 +262,7 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
     of a lockstep batch): the trajectory checked against its contract, the summary (with the
     release metrics of a ``start_from`` run), the figures where ``outs`` writes; returns the
     summary."""
+    from dynslip.analysis.summary import summarize  # xarray: imported while the step compiles
     from dynslip.plot.forming import make_figures
 
     rbar = np.asarray(model.mesh.rbar)
@@ -315,76 +320,3 @@ def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
                      ball=_drawn_ball(model.ball),
                      title=f"{sc.name} (N = {ds.sizes['rbar']})\n{end}")
     save_figure(fig, outs.folder / "world.png", dpi=120)
-
-
-def _print_summary(console, s: dict) -> None:
-    """The end state and the solver's times on the terminal (compile and run separately)."""
-    from rich.table import Table
-
-    t = Table(title="end state")
-    t.add_column("quantity")
-    t.add_column("value", justify="right")
-    fmt = lambda v: "-" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))  # noqa: E731
-    rows = [
-        ("trapped", s["trapped"]),
-        ("ended at rest", s["end_at_rest"]),
-        ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
-        ("theta_max (rad)", s["theta_max"]),
-        ("rbar_max (R)", s["rbar_max"]),
-        ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]),
-        ("mu_mobilised_max", s["mu_mobilised_max"]),
-        ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
-        ("energy residual / work", s["energy_balance"]["relative_residual"]),
-    ]
-    if s["mesh_check"].get("bodies"):
-        name, c = max(s["mesh_check"]["bodies"].items(), key=lambda kv: kv[1]["max_chord_depth"])
-        rows.append((f"deepest chord in a held body ({name}, R)", c["max_chord_depth"]))
-    if "bodies" in s:
-        rows.append(("held bodies touched", _touched_words(s["bodies"])))
-    for o in s.get("bodies_overlap", ()):  # the model has no contact between rigid bodies
-        rows.append((f"{o['name']} passes into", f"{o['into']}: {o['depth_mm']:.3g} mm at "
-                                                 f"t = {o['time_s']:.4g} s"))
-    if "release" in s:
-        rows += [("release: peak force (N)", s["release"]["peak_force_N"]),
-                 ("release: opening reached R", s["release"]["opening_reached_R"])]
-    sv = s["solver"]
-    rows += [
-        ("steps (rejected)", f"{sv['steps']} ({sv['rejected']})"),
-        ("compile (s)", sv["compile_s"]),
-        ("run (s)", sv["run_s"]),
-        ("ms per step", sv["time_per_step_ms"]),
-    ]
-    for k, v in rows:
-        t.add_row(k, fmt(v))
-    console.print(t)
-    console.print(f"outcome: {s['outcome']}", highlight=False)
-    if not s["end_at_rest"]:
-        console.print(f"[bold]{s['end_at_rest_says']}[/bold]", highlight=False)
-    limit = s["mesh_check"].get("limit")
-    for name, c in s["mesh_check"].get("bodies", {}).items():
-        line = _unresolved_body_words(name, c, limit, s.get("nodes"))
-        if line:
-            console.print(f"[yellow]warning: {line}[/yellow]", highlight=False)
-
-
-def _unresolved_body_words(name: str, c: dict, limit, nodes) -> str | None:
-    """The end table's warning for a held body the mesh does not resolve (``resolved`` false:
-    a chord deeper than ``limit`` relative to the radius it cuts off;
-    :func:`~dynslip.analysis.resolution.body_chord_check`), or None. A warning, not a failure:
-    the run's stop rule is on the absolute depth. The mesh needed is estimated from the elements'
-    length falling as 1/N: N times the arc spanned over the largest one allowed,
-    2 arccos(1 - limit)."""
-    if c.get("resolved", True) or limit is None:
-        return None
-    r_mm, span = c.get("radius_mm"), c.get("span_rad")
-    rel = c["max_relative_chord_depth"]
-    if not r_mm or span is None:  # a sharp corner: judged on the absolute depth
-        return (f"{name}: a sharp corner not resolved by the mesh: a chord {rel:.3g} R deep "
-                f"(limit {limit:g} R)")
-    allowed = 2.0 * math.acos(1.0 - limit)
-    at_least = "at least " if rel >= 1.0 - 1e-9 else ""
-    need = f"; N >= about {math.ceil(nodes * span / allowed)} needed" if nodes else ""
-    return (f"{name}: profile not resolved by the mesh where it curves to {r_mm:.3g} mm: an "
-            f"element spans {at_least}{span:.2f} rad of it (chord {rel:.2f} of the radius deep, "
-            f"limit {limit:g}: {allowed:.2f} rad) at t = {c['relative_time_s']:.4g} s{need}")
-

@@ -33,5 +33,6 @@ def import_outputs() -> None:
     from dynslip.data.files import import_writers
 
     import_writers()
+    import dynslip.analysis.summary  # noqa: F401 - xarray and pandas with it (0.2-0.4 s)
     import dynslip.plot.forming  # noqa: F401
     import dynslip.plot.world  # noqa: F401

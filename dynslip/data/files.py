@@ -18,12 +18,15 @@ import subprocess
 import tempfile
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from dynslip._version import FORMAT_VERSION, __version__
 from dynslip.errors import ComputationError
+
+if TYPE_CHECKING:  # imported where used: a run imports xarray while its step compiles
+    import xarray as xr
 
 
 def _atomic_target(path: Path):
@@ -217,6 +220,8 @@ def check_units(ds: xr.Dataset) -> None:
 
 def variable(data, dims, units: str, long_name: str, **attrs) -> xr.Variable:
     """An xarray variable with the ``units`` and ``long_name`` every variable carries."""
+    import xarray as xr
+
     return xr.Variable(
         dims, np.asarray(data), attrs={"units": units, "long_name": long_name, **attrs}
     )

@@ -3,14 +3,20 @@ of ``figure4``): the shapes, stretches, tensions and forces on the grid, with un
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
 
 from dynslip.data import files as io
+
+if TYPE_CHECKING:  # imported where used: a run imports xarray while its step compiles
+    import xarray as xr
 
 
 def static_dataset(res: dict, scenario_json: str, kind: str, scales: dict) -> xr.Dataset:
     """The result dataset of one static computation (plots read this)."""
+    import xarray as xr
+
     d = ("rbar",)
     nd = "1"
     v = io.variable
@@ -74,6 +80,8 @@ def figure4_dataset(
     dss: list[xr.Dataset], models, scenario_json: str, complete: bool
 ) -> xr.Dataset:
     """The datasets of the models (:func:`static_dataset`) along a ``model`` dimension."""
+    import xarray as xr
+
     ds = xr.concat(
         dss, dim="model", combine_attrs="drop_conflicts", data_vars="all", coords="minimal"
     )
@@ -89,6 +97,8 @@ def figure4_dataset(
 def family_dataset(cols: dict, selected: list, values, models: list[str], mu_paper: list,
                    switch_by: str) -> xr.Dataset:
     """The fully mobilised family (model, member) and the selected members (model)."""
+    import xarray as xr
+
     v = io.variable
     dims = ("model", "member")
     return xr.Dataset(
@@ -117,6 +127,8 @@ def family_dataset(cols: dict, selected: list, values, models: list[str], mu_pap
 
 def cylinder_dataset(mu: float, angles, study: dict) -> xr.Dataset:
     """The 2D cylinder study (:func:`dynslip.analysis.cylinder.cylinder_study`) with units."""
+    import xarray as xr
+
     v = io.variable
     return xr.Dataset(
         {

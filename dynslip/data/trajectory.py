@@ -12,13 +12,16 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from dynslip._version import FORMAT_VERSION
 from dynslip.data import files as io
 from dynslip.errors import InputError
+
+if TYPE_CHECKING:  # imported where used: a run imports xarray while its step compiles
+    import xarray as xr
 
 FREE, STUCK, SLIP_POLE, SLIP_EQUATOR = 0, 1, 2, 3
 """The ``state`` flags of the contract."""
@@ -188,6 +191,8 @@ def frames_to_dataset(
     })
     if extra_attrs:
         attrs.update(extra_attrs)
+    import xarray as xr
+
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -249,6 +254,8 @@ def open_trajectory(path) -> xr.Dataset:
         raise InputError(
             f"trajectory: {str(path)!r} does not exist (expected a trajectory.nc file)"
         )
+    import xarray as xr
+
     try:
         with xr.open_dataset(path, engine="netcdf4") as f:
             ds = f.load()
