@@ -12,7 +12,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import held_entries
+from dynslip.physics.bodies.held import held_entries, projected
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
@@ -66,7 +66,7 @@ def held_projections(model: SheetModel, q, zb):
     :func:`dynslip.physics.bodies.held.held_frame`); each call site of a projection is traced
     and compiled anew (docs/speed.md)."""
     x = q + jnp.stack([jnp.zeros(()), zb])
-    return tuple(e.body.project(x, e.shift(zb)) for e in held_entries(model.bodies))
+    return tuple(projected(e, k, x, zb) for k, e in enumerate(held_entries(model.bodies)))
 
 
 def _held_parts(model: SheetModel, q, zb, hessian=False, projections=None):

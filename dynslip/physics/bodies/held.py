@@ -76,6 +76,7 @@ __all__ = [
     "n_memory",
     "place_bodies",
     "place_free",
+    "projected",
     "stage_moved",
 ]
 
@@ -137,6 +138,16 @@ class Held(eqx.Module):
 def held_entries(bodies) -> tuple:
     """The model's held bodies as :class:`Held` entries (a bare body: frictionless)."""
     return tuple(b if isinstance(b, Held) else Held(b) for b in bodies)
+
+
+def projected(entry: Held, k: int, x, zb, projections=None):
+    """The projection of the points ``x`` onto the held body ``entry`` (the ``k``-th in held
+    order), displaced by its :meth:`Held.shift` at ``zb``: ``projections[k]`` where the caller
+    has them (:func:`dynslip.physics.terms.held_projections`, one evaluation shared by a
+    residual's terms), else projected here."""
+    if projections is not None:
+        return projections[k]
+    return entry.body.project(x, entry.shift(zb))
 
 
 def stage_moved(bodies) -> bool:
@@ -341,7 +352,7 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
             j += 1
         else:
             deltas.append(None)
-        p = e.body.project(x, e.shift(zb)) if projections is None else projections[k]
+        p = projected(e, k, x, zb, projections)
         laws.append(e.friction)
         moving.append(e.moves_with_ball)
         speeds.append(e.velocity)

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import held_entries
+from dynslip.physics.bodies.held import held_entries, projected
 from dynslip.physics.sheet import node_stretches, penalty_pressure
 
 __all__ = ["FREE", "SLIP_BACK", "SLIP_ON", "STATE_MEANINGS", "STUCK", "TOUCHING",
@@ -77,7 +77,7 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
     out = {"s": [], "contact": [], "state": []}
     j = 0
     for k, e in enumerate(entries):
-        p = e.body.project(x, e.shift(zb)) if projections is None else projections[k]
+        p = projected(e, k, x, zb, projections)
         pressure = model.mesh.area * penalty_pressure(model.penalty, -p.distance) / def_area
         contact = (pressure > contact_threshold) & (idx < n - 1)
         if e.friction is None:
