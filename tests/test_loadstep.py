@@ -156,6 +156,8 @@ def _fixed_increments(model, layout, y0, t1, h, args):
     )
 
 
+@pytest.mark.slow  # the Kvaerno5 reference's compile and four full-state paths (27-30 s of the
+# quick loop); the motion Newton's increment is the full-state one (test_newton.py, quick)
 def test_energy_residual_and_end_state_are_first_order_in_the_increment(reference):
     """Work = change of stored energy + drag + friction dissipation, every term accumulated
     from its backward-Euler increment; the residual is implicit Euler's numerical dissipation,
