@@ -5,17 +5,7 @@ from pathlib import Path
 
 import pytest
 
-# XLA's CPU fusion emitters off for every program the suite compiles, as a run has them off for
-# the segment step of a mesh of at most 200 nodes (dynslip.physics.simulate.COMPILER_OPTIONS):
-# the suite is compile-bound, and its programs compile about a quarter faster (docs/speed.md,
-# "2026-12-06"). Set before JAX starts its backend; the command-line runs the tests start
-# inherit it.
-if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (
-        os.environ.get("XLA_FLAGS", "") + " --xla_cpu_use_fusion_emitters=false"
-    ).strip()
-
-import dynslip  # noqa: E402, F401  (turns on x64 and the compilation cache)
+import dynslip  # noqa: F401  (x64, the compilation cache, XLA's fusion emitters off)
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"

@@ -33,7 +33,13 @@ def test_unknown_option_falls_back_to_the_defaults(monkeypatch):
 
 
 def test_large_meshes_keep_the_defaults(monkeypatch):
-    """Past FAST_COMPILE_NODES the options are not asked for (an unknown one would raise)."""
+    """Past FAST_COMPILE_NODES the step asks for XLA's own default, the fusion emitters on,
+    which the package turns off for every other program (dynslip._jaxconfig: the process's
+    XLA_FLAGS say so); the small mesh's options are not asked for (an unknown one would
+    raise)."""
+    import os
+
+    assert "--xla_cpu_use_fusion_emitters=false" in os.environ["XLA_FLAGS"]
     lowered = jax.jit(_f).lower(X)
     monkeypatch.setattr(sim, "COMPILER_OPTIONS", {"xla_cpu_no_such_option_here": True})
     calls = []
@@ -44,9 +50,11 @@ def test_large_meshes_keep_the_defaults(monkeypatch):
         return real(self, compiler_options, **kw)
 
     monkeypatch.setattr(type(lowered), "compile", spy)
-    sim.compile_step(lowered, sim.FAST_COMPILE_NODES + 1)
+    large = sim.compile_step(lowered, sim.FAST_COMPILE_NODES + 1)
     sim.compile_step(lowered, sim.FAST_COMPILE_NODES)
-    assert calls[0] is None and calls[1] == sim.COMPILER_OPTIONS and calls[2] is None
+    assert calls[0] == sim.LARGE_COMPILER_OPTIONS == {"xla_cpu_use_fusion_emitters": True}
+    assert calls[1] == sim.COMPILER_OPTIONS and calls[2] is None  # refused: the defaults
+    np.testing.assert_allclose(large(X), _f(X), rtol=1e-14)
 
 
 def test_work_beside_the_compile_runs_in_a_thread_and_cannot_fail_it():

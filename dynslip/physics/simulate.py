@@ -76,6 +76,7 @@ __all__ = [
     "segment_step",
     "compile_step",
     "COMPILER_OPTIONS",
+    "LARGE_COMPILER_OPTIONS",
     "FAST_COMPILE_NODES",
     "simulate",
     "drive",
@@ -116,17 +117,19 @@ def segment_solver(settings: Settings):
 #: its defaults.
 COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 FAST_COMPILE_NODES = 200
+#: ... and for a larger mesh: XLA's own default, asked for because the package turns the fusion
+#: emitters off for every other program (:mod:`dynslip._jaxconfig`)
+LARGE_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": True}
 
 
 def compile_step(lowered, nodes: int, beside=()):
     """``lowered.compile()``, with :data:`COMPILER_OPTIONS` for a mesh of ``nodes`` <=
-    :data:`FAST_COMPILE_NODES` (without them where this jaxlib refuses one). ``beside``:
-    callables run in a thread meanwhile (:class:`_Beside`)."""
+    :data:`FAST_COMPILE_NODES`, else :data:`LARGE_COMPILER_OPTIONS` (without them where this
+    jaxlib refuses one). ``beside``: callables run in a thread meanwhile (:class:`_Beside`)."""
     with _Beside(beside):
-        if nodes > FAST_COMPILE_NODES:
-            return lowered.compile()
+        options = COMPILER_OPTIONS if nodes <= FAST_COMPILE_NODES else LARGE_COMPILER_OPTIONS
         try:
-            return lowered.compile(compiler_options=COMPILER_OPTIONS)
+            return lowered.compile(compiler_options=options)
         except jax.errors.JaxRuntimeError as err:
             if "No such compile option" not in str(err):
                 raise
