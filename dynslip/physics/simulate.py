@@ -137,16 +137,17 @@ def compile_step(lowered, nodes: int, beside=()):
 
 
 class _Beside:
-    """Run ``work`` (callables) in a thread while the block runs, and wait for it at the block's
-    end: what a run will do anyway after the step's compile (import the output libraries,
-    compile the mesh check: :meth:`MemberRun.prepare`), done while XLA compiles the step, which
-    releases the GIL and keeps about 1.5 of this machine's 2 cores busy (docs/speed.md,
-    "sixth session": the main job cold about 1 s shorter). Only a warm-up: an error in ``work``
+    """Run ``work`` (callables) in the process's worker thread (:class:`~.beside.Beside`) while
+    the block runs, and wait for it at the block's end: what a run will do anyway after the
+    step's compile (import the output libraries, compile the mesh check:
+    :meth:`MemberRun.prepare`), done while XLA compiles the step, which releases the GIL and
+    keeps about 1.5 of this machine's 2 cores busy (docs/speed.md, "sixth session": the main
+    job cold about 1 s shorter). Only a warm-up: an error in ``work``
     is dropped, and the call it warmed raises it where it belongs."""
 
     def __init__(self, work):
         self.work = tuple(work)
-        self.thread = None
+        self.pending = None
 
     def _run(self):
         for w in self.work:
@@ -157,12 +158,12 @@ class _Beside:
 
     def __enter__(self):
         if self.work:
-            self.thread = Beside(self._run)
+            self.pending = Beside(self._run)
         return self
 
     def __exit__(self, *exc):
-        if self.thread is not None:
-            self.thread.result()
+        if self.pending is not None:
+            self.pending.result()
         return False
 
 
