@@ -95,6 +95,7 @@ def build_core(sc):
         max_increment_free=nu.max_increment_free,
         newton_max_iter=nu.newton_max_iter,
         newton_backtrack=nu.newton_backtrack,
+        newton_weight=nu.newton_weight,
         max_chord_depth=nu.max_chord_depth,
         body_names=tuple(name for name, *_ in p.named_bodies()),
     )

@@ -69,19 +69,26 @@ __all__ = [
     "capped_log",
     "capstan_reference_tension",
     "soft_threshold",
+    "weighted_form",
     "make_friction",
     "heals",
 ]
 
 
-def soft_threshold(f, c, eps=0.0):
+def soft_threshold(f, c, eps=0.0, weight=1.0):
     r"""Force-space soft threshold $S_\epsilon(f, c)$, elementwise.
 
     ``eps = 0`` is the ideal law $\operatorname{sign}(f)\max(|f|-c, 0)$. For
     ``eps > 0`` the kink at $|f| = c$ is replaced by the $C^1$ blend
     $(|f| - c + e)^2 / (4e)$ on $c - e < |f| < c + e$ with $e = \epsilon c/(c+\epsilon)$;
     $S = 0$ exactly for $|f| \le c - e$. ``c >= 0`` is required.
+
+    ``weight`` $\gamma \ne 1$: the law's weighted form $\gamma\Psi_\gamma(y)$, the same
+    curve $v = S_\epsilon(f)$ read at $y = f + (\gamma - 1)v$ (:func:`weighted_form`;
+    ``f`` is then $y$).
     """
+    if not (isinstance(weight, (int, float)) and weight == 1.0):
+        return weighted_form(f, c, eps, weight)
     f = jnp.asarray(f)
     c = jnp.asarray(c)
     a = jnp.abs(f)
@@ -98,6 +105,34 @@ def soft_threshold(f, c, eps=0.0):
     in_band = (a > c - e) & (a < c + e) & (e > 0)
     mag = jnp.where(in_band, blend, ideal)
     return jnp.sign(f) * mag
+
+
+def weighted_form(y, c, eps, weight):
+    r"""The soft threshold's curve $v = S_\epsilon(f, c)$ read at $y = f + (\gamma - 1)v$
+    (``weight`` $\gamma > 0$): returns $\gamma v$, elementwise.
+
+    $y$ grows along the curve, so $v = \Psi_\gamma(y)$ is a function: 0 for $|y| \le c - e$;
+    in the band, with $b = |y| - c + e$ and $a = |f| - c + e$ solving $a + (\gamma - 1)\,a^2/
+    (4e) = b$, $a = 2b/(1 + \sqrt{1 + (\gamma - 1)\,b/e})$ and $v = a^2/(4e)$, for
+    $0 < b < (\gamma + 1)\,e$; past it $v = (|y| - c)/\gamma$. So $\gamma\Psi_\gamma$ is
+    $S_\epsilon$ at $\gamma = 1$ and the ideal threshold of $y$ at $\epsilon = 0$, and a
+    node's row $\eta A u_t = \gamma\Psi_\gamma(y) - (\gamma - 1)\eta A u_t$ has exactly
+    the law's roots (:func:`dynslip.physics.increment.weighted_slip`)."""
+    y = jnp.asarray(y)
+    c = jnp.asarray(c)
+    r = jnp.abs(y)
+    if isinstance(eps, (int, float)) and eps == 0.0:
+        return jnp.sign(y) * jnp.maximum(r - c, 0.0)
+    den = c + eps
+    e = jnp.where(den > 0, eps * c / jnp.where(den > 0, den, 1.0), 0.0)
+    e_safe = jnp.where(e > 0, e, 1.0)
+    # the band's b, kept inside it so that the unused branch's root stays finite
+    b = jnp.clip(r - c + e, 0.0, (weight + 1.0) * e)
+    a = 2.0 * b / (1.0 + jnp.sqrt(1.0 + (weight - 1.0) * b / e_safe))
+    band = weight * a**2 / (4.0 * e_safe)
+    in_band = (r > c - e) & (r < c + weight * e) & (e > 0)
+    mag = jnp.where(in_band, band, jnp.maximum(r - c, 0.0))
+    return jnp.sign(y) * mag
 
 
 def heals(slip_speed, normal, heal_rate):
@@ -126,10 +161,11 @@ class AbstractFriction(eqx.Module):
     def threshold(self, fn, internal=None, area=None):
         """Friction threshold $\\mu N$ per node (``area``: the node's reference area)."""
 
-    def slip_force(self, ft, fn, internal=None, eps=None, area=None):
-        """Unbalanced tangential force $S$; exactly zero while stuck."""
+    def slip_force(self, ft, fn, internal=None, eps=None, area=None, weight=1.0):
+        """Unbalanced tangential force $S$; exactly zero while stuck. ``weight`` $\ne 1$: the
+        law's weighted form read at ``ft`` $= y$ (:func:`weighted_form`)."""
         e = self.eps if eps is None else eps
-        return soft_threshold(ft, self.threshold(fn, internal, area), e)
+        return soft_threshold(ft, self.threshold(fn, internal, area), e, weight)
 
     def stuck(self, ft, fn, internal=None, eps=None, area=None):
         """Force criterion for sticking: $S = 0$ exactly."""

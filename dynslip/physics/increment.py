@@ -33,6 +33,7 @@ __all__ = [
     "residual_and_state",
     "sheet_held_frame",
     "slip_update",
+    "weighted_slip",
 ]
 
 
@@ -84,6 +85,9 @@ class Increment(eqx.Module):
     # the held bodies' slip distances at the start (K_mem, n): mu of a held law with memory is
     # taken at them (the return map's delta0); None without such a body
     held_delta0: jax.Array | None = None
+    # the weight of the friction law's primal-dual form (:func:`weighted_slip`); None: 1, the
+    # law's own form
+    weight: jax.Array | None = None
 
 
 FREE, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # the active-set pass's branches per node
@@ -156,6 +160,9 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     if delta0 is not None:
         delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
     s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
+    if inc.weight is not None:
+        # the weighted form (:func:`weighted_slip`): the law's own where the weight is 1
+        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta_mu, eps, area)
     if inc.frozen is not None:
         s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
@@ -180,8 +187,11 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     eta_a = args.drag * area
     eps = args.eps * area
 
+    w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a)
+
     def slip(ft):
-        s = friction.slip_force(ft, normal, delta0, eps=eps, area=area)
+        # the weighted form's slope in F_t: its curve's at the shifted trial
+        s = friction.slip_force(ft + shift, normal, delta0, eps=eps, area=area, weight=w)
         if inc.frozen is not None:
             s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta0, area)
         return s
@@ -191,6 +201,42 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     dft = jnp.where(pole, jnp.zeros(2), t)
     lg = -(jnp.outer(n, dfn) + ds * jnp.outer(t, dft)) / eta_a
     return jnp.where(pole, jnp.stack([jnp.zeros(2), lg[1]]), lg)
+
+
+def _weighting(inc: Increment, i, q, t, eta_a):
+    r"""Node ``i``'s weight in the friction law's weighted form, $\gamma = \max(1,\ c\,
+    \Delta t/(\eta A))$ for the complementarity parameter $c$ = ``inc.weight`` (force per
+    displacement, $G h_0$), and the shift of its trial force, $(\gamma - 1)\,\eta A\,
+    \Delta_t/\Delta t$, with $\Delta_t = (q - q_0)\cdot t$ its tangential displacement over
+    the increment (1 and 0 over a zero-length increment)."""
+    moved = inc.h > 0
+    h = jnp.where(moved, inc.h, 1.0)
+    gamma = jnp.where(moved, jnp.maximum(1.0, inc.weight * h / eta_a), 1.0)
+    dt = (q - inc.q0[i]) @ t
+    return gamma, (gamma - 1.0) * eta_a * dt / h
+
+
+def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, area):
+    r"""The slip force in the weighted (primal-dual) form of the friction law, weight
+    $\gamma$ = ``inc.weight``: $S_\gamma = F_t - (y - S(y))$ at the shifted trial
+    $y = F_t + (\gamma - 1)\,\eta A\,u_t$, $u_t = \Delta_t/\Delta t$ the node's tangential
+    rate over the increment, $\gamma\Psi_\gamma$ the law's curve read at $y$
+    (:func:`dynslip.physics.friction.weighted_form`).
+
+    Why: with the friction force $\lambda = F_t - \eta A u_t$ the law $\eta A u_t = S(F_t)$ is
+    $\lambda = P(\lambda + \eta A u_t)$, $P(y) = y - S(y)$ the projection onto the friction
+    disc $|\lambda| \le T$; the row $\eta A u_t = S_\gamma$ is $\lambda = P(\lambda +
+    \gamma\,\eta A u_t)$, the same Coulomb complementarity with the slip rate weighted
+    $\gamma$ times more in the stick/slip decision (the complementarity parameter $c$ of
+    primal-dual active-set contact solvers, Hueber, Stadler and Wohlmuth 2008). With the
+    smoothing too, the row $\eta A u_t = \gamma\Psi_\gamma(y) - (\gamma - 1)\eta A u_t$
+    has exactly the law's roots for every $\gamma > 0$ ($\gamma = 1$ is the law's own form):
+    only Newton's path to them changes. A stuck node's row becomes $\gamma$ times its
+    tangential displacement."""
+    eta_a = inc.args.drag * area
+    gamma, shift = _weighting(inc, i, q, t, eta_a)
+    return friction.slip_force(ft + shift, normal, delta_mu, eps=eps, area=area,
+                               weight=gamma) - shift
 
 
 def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None):

@@ -157,7 +157,10 @@ class MotionNewton(eqx.Module):
     goes on to the law's own root (not with free bodies); docs/speed.md measures it (more
     iterations on the let-go path, hence off). ``floor_factor``, ``floor_count``: the residual
     floor (module docstring; 0: off); ``fail_cap``, ``fail_relax``: the memory of a failed
-    increment's size within a segment (module docstring; 0: off).
+    increment's size within a segment (module docstring; 0: off). ``weight``: the
+    complementarity parameter $c$ of the ball friction's weighted form in which Newton iterates
+    (:func:`dynslip.physics.increment.weighted_slip`; the law's roots for every $c$; 0: the
+    law's own form; not with free bodies).
     """
 
     max_iter: int = eqx.field(static=True, default=20)
@@ -174,6 +177,7 @@ class MotionNewton(eqx.Module):
     floor_count: int = eqx.field(static=True, default=2)
     fail_cap: float = eqx.field(static=True, default=FAIL_CAP)
     fail_relax: float = eqx.field(static=True, default=FAIL_RELAX)
+    weight: float = eqx.field(static=True, default=0.0)
 
     def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
@@ -199,6 +203,9 @@ class MotionNewton(eqx.Module):
         nf = layout.n_free
         # the active-set pass (``freeze``): not with free bodies, whose border it would not see
         active = self.freeze > 0 and not nf
+        # the weighted form of the ball's friction law (``weight``; not with free bodies, whose
+        # residual is built apart)
+        weighted = self.weight > 0 and not nf
         n = q0.shape[0]
         if nf:
             # free bodies: the border is (zb, z_1 .. z_K), placed into the model by res/blocks
@@ -214,23 +221,24 @@ class MotionNewton(eqx.Module):
         else:
             zb = zb0 + h * rz
 
-            def held(mode):
-                return Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args, frozen=mode,
-                                 held_delta0=hdelta0)
+            def data(mode):
+                # the increment with the active-set pass's branches and the law's weight
+                return Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
+                                 frozen=mode if active else None, held_delta0=hdelta0,
+                                 weight=self.weight if weighted else None)
 
             def res(q, zb, mode):
                 # the residual, the slip signs and the state the increment's end reads
                 # (:func:`residual_and_state`; with every node given back its law, as at
                 # convergence, the held branches' state is the law's own)
                 if not active:
-                    r_q, r_z, state = residual_and_state(model, friction, inc, q, zb)
+                    r_q, r_z, state = residual_and_state(model, friction, data(mode), q, zb)
                     return r_q, r_z, jnp.zeros(n, jnp.int32), state
-                return residual_and_signs(model, friction, held(mode), q, zb)
+                return residual_and_signs(model, friction, data(mode), q, zb)
 
             def blocks(q, zb, mode, state):
                 # the ball's velocity at (q, zb) from the residual's evaluation there
-                return newton_blocks(model, friction, held(mode) if active else inc, q, zb,
-                                     vb=state[1])
+                return newton_blocks(model, friction, data(mode), q, zb, vb=state[1])
 
         def size(rq, rz):
             return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))

@@ -52,6 +52,10 @@ class Settings:
     # within an increment is held on its branch until Newton converges, then the law is given
     # back (0: off, the default; docs/speed.md measures it)
     newton_freeze: int = 0
+    # the complementarity parameter c (G h0) of the ball's friction law in its weighted form, in
+    # which Newton iterates (dynslip.physics.increment.weighted_slip: the law's roots for every
+    # c; a node's weight max(1, c dt / (eta A)); 0: the law's own form)
+    newton_weight: float = 1e3
     max_increment: float = 20.0
     max_increment_free: float = 5.0
     # a run stops as failed when an element chord dips deeper than this into the ball or a held
@@ -135,6 +139,7 @@ def _motion_newton(s: Settings) -> MotionNewton:
     return _from_settings(
         MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear,
         freeze=s.newton_freeze,
+        weight=s.newton_weight,
     )
 
 

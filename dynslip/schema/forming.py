@@ -310,6 +310,13 @@ class FormingNumerics(Strict):
                               "safeguard "
                               "that breaks stick/slip cycles at the contact edge; 0: plain "
                               "Newton), 0..20")
+    newton_weight: float = F(1e3, ge=0, le=1e8, unit="1",
+                             description="load_step: the complementarity parameter c of the ball "
+                             "friction's weighted form, units G h0 (force per displacement): "
+                             "a node's stick/slip is decided by its trial force plus "
+                             "max(c - eta A / dt, 0) times its tangential displacement; the same "
+                             "roots as the law for every c, only Newton's path differs "
+                             "(docs/speed.md); 0: the law's own form, in [0, 1e8]")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
         description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "

@@ -1,0 +1,148 @@
+"""The friction law's weighted form, in which Newton on the motion iterates
+(:func:`dynslip.physics.friction.weighted_form`, :func:`dynslip.physics.increment.weighted_slip`,
+``MotionNewton.weight``): the same curve, so the same roots, and the derivatives Newton reads."""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from dynslip.physics import increment as ni
+from dynslip.physics import newton as nw
+from dynslip.physics import newton_matrix as nm
+from dynslip.physics import terms as nt
+from dynslip.physics.field import Layout
+from dynslip.physics.friction import soft_threshold, weighted_form
+from helpers import dense_blocks
+from test_newton import MODEL, MODES, WEAK, N, _args, _increment, _state
+
+C, EPS = 2.0, 0.3  # threshold and smoothing: e = 0.261, a wide band to sample
+
+
+@pytest.mark.parametrize("eps", [EPS, 0.0])
+@pytest.mark.parametrize("gamma", [1.0, 7.0, 1e3])
+def test_weighted_form_reads_the_laws_curve(gamma, eps):
+    """On the law's curve, $v = S_\\epsilon(f)$ and $y = f + (\\gamma - 1) v$, the weighted form
+    gives $\\gamma v$: at every stuck, band and slipping force, either sign. So a node's weighted
+    row has exactly the law's roots. It is nondecreasing in y, and the law itself at
+    $\\gamma = 1$."""
+    f = jnp.linspace(-3 * C, 3 * C, 4001)
+    v = soft_threshold(f, C, eps)
+    y = f + (gamma - 1.0) * v
+    got = weighted_form(y, C, eps, gamma)
+    np.testing.assert_allclose(got, gamma * v, rtol=1e-12, atol=1e-12 * gamma)
+    e = eps * C / (C + eps)
+    if eps:  # the band is sampled: where the two forms would differ without the inversion
+        in_band = (jnp.abs(f) > C - e) & (jnp.abs(f) < C + e)
+        assert int(jnp.sum(in_band)) > 100
+    ys = jnp.linspace(-3 * C * gamma, 3 * C * gamma, 4001)
+    assert np.all(np.diff(np.asarray(weighted_form(ys, C, eps, gamma))) >= 0)
+    if gamma == 1.0:
+        np.testing.assert_array_equal(weighted_form(f, C, eps, 1.0), soft_threshold(f, C, eps))
+
+
+def test_weighted_form_is_continuously_differentiable_across_the_band():
+    """The slope Newton reads ($C^1$ as the law): equal to within the sampling on both sides of
+    the band's two edges ($|y| = c - e$, $c + \\gamma e$), 0 below and 1 above it."""
+    gamma = 50.0
+    e = EPS * C / (C + EPS)
+    slope = jax.vmap(jax.grad(lambda y: weighted_form(y, C, EPS, gamma)))
+    for edge, (lo, hi) in ((C - e, (0.0, 0.0)), (C + gamma * e, (1.0, 1.0))):
+        d = 1e-7
+        below, above = slope(jnp.asarray([edge - d, edge + d]))
+        assert float(below) == pytest.approx(lo, abs=1e-4)
+        assert float(above) == pytest.approx(hi, abs=1e-4)
+
+
+def _solve(layout, y0, args, **kw):
+    solver = nw.MotionNewton(max_iter=60, **kw)
+    zero = (jnp.zeros((N, 2)), jnp.zeros(()))
+    y1, ok, it, *_ = solver.increment(
+        MODEL, layout, jnp.asarray(0.0), jnp.asarray(0.05), y0, args, zero, 1e-12, 1e-12
+    )
+    return np.asarray(y1), bool(ok), int(it)
+
+
+@pytest.mark.parametrize("modes", MODES[:2])
+def test_weighted_newton_ends_on_the_laws_own_root(modes):
+    """Newton on the weighted form (c = 1e3 and 1e5) ends where Newton on the law's own form
+    does, to the tolerance, slip distances included, along another path (other iterations)."""
+    layout = Layout(N, 1)
+    y0 = _state(layout, seed=3)
+    args = _args(WEAK, *modes)
+    y_law, ok, it_law = _solve(layout, y0, args)
+    assert ok
+    its = []
+    for c in (1e3, 1e5):
+        y_w, ok_w, it_w = _solve(layout, y0, args, weight=c)
+        assert ok_w
+        its.append(it_w)
+        np.testing.assert_allclose(y_w, y_law, rtol=0, atol=1e-9)
+    print("iterations (law, c = 1e3, 1e5):", it_law, its)
+    assert any(it != it_law for it in its)
+
+
+def _weighted(inc, c, seed=5):
+    """``inc`` with the weight ``c``, and relative positions off its start: nodes 1-5 pressed
+    5e-4 R into the ball (in contact, with a friction threshold), every node moved by 1e-5 R (a
+    nonzero tangential displacement, so the trial is shifted)."""
+    rng = np.random.default_rng(seed)
+    q = np.asarray(inc.q0).copy()
+    r = np.linalg.norm(q, axis=1)
+    q[1:6] *= (0.9995 / r[1:6])[:, None]
+    q = jnp.asarray(q + 1e-5 * rng.normal(size=q.shape)).at[0, 0].set(0.0)
+    return eqx.tree_at(lambda i: i.weight, inc, c, is_leaf=lambda x: x is None), q
+
+
+def test_weighted_node_force_jacobian_equals_jacfwd():
+    """The closed form of d u_i / d g_i in the weighted form (the curve's slope at the shifted
+    trial) is jacfwd of the node's rate in its force, on stuck and slipping nodes (the band's
+    slope: :func:`test_weighted_form_is_continuously_differentiable_across_the_band`)."""
+    layout = Layout(N, 1)
+    y0 = _state(layout)
+    inc, q = _weighted(_increment(layout, y0, _args(WEAK, *MODES[0]), 0.5),
+                       1e3)
+    g = 5.0 * nt.forces(MODEL, q, inc.zb0)[0]
+    idx = jnp.arange(N)
+    # both branches occur: nodes stuck and slipping against the ball
+    _, ft, _, _, normal, area = jax.vmap(lambda i, qi, gi: ni.node_contact(MODEL, i, qi, gi))(
+        idx, q, g)
+    thr = jax.vmap(WEAK.threshold)(normal, inc.delta0, area)
+    assert np.any((thr > 0) & (jnp.abs(ft) < 0.9 * thr)) and np.any(jnp.abs(ft) > 1.1 * thr)
+
+    def rate(i, qi, gi, di):
+        return ni.node_rate(MODEL, WEAK, inc, i, qi, gi, di)[0]
+
+    ref = jax.vmap(jax.jacfwd(rate, argnums=2))(idx, q, g, inc.delta0)
+    got = jax.vmap(lambda i, qi, gi, di: ni.node_force_jacobian(MODEL, WEAK, inc, i, qi, gi, di))(
+        idx, q, g, inc.delta0)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * float(jnp.abs(ref).max()))
+    # the shift is live: the weighted rates differ from the law's at these positions (on the
+    # stuck nodes, whose weighted row reads their displacement)
+    law = jax.vmap(lambda i, qi, gi, di: ni.node_rate(MODEL, WEAK, eqx.tree_at(
+        lambda x: x.weight, inc, None), i, qi, gi, di)[0])(idx, q, g, inc.delta0)
+    assert float(jnp.max(jnp.abs(jax.vmap(rate)(idx, q, g, inc.delta0) - law))) > 1e-6
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("modes", MODES)
+def test_weighted_blocks_equal_jacfwd(modes):
+    """The assembled Newton matrix of the weighted residual (the shift's own-position
+    derivative included) is jacfwd of that residual, to rounding."""
+    layout = Layout(N, 1)
+    y0 = _state(layout)
+    inc, q = _weighted(_increment(layout, y0, _args(WEAK, *modes), 0.5), 1e3)
+    zb = inc.zb0 + 1e-3
+
+    def flat(x):
+        rq, rz = ni.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
+        return jnp.concatenate([rq.reshape(-1), rz[None]])
+
+    x = jnp.concatenate([q.reshape(-1), zb[None]])
+    jac = np.asarray(jax.jacfwd(flat)(x))
+    blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
+    np.testing.assert_allclose(dense_blocks(*blocks), jac, rtol=0,
+                               atol=1e-12 * np.abs(jac).max())
