@@ -157,12 +157,17 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     eta_a = args.drag * area
     eps = args.eps * area
     delta1, delta_mu = None, None
-    if delta0 is not None:
-        delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
-    s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
-    if inc.weight is not None:
-        # the weighted form (:func:`weighted_slip`): the law's own where the weight is 1
-        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta_mu, eps, area)
+    if inc.weight is None:
+        if delta0 is not None:
+            delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
+        s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
+    else:
+        # the weighted form (:func:`weighted_slip`), and the return map with its slip force,
+        # which is the law's at the root (one evaluation of the law: the step's compile)
+        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta0, eps, area)
+        if delta0 is not None:
+            delta_mu = delta0
+            delta1 = jnp.where(normal > 0, delta0 + inc.h / eta_a * jnp.abs(s), delta0)
     if inc.frozen is not None:
         s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
