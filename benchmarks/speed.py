@@ -7,6 +7,9 @@ picks sizes; ``DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5`` picks the solvers run besi
 
 - ``load_step``: the default solver, implicit Euler load increments
   (:mod:`dynslip.physics.loadstep`);
+- ``load_step_law``: the same with Newton on the friction law's own form
+  (``numerics.newton_weight=0``), the baseline of the weighted form (``speedup_vs_load_step_law``,
+  the end states compared in its ``vs_load_step``);
 - ``kvaerno5``: the reference, diffrax Kvaerno5 with the structured linear solver;
 - ``scipy_bdf``: ``scipy.integrate.solve_ivp(method="BDF", jac_sparsity=...)`` on the same
   jitted vector field (:func:`dynslip.physics.field.vector_field`) with the same sparsity
@@ -85,16 +88,21 @@ def _end(sc, model, protocol, result):
 
 def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
     """One whole run; ``load_step_full`` (the full-state Newton baseline, not a schema choice)
-    runs the load_step scenario with that physics solver; kvaerno5 with ``KV_MAX_STEPS``."""
+    runs the load_step scenario with that physics solver; ``load_step_law`` runs load_step with
+    Newton on the friction law's own form (``numerics.newton_weight=0``; the default iterates on
+    its weighted form); kvaerno5 with ``KV_MAX_STEPS``."""
     import dataclasses
 
     from dynslip.app.forming import build_core
     from dynslip.physics.simulate import simulate
 
-    sc = _scenario(nodes, "load_step" if solver == "load_step_full" else solver)
+    base = solver in ("load_step_full", "load_step_law")
+    sc = _scenario(nodes, "load_step" if base else solver)
     model, protocol, kw = build_core(sc)
     if solver == "load_step_full":
         kw["settings"] = dataclasses.replace(kw["settings"], solver="load_step_full")
+    if solver == "load_step_law":
+        kw["settings"] = dataclasses.replace(kw["settings"], newton_weight=0.0)
     if solver == "kvaerno5":
         kw["settings"] = dataclasses.replace(kw["settings"], max_steps=KV_MAX_STEPS)
     w0 = time.perf_counter()
@@ -344,6 +352,11 @@ def _one(nodes: int) -> dict:
         full, _, full_ds, _ = _simulate(nodes, "load_step_full")
         print(f"speed N={nodes} load_step_full: {full}", flush=True)
         full["vs_load_step"] = _agreement(full_ds, ls_ds, full, ls)
+    law = not_run
+    if "load_step_law" in SOLVERS:
+        law, _, law_ds, _ = _simulate(nodes, "load_step_law")
+        print(f"speed N={nodes} load_step_law: {law}", flush=True)
+        law["vs_load_step"] = _agreement(law_ds, ls_ds, law, ls)
     sc_row, sc_ds = not_run, None
     if "scipy_bdf" in SOLVERS:
         try:
@@ -365,6 +378,8 @@ def _one(nodes: int) -> dict:
         "scipy_bdf": sc_row,
         "load_step_full": full,
         "speedup_vs_load_step_full": full["run_s"] / ls["run_s"],
+        "load_step_law": law,
+        "speedup_vs_load_step_law": law["run_s"] / ls["run_s"],
         "load_step_vs_kvaerno5": _agreement(ls_ds, kv_ds, ls, kv),
     }
     if sc_ds is not None:
