@@ -68,21 +68,19 @@ def _solve(layout, y0, args, **kw):
 
 @pytest.mark.parametrize("modes", MODES[:2])
 def test_weighted_newton_ends_on_the_laws_own_root(modes):
-    """Newton on the weighted form (c = 1e3 and 1e5) ends where Newton on the law's own form
-    does, to the tolerance, slip distances included, along another path (other iterations)."""
+    """Newton on the weighted form (c = 1e3, the default) ends where Newton on the law's own
+    form does, to the tolerance, slip distances included, along another path (other
+    iterations: 11 against 12 here; the let-go path's counts are in docs/speed.md)."""
     layout = Layout(N, 1)
     y0 = _state(layout, seed=3)
     args = _args(WEAK, *modes)
     y_law, ok, it_law = _solve(layout, y0, args)
     assert ok
-    its = []
-    for c in (1e3, 1e5):
-        y_w, ok_w, it_w = _solve(layout, y0, args, weight=c)
-        assert ok_w
-        its.append(it_w)
-        np.testing.assert_allclose(y_w, y_law, rtol=0, atol=1e-9)
-    print("iterations (law, c = 1e3, 1e5):", it_law, its)
-    assert any(it != it_law for it in its)
+    y_w, ok_w, it_w = _solve(layout, y0, args, weight=1e3)
+    assert ok_w
+    np.testing.assert_allclose(y_w, y_law, rtol=0, atol=1e-9)
+    print("iterations (law, c = 1e3):", it_law, it_w)
+    assert it_w != it_law
 
 
 def _weighted(inc, c, seed=5):
