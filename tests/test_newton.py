@@ -87,6 +87,18 @@ def _increment(layout, y0, args, h):
 _dense = dense_blocks  # the name the other test modules import
 
 
+def residual_jacobian(inc, q, zb):
+    """``jax.jacfwd`` of the increment's residual (WEAK friction) at ``(q, zb)``, flattened (the
+    q rows, then zb), and the flattened residual there."""
+
+    def flat(x):
+        rq, rz = ni.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
+        return jnp.concatenate([rq.reshape(-1), rz[None]])
+
+    x = jnp.concatenate([q.reshape(-1), zb[None]])
+    return np.asarray(jax.jacfwd(flat)(x)), np.asarray(flat(x))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("modes", MODES)
 def test_blocks_from_element_derivatives_equal_jacfwd(modes):
@@ -99,17 +111,10 @@ def test_blocks_from_element_derivatives_equal_jacfwd(modes):
     q = inc.q0 + 1e-3 * rng.normal(size=inc.q0.shape)
     q = q.at[0, 0].set(0.0)
     zb = inc.zb0 + 1e-3
-
-    def flat(x):
-        rq, rz = ni.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
-        return jnp.concatenate([rq.reshape(-1), rz[None]])
-
-    x = jnp.concatenate([q.reshape(-1), zb[None]])
-    jac = np.asarray(jax.jacfwd(flat)(x))
+    jac, r = residual_jacobian(inc, q, zb)
     blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
     np.testing.assert_allclose(_dense(*blocks), jac, rtol=0, atol=1e-12 * np.abs(jac).max())
     # and the bordered solve of those blocks is the dense solve, by either elimination
-    r = np.asarray(flat(x))
     for method in ("cyclic", "thomas"):
         dq, dz = bordered_solve(
             *blocks, jnp.asarray(r[:-1]).reshape(N, 2), jnp.asarray(r[-1]), method

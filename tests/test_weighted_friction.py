@@ -17,7 +17,7 @@ from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout
 from dynslip.physics.friction import soft_threshold, weighted_form
 from helpers import dense_blocks
-from test_newton import MODEL, MODES, WEAK, N, _args, _increment, _state
+from test_newton import MODEL, MODES, WEAK, N, _args, _increment, _state, residual_jacobian
 
 C, EPS = 2.0, 0.3  # threshold and smoothing: e = 0.261, a wide band to sample
 
@@ -134,13 +134,7 @@ def test_weighted_blocks_equal_jacfwd(modes):
     y0 = _state(layout)
     inc, q = _weighted(_increment(layout, y0, _args(WEAK, *modes), 0.5), 1e3)
     zb = inc.zb0 + 1e-3
-
-    def flat(x):
-        rq, rz = ni.residual(MODEL, WEAK, inc, x[:-1].reshape(N, 2), x[-1])
-        return jnp.concatenate([rq.reshape(-1), rz[None]])
-
-    x = jnp.concatenate([q.reshape(-1), zb[None]])
-    jac = np.asarray(jax.jacfwd(flat)(x))
+    jac, _ = residual_jacobian(inc, q, zb)
     blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
     np.testing.assert_allclose(dense_blocks(*blocks), jac, rtol=0,
                                atol=1e-12 * np.abs(jac).max())
