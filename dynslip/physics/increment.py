@@ -85,9 +85,9 @@ class Increment(eqx.Module):
     # the held bodies' slip distances at the start (K_mem, n): mu of a held law with memory is
     # taken at them (the return map's delta0); None without such a body
     held_delta0: jax.Array | None = None
-    # the weight of the friction law's primal-dual form (:func:`weighted_slip`); None: 1, the
-    # law's own form
-    weight: jax.Array | None = None
+    # the complementarity parameter c of the ball friction's weighted form (:func:`weighted_slip`,
+    # G h0); None: the law's own form
+    weight: float | None = None
 
 
 FREE, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # the active-set pass's branches per node
@@ -222,11 +222,12 @@ def _weighting(inc: Increment, i, q, t, eta_a):
 
 
 def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, area):
-    r"""The slip force in the weighted (primal-dual) form of the friction law, weight
-    $\gamma$ = ``inc.weight``: $S_\gamma = F_t - (y - S(y))$ at the shifted trial
-    $y = F_t + (\gamma - 1)\,\eta A\,u_t$, $u_t = \Delta_t/\Delta t$ the node's tangential
-    rate over the increment, $\gamma\Psi_\gamma$ the law's curve read at $y$
-    (:func:`dynslip.physics.friction.weighted_form`).
+    r"""The slip force in the weighted (primal-dual) form of the friction law, node weight
+    $\gamma = \max(1, c\,\Delta t/(\eta A))$ for $c$ = ``inc.weight``: $S_\gamma =
+    \gamma\Psi_\gamma(y) - (\gamma - 1)\,\eta A\,u_t$ at the shifted trial $y = F_t +
+    (\gamma - 1)\,\eta A\,u_t$, $u_t = \Delta_t/\Delta t$ the node's tangential rate over the
+    increment, $\gamma\Psi_\gamma$ the law's curve read at $y$
+    (:func:`dynslip.physics.friction.weighted_form`; for the ideal law $S_\gamma = F_t - P(y)$).
 
     Why: with the friction force $\lambda = F_t - \eta A u_t$ the law $\eta A u_t = S(F_t)$ is
     $\lambda = P(\lambda + \eta A u_t)$, $P(y) = y - S(y)$ the projection onto the friction
