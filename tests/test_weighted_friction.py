@@ -16,6 +16,7 @@ from dynslip.physics import newton_matrix as nm
 from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout
 from dynslip.physics.friction import soft_threshold, weighted_form
+from dynslip.physics.sheet import SheetModel, make_mesh
 from helpers import dense_blocks
 from test_newton import MODEL, MODES, WEAK, N, _args, _increment, _state, residual_jacobian
 
@@ -138,3 +139,64 @@ def test_weighted_blocks_equal_jacfwd(modes):
     blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
     np.testing.assert_allclose(dense_blocks(*blocks), jac, rtol=0,
                                atol=1e-12 * np.abs(jac).max())
+
+
+def _pinched():
+    """test_held_friction_jacobian's sheet with one frictional ring pressed onto node 1 from
+    above: node 1 is pinched between it and the ball (both normal forces positive); the held
+    ball's increment data, weighted (c = 1e3) or not."""
+    from dynslip.physics.bodies import Torus
+    from dynslip.physics.bodies.held import Held
+    from dynslip.physics.friction import Coulomb
+    from test_held_friction_jacobian import MAT, NS, PEN, ZB, _setup
+
+    args, inc, q, zb = _setup(MODES[0][0], memory=False)
+    x1 = np.asarray(q[1]) + np.array([0.0, ZB])
+    ring = Torus(ring_radius=float(x1[0]), minor_radius=0.3, centre_z=float(x1[1]) + 0.2995)
+    model = SheetModel(make_mesh(NS, 2.4), MAT, PEN,
+                       bodies=(Held(ring, Coulomb(mu=jnp.asarray(0.7), eps=jnp.asarray(1e-3))),))
+    return model, args, inc, q, zb
+
+
+def test_a_node_pinched_by_a_held_body_keeps_the_laws_form():
+    """Where a frictional held body's friction acts on a node that touches the ball too, the
+    node's tangential rate is not the ball law's alone, so the weighted row would have other
+    roots: that node keeps the law's own form (``alone`` False), the others are weighted. The
+    weighted rates equal the law's there, and the Newton matrix with held friction is jacfwd of
+    the weighted residual."""
+    from helpers import check_newton_matrix
+
+    model, args, inc, q, zb = _pinched()
+    rng = np.random.default_rng(7)
+    q = (q + 1e-5 * rng.normal(size=q.shape)).at[0, 0].set(0.0)
+    g = nt.forces(model, q, zb)[0]
+    ball_n = jax.vmap(lambda i, qi, gi: ni.node_contact(model, i, qi, gi)[4])(
+        jnp.arange(q.shape[0]), q, g)
+    hf = ni.sheet_held_frame(model, args, q, zb, g)
+    assert float(ball_n[1]) > 0 and float(hf.normal[0, 1]) > 0 and bool(hf.live[1])
+    assert float(ball_n[0]) > 0  # the pole: on the ball alone
+    law = ni.residual(model, args.friction, inc, q, zb)
+    weighted = eqx.tree_at(lambda i: i.weight, inc, 1e3, is_leaf=lambda x: x is None)
+    r_w = ni.residual(model, args.friction, weighted, q, zb)
+    np.testing.assert_array_equal(np.asarray(r_w[0][1]), np.asarray(law[0][1]))
+    check_newton_matrix(model, args.friction, weighted, q, zb, False, 1e-12)
+
+
+@pytest.mark.slow  # two increments' compiles with held friction (about 20 s)
+def test_weighted_newton_with_a_pinched_node_ends_on_the_laws_root():
+    """With node 1 pinched between the ball and a frictional held body, one increment by Newton
+    on the weighted form ends where Newton on the law's own form does (held slip distances
+    included): the pinched node's law-form row keeps the roots the law's."""
+    model, args, inc, q, zb = _pinched()
+    layout = Layout(q.shape[0], 0)
+    y0 = layout.pack(q[:, 0], q[:, 1] + zb, zb, jnp.zeros(4), None)
+    zero = (jnp.zeros_like(q), jnp.zeros(()))
+    out = []
+    for c in (0.0, 1e3):
+        solver = nw.MotionNewton(max_iter=60, weight=c)
+        y1, ok, it, *_ = solver.increment(model, layout, jnp.asarray(0.0), jnp.asarray(0.3), y0,
+                                          args, zero, 1e-12, 1e-12)
+        assert bool(ok)
+        out.append((np.asarray(y1), int(it)))
+    print("iterations (law, c = 1e3):", [it for _, it in out])
+    np.testing.assert_allclose(out[1][0], out[0][0], rtol=0, atol=1e-9)

@@ -33,6 +33,7 @@ __all__ = [
     "residual_and_state",
     "sheet_held_frame",
     "slip_update",
+    "untouched",
     "weighted_slip",
 ]
 
@@ -144,18 +145,23 @@ def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=
 
 
 def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None,
-              held=True, projections=None):
+              held=True, projections=None, alone=None):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
     ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
     (:mod:`dynslip.physics.bodies.held`), needed only when one has friction; ``held=False``
     leaves that friction out (the ball's part alone); ``projections`` the held bodies' of the
-    node (None: projected here)."""
+    node (None: projected here); ``alone``: whether no frictional held body touches the node
+    (:func:`untouched`; None: found here with held friction, else True)."""
     args = inc.args
     pole = i == 0
     fn, ft, n, t, normal, area = node_contact(model, i, q, g)
     eta_a = args.drag * area
     eps = args.eps * area
+    hf = None
+    if held and frictional(model.bodies):
+        hf = node_held_frame(model, inc, i, q, g, zb, projections)
+        alone = untouched(hf) if alone is None else alone
     delta1, delta_mu = None, None
     if inc.weight is None:
         if delta0 is not None:
@@ -164,20 +170,28 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     else:
         # the weighted form (:func:`weighted_slip`), and the return map with its slip force,
         # which is the law's at the root (one evaluation of the law: the step's compile)
-        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta0, eps, area)
+        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta0, eps, area, alone)
         if delta0 is not None:
             delta_mu = delta0
             delta1 = jnp.where(normal > 0, delta0 + inc.h / eta_a * jnp.abs(s), delta0)
     if inc.frozen is not None:
         s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
-    if held and frictional(model.bodies):
-        u = u + node_held_frame(model, inc, i, q, g, zb, projections).force(vb) / eta_a
+    if hf is not None:
+        u = u + hf.force(vb) / eta_a
     u = u.at[0].set(jnp.where(pole, 0.0, u[0]))
     return u, delta1
 
 
-def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, delta0):
+def untouched(hf):
+    """Whether no frictional held body's friction acts on the node of the held frame ``hf``
+    (one node's; :func:`node_held_frame`): the weighted form of the ball's law applies there
+    (:func:`weighted_slip`)."""
+    return jax.lax.stop_gradient(~(hf.live & jnp.any(hf.normal > 0)))
+
+
+def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, delta0,
+                        alone=None):
     r"""$\partial u_i/\partial g_i$ of :func:`node_rate` without held friction, in closed form:
     the rate reads the force only through $F_n = f\cdot n$ and $F_t = f\cdot t$ ($f = -g$; at
     the pole $F_n = f_z\,{\rm sign}\,n_z$, $F_t = 0$), so
@@ -192,7 +206,7 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     eta_a = args.drag * area
     eps = args.eps * area
 
-    w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a)
+    w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a, alone)
 
     def slip(ft):
         # the weighted form's slope in F_t: its curve's at the shifted trial
@@ -208,20 +222,24 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     return jnp.where(pole, jnp.stack([jnp.zeros(2), lg[1]]), lg)
 
 
-def _weighting(inc: Increment, i, q, t, eta_a):
+def _weighting(inc: Increment, i, q, t, eta_a, alone=None):
     r"""Node ``i``'s weight in the friction law's weighted form, $\gamma = \max(1,\ c\,
     \Delta t/(\eta A))$ for the complementarity parameter $c$ = ``inc.weight`` (force per
     displacement, $G h_0$), and the shift of its trial force, $(\gamma - 1)\,\eta A\,
     \Delta_t/\Delta t$, with $\Delta_t = (q - q_0)\cdot t$ its tangential displacement over
-    the increment (1 and 0 over a zero-length increment)."""
+    the increment (1 and 0 over a zero-length increment, and where ``alone`` is False: a held
+    body's friction acts on the node too, :func:`weighted_slip`)."""
     moved = inc.h > 0
+    if alone is not None:
+        moved = moved & alone
     h = jnp.where(moved, inc.h, 1.0)
     gamma = jnp.where(moved, jnp.maximum(1.0, inc.weight * h / eta_a), 1.0)
     dt = (q - inc.q0[i]) @ t
     return gamma, (gamma - 1.0) * eta_a * dt / h
 
 
-def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, area):
+def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, area,
+                  alone=None):
     r"""The slip force in the weighted (primal-dual) form of the friction law, node weight
     $\gamma = \max(1, c\,\Delta t/(\eta A))$ for $c$ = ``inc.weight``: $S_\gamma =
     \gamma\Psi_\gamma(y) - (\gamma - 1)\,\eta A\,u_t$ at the shifted trial $y = F_t +
@@ -238,9 +256,14 @@ def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, 
     smoothing too, the row $\eta A u_t = \gamma\Psi_\gamma(y) - (\gamma - 1)\eta A u_t$
     has exactly the law's roots for every $\gamma > 0$ ($\gamma = 1$ is the law's own form):
     only Newton's path to them changes. A stuck node's row becomes $\gamma$ times its
-    tangential displacement."""
+    tangential displacement.
+
+    That reads the node's tangential rate as the ball law's alone, $\eta A u_t = S$: where a
+    frictional held body's friction acts on the node too (``alone`` False; None: nowhere), it
+    adds to $u_t$ and the weighted row would have other roots, so the node keeps the law's own
+    form ($\gamma = 1$)."""
     eta_a = inc.args.drag * area
-    gamma, shift = _weighting(inc, i, q, t, eta_a)
+    gamma, shift = _weighting(inc, i, q, t, eta_a, alone)
     return friction.slip_force(ft + shift, normal, delta_mu, eps=eps, area=area,
                                weight=gamma) - shift
 

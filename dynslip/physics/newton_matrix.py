@@ -24,6 +24,7 @@ from dynslip.physics.increment import (
     node_rate,
     residual,
     sheet_held_frame,
+    untouched,
 )
 from dynslip.physics.linalg import small_matmul
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
@@ -115,18 +116,20 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     eta_a = inc.args.drag * model.mesh.area[i]
 
     def parts(qi):
-        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False)[0]
         dx = qi - jax.lax.stop_gradient(qi)
         ps = tuple(p.linearised(dx) for p in projections)
         hf = node_held_frame(model, inc, i, qi, g, zb, ps)
+        # the ball's law in its weighted form where no held friction acts on the node
+        alone = untouched(hf)
+        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False, alone=alone)[0]
         gk, sk = hf.slip(vb)
         fk = jnp.where(hf.live, sk - gk, 0.0)[:, None] * hf.t  # (K, 2)
         # the slopes at the primal point (no derivative of them is taken)
         stop = jax.tree_util.tree_map(jax.lax.stop_gradient, hf)
         _, _, ds, dgv = stop.slopes(jax.lax.stop_gradient(vb))
-        return (u, fk), (stop.t, stop.live, ds, dgv)
+        return (u, fk), (stop.t, stop.live, ds, dgv, alone)
 
-    (uq, fq), (t, live, ds, dgv) = jax.jacfwd(parts, has_aux=True)(q)
+    (uq, fq), (t, live, ds, dgv, alone) = jax.jacfwd(parts, has_aux=True)(q)
     w = jnp.where(live, 1.0 - ds, 0.0)  # (K,): -df_k/dG_k
     fg = jnp.einsum("k,ki,kj->kij", w, t, t)  # (K, 2, 2)
     fv = -(w * dgv)[:, None] * t  # (K, 2)
@@ -134,7 +137,7 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     fz = jnp.einsum("k,ki->i", rest, fq[:, :, 1])
     fq, fg, fv = jnp.sum(fq, axis=0), jnp.sum(fg, axis=0), jnp.sum(fv, axis=0)
     lq = uq + fq / eta_a
-    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0) + fg / eta_a
+    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0, alone) + fg / eta_a
     return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1]
 
 
