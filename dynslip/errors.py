@@ -23,5 +23,9 @@ class ComputationError(RuntimeError):
     partial = None
 
 
+#: what a failed run's message ends with, before the path of its partial trajectory
+PARTIAL_KEPT = "; partial trajectory kept in "
+
+
 class MaterialRangeError(ValueError):
     """A stretch lies outside the range where the material's energy is defined."""

@@ -21,7 +21,7 @@ from dynslip.app.endtable import print_end_table
 from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data import trajectory
-from dynslip.errors import ComputationError
+from dynslip.errors import PARTIAL_KEPT, ComputationError
 from dynslip.physics.beside import Beside
 
 __all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "FLUSH_FRAMES"]
@@ -251,7 +251,7 @@ def run_forming(sc, out, console=None) -> dict:
 
             outs.json(summarize(sc, ds, result))
         raise ComputationError(
-            f"{result.failed}; partial trajectory kept in {outs.where('trajectory.nc')}"
+            f"{result.failed}{PARTIAL_KEPT}{outs.where('trajectory.nc')}"
         )
     summary = finish(sc, model, result, outs, names, start_info)
     print_end_table(console, summary)

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from dynslip.app.members import Member
-from dynslip.errors import ComputationError, InputError
+from dynslip.errors import PARTIAL_KEPT, ComputationError, InputError
 from dynslip.schema.paths import get_path
 
 MODES = ("sequential", "batched", "dask")
@@ -268,7 +268,7 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
             ds = to_dataset(sc, result.frames, rbar, result.e0, False, names)
             io.write_netcdf(ds, out / "trajectory.nc")
             io.write_json(out / "summary.json", summarize(sc, ds, result))
-        raise ComputationError(f"{result.failed}; partial trajectory kept in {where}")
+        raise ComputationError(f"{result.failed}{PARTIAL_KEPT}{where}")
     return finish(sc, model, result, Outputs(out), names)
 
 

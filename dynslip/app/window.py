@@ -19,7 +19,7 @@ from pathlib import Path
 from dynslip.analysis.windows import WindowResult, check_search, find_windows
 from dynslip.data.files import write_json
 from dynslip.data.folders import check_out, write_result_marker
-from dynslip.errors import ComputationError, InputError
+from dynslip.errors import PARTIAL_KEPT, ComputationError, InputError
 from dynslip.schema.paths import get_path
 from dynslip.schema.sweep import WindowSpec, friction_field, member_at
 
@@ -60,7 +60,15 @@ def scenario_window(
     def _trapped(mu: float) -> bool | None:
         member = member_at(data, resolved, field_name, tied, mu)
         with tempfile.TemporaryDirectory(dir=work_dir) as tmp:
-            summary = member_fn(member, Path(tmp) / "run", console)
+            try:
+                summary = member_fn(member, Path(tmp) / "run", console)
+            except ComputationError as err:
+                # the member's folder is discarded with the temporary one: its path is neither
+                # kept nor part of the reason (window.json is the same wherever it is computed)
+                why, kept, _ = str(err).partition(PARTIAL_KEPT)
+                if not kept:
+                    raise
+                raise ComputationError(f"{why} (the member's run is not kept)") from err
         t = summary.get("trapped")
         check = summary.get("mesh_check") or {}
         if depths is not None and check.get("max_chord_depth") is not None:
