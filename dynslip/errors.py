@@ -27,5 +27,15 @@ class ComputationError(RuntimeError):
 PARTIAL_KEPT = "; partial trajectory kept in "
 
 
+def run_not_kept(err: ComputationError) -> ComputationError:
+    """``err`` of a run whose folder is then discarded (a window search's member): the path of
+    its partial trajectory left out of the reason, so that the record is the same wherever it
+    is computed."""
+    why, kept, _ = str(err).partition(PARTIAL_KEPT)
+    new = ComputationError(f"{why} (the member's run is not kept)" if kept else why)
+    new.partial = err.partial
+    return new
+
+
 class MaterialRangeError(ValueError):
     """A stretch lies outside the range where the material's energy is defined."""

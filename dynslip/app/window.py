@@ -19,7 +19,7 @@ from pathlib import Path
 from dynslip.analysis.windows import WindowResult, check_search, find_windows
 from dynslip.data.files import write_json
 from dynslip.data.folders import check_out, write_result_marker
-from dynslip.errors import PARTIAL_KEPT, ComputationError, InputError
+from dynslip.errors import ComputationError, InputError, run_not_kept
 from dynslip.schema.paths import get_path
 from dynslip.schema.sweep import WindowSpec, friction_field, member_at
 
@@ -53,22 +53,16 @@ def scenario_window(
         try:
             return _trapped(mu)
         except ComputationError as err:
+            # the member's run folder is discarded: its path is not part of the reason
+            err = run_not_kept(err)
             if errors is not None:
                 errors[float(mu)] = str(err)
-            raise
+            raise err
 
     def _trapped(mu: float) -> bool | None:
         member = member_at(data, resolved, field_name, tied, mu)
         with tempfile.TemporaryDirectory(dir=work_dir) as tmp:
-            try:
-                summary = member_fn(member, Path(tmp) / "run", console)
-            except ComputationError as err:
-                # the member's folder is discarded with the temporary one: its path is neither
-                # kept nor part of the reason (window.json is the same wherever it is computed)
-                why, kept, _ = str(err).partition(PARTIAL_KEPT)
-                if not kept:
-                    raise
-                raise ComputationError(f"{why} (the member's run is not kept)") from err
+            summary = member_fn(member, Path(tmp) / "run", console)
         t = summary.get("trapped")
         check = summary.get("mesh_check") or {}
         if depths is not None and check.get("max_chord_depth") is not None:
