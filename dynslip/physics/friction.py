@@ -95,16 +95,22 @@ def soft_threshold(f, c, eps=0.0, weight=1.0):
     ideal = jnp.maximum(a - c, 0.0)
     if isinstance(eps, (int, float)) and eps == 0.0:
         return jnp.sign(f) * ideal
+    e, e_safe = _band_width(c, eps)
+    blend = (a - c + e) ** 2 / (4.0 * e_safe)
+    in_band = (a > c - e) & (a < c + e) & (e > 0)
+    mag = jnp.where(in_band, blend, ideal)
+    return jnp.sign(f) * mag
+
+
+def _band_width(c, eps):
+    r"""The smoothing band's half-width $e = \epsilon c/(c + \epsilon)$ (0 where $c + \epsilon
+    = 0$), and $e$ safe to divide by (1 where it is 0)."""
     # Double-where: at c + eps = 0 the quotient is replaced before it is formed, so
     # reverse-mode derivatives stay finite (a 1e-300 guard underflows when squared).
     den = c + eps
     den_safe = jnp.where(den > 0, den, 1.0)
     e = jnp.where(den > 0, eps * c / den_safe, 0.0)
-    e_safe = jnp.where(e > 0, e, 1.0)
-    blend = (a - c + e) ** 2 / (4.0 * e_safe)
-    in_band = (a > c - e) & (a < c + e) & (e > 0)
-    mag = jnp.where(in_band, blend, ideal)
-    return jnp.sign(f) * mag
+    return e, jnp.where(e > 0, e, 1.0)
 
 
 def weighted_form(y, c, eps, weight):
@@ -123,9 +129,7 @@ def weighted_form(y, c, eps, weight):
     r = jnp.abs(y)
     if isinstance(eps, (int, float)) and eps == 0.0:
         return jnp.sign(y) * jnp.maximum(r - c, 0.0)
-    den = c + eps
-    e = jnp.where(den > 0, eps * c / jnp.where(den > 0, den, 1.0), 0.0)
-    e_safe = jnp.where(e > 0, e, 1.0)
+    e, e_safe = _band_width(c, eps)
     # the band's b, kept inside it so that the unused branch's root stays finite
     b = jnp.clip(r - c + e, 0.0, (weight + 1.0) * e)
     a = 2.0 * b / (1.0 + jnp.sqrt(1.0 + (weight - 1.0) * b / e_safe))
