@@ -151,6 +151,9 @@ def increment(n: int, t: float, dt: float, limit: float | None) -> None:
 
 
 if __name__ == "__main__":
+    from dynslip._jaxconfig import configure_runtime
+
+    configure_runtime()  # the command line's platform, flags and compilation cache
     what, rest = sys.argv[1], sys.argv[2:]
     if what == "stages":
         stages(int(rest[0]), rest[1:])

@@ -67,4 +67,7 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
+    from dynslip._jaxconfig import configure_runtime
+
+    configure_runtime()  # the command line's platform, flags and compilation cache
     sys.exit(main(sys.argv[1:]))

@@ -475,6 +475,9 @@ def run() -> dict:
 
 
 if __name__ == "__main__":
+    from dynslip._jaxconfig import configure_runtime
+
+    configure_runtime()  # the command line's platform, flags and compilation cache
     import json
 
     print(json.dumps(run(), indent=2, default=str))

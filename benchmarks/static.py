@@ -175,4 +175,7 @@ def run(cli: bool = True) -> dict:
 
 
 if __name__ == "__main__":
+    from dynslip._jaxconfig import configure_runtime
+
+    configure_runtime()  # the command line's platform, flags and compilation cache
     print(json.dumps(run(), indent=2))

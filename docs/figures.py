@@ -348,4 +348,7 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
+    from dynslip._jaxconfig import configure_runtime
+
+    configure_runtime()  # the command line's platform, flags and compilation cache
     raise SystemExit(main())

@@ -1,11 +1,15 @@
-"""Shared test set-up: float64 JAX and the persistent compilation cache (via dynslip)."""
+"""Shared test set-up: the command line's JAX runtime (the CPU unless JAX_PLATFORMS says
+otherwise, XLA's fusion emitters off, equinox's checks as NaN, the persistent compilation
+cache: :func:`dynslip._jaxconfig.configure_runtime`), set before any test module runs."""
 
 import os
 from pathlib import Path
 
 import pytest
 
-import dynslip  # noqa: F401  (x64, the compilation cache, XLA's fusion emitters off)
+from dynslip._jaxconfig import configure_runtime
+
+configure_runtime()
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"

@@ -45,6 +45,11 @@ def _kept(err) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # the platform, XLA's flags, equinox's error mode and the compilation cache: set before
+    # any JAX computation (``import dynslip`` sets none of them)
+    from dynslip._jaxconfig import configure_runtime
+
+    configure_runtime()
     from dynslip.data.folders import signal_name, sigterm_raises
 
     try:
