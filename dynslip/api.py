@@ -132,7 +132,7 @@ def run(scn, out=None, *, force: bool = False, console=None) -> RunResult:
     kinds.preflight(scn, console)  # bad input before anything runs
     outs = Outputs(None)  # in memory: no file written, none read back
     try:
-        kinds.run(scn, outs, console)
+        kinds.answered(kinds.run(scn, outs, console))
     except (ComputationError, MaterialRangeError) as err:
         failed = _failed(err, _kept(scn, outs))
         if failed is err:

@@ -9,6 +9,7 @@ move with the ball in the tube's frame.
   problem in two frames); at rest the clamp's pull is the hold's plus the ring's load.
 - A bottle the sheet never reaches changes nothing (to rounding).
 - Bad input: one line, exit 2, nothing written.
+The bottle is one smooth solid (issue 42 item 2; its geometry: tests/test_apparatus.py).
 Meshes of N = 24 nodes.
 """
 
@@ -58,8 +59,10 @@ def test_bottle_carries_load_only_where_the_sheet_touches_it():
     zb = 0.37
     # start points beside the body and above the shoulder, moved onto the nearest glass and set
     # off it by a gap: 2e-3 R into it at every third node, 0.05 R clear elsewhere
-    _, shoulder, _ = BOTTLE
-    z_top = float(shoulder.z_base) + 1.0
+    (glass,) = BOTTLE
+    rb = float(glass.outline()[:, 0].max())  # the body's radius: the shoulder meets it here
+    z_body = max(p[1] for seg in glass.segments for p in (seg.start, seg.end) if p[0] == rb)
+    z_top = z_body + 1.0
     x0 = jnp.stack([jnp.full(N, 2.0), jnp.linspace(z_top - 2.5, z_top, N) + zb], -1)
     proj = [b.project(x0, zb) for b in BOTTLE]
     k = np.argmin(np.stack([np.asarray(p.distance) for p in proj]), axis=0)
@@ -84,11 +87,12 @@ def test_bottle_carries_load_only_where_the_sheet_touches_it():
     np.testing.assert_allclose(load, total, rtol=1e-12)
     # off the glass: exactly no load
     assert float(model.held_load(r_in + 0.01, z_in, zb)) == 0.0
-    # relative to the ball: shift nodes and ball by the same amount
-    np.testing.assert_allclose(float(model.held_load(r_in, z_in + 0.5, zb + 0.5)), load,
+    # relative to the ball: shift nodes and ball by the same amount (2 R: the fixed bottle then
+    # lies below every node, the flank under the lowest one)
+    np.testing.assert_allclose(float(model.held_load(r_in, z_in + 2.0, zb + 2.0)), load,
                                rtol=1e-12)  # fmt: skip
     fixed = _model(tuple(Held(b, COULOMB) for b in BOTTLE))
-    assert float(fixed.held_load(r_in, z_in + 0.5, zb + 0.5)) == 0.0
+    assert float(fixed.held_load(r_in, z_in + 2.0, zb + 2.0)) == 0.0
 
 
 # a ring (a bottle's shoulder) under the ball: moving with the ball at zb = ZB, or fixed there
@@ -187,6 +191,8 @@ def test_a_bottle_the_sheet_never_reaches_changes_nothing(fixed_run):
         ("physics.bottle.body_height_mm", 0.0, ("body_height_mm",)),
         ("physics.bottle.shoulder_height_mm", -1.0, ("shoulder_height_mm",)),
         ("physics.bottle.mu", -0.1, ("mu",)),
+        ("physics.bottle.neck_fillet_mm", 70.0, ("neck_fillet_mm = 70", "does not fit")),
+        ("physics.bottle.shoulder_fillet_mm", -1.0, ("shoulder_fillet_mm",)),
     ],
 )
 def test_bad_bottle_input(tmp_path, capsys, dotted, value, words):
@@ -194,19 +200,20 @@ def test_bad_bottle_input(tmp_path, capsys, dotted, value, words):
 
 
 def test_bottle_scenario_builds_the_bottle_moving_with_the_ball():
-    """The scenario builds the tube (at rest) and the bottle's three parts (moving with the ball,
+    """The scenario builds the tube (at rest) and the bottle, one solid (moving with the ball,
     Coulomb 0.7), the neck's lip tangent-below the resting ball, its body inside the tube."""
     from dynslip.app.forming import build_core
     from dynslip.schema.base import load
 
     model, _, _ = build_core(load(SCENARIO))
-    tube, neck, shoulder, body = model.bodies
+    tube, glass = model.bodies
     assert not tube.moves_with_ball
-    assert all(e.moves_with_ball for e in (neck, shoulder, body))
-    assert all(float(e.friction.mu) == 0.7 for e in (neck, shoulder, body))
+    assert glass.moves_with_ball
+    assert float(glass.friction.mu) == 0.7
     # the lip touches the unit ball (distance 0 from the sphere of radius 1: the support ring)
     theta = np.linspace(2.4, math.pi, 400)
     pts = jnp.stack([jnp.sin(theta), jnp.cos(theta)], -1)
-    np.testing.assert_allclose(float(jnp.min(neck.body.distance(pts))), 0.0, atol=1e-5)
-    np.testing.assert_allclose(body.body.radius, 35.0 / 20.0)
-    assert body.body.radius < tube.body.inner_radius
+    np.testing.assert_allclose(float(jnp.min(glass.body.distance(pts))), 0.0, atol=1e-5)
+    widest = float(glass.body.outline()[:, 0].max())
+    np.testing.assert_allclose(widest, 35.0 / 20.0)
+    assert widest < tube.body.inner_radius

@@ -20,7 +20,7 @@ from dynslip.schema import base as schema
 from helpers import one_line, synthetic_trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
-NAMES = ["tube wall", "bottle neck", "bottle shoulder", "bottle body"]
+NAMES = ["tube wall", "bottle"]
 
 
 def _method2_trajectory(nt=6, nr=12):
@@ -60,10 +60,10 @@ def test_drawn_bodies_of_the_main_job_and_of_the_coin():
     assert d["ball"] is None  # the unit sphere: drawn as the circle
     assert [n for n, _, _ in d["held"]] == NAMES
     # the tube's wall at rest, the bottle displaced by the ball's height (a file without body_z)
-    assert [w is not None for _, _, w in d["held"]] == [False, True, True, True]
+    assert [w is not None for _, _, w in d["held"]] == [False, True]
     np.testing.assert_array_equal(d["held"][1][2], ds["ball_z"].values)
     # a file with body_z: every body at its saved displacement (here the wall moved by a stage)
-    body_z = np.stack([np.linspace(0.0, -0.5, ds.sizes["time"])] + [ds["ball_z"].values] * 3, 1)
+    body_z = np.stack([np.linspace(0.0, -0.5, ds.sizes["time"]), ds["ball_z"].values], 1)
     moved = drawn_bodies(ds.assign(body_z=(("time", "body"), body_z)))
     for (_, _, shift), z in zip(moved["held"], body_z.T, strict=True):
         np.testing.assert_array_equal(shift, z)
@@ -104,12 +104,12 @@ def test_animation_draws_each_body_and_moves_those_carried_by_the_ball():
     bodies = drawn_bodies(ds)
     r = _Renderer(ds, fronts_dataset(ds), np.arange(ds.sizes["time"]), (480, 240), bodies=bodies)
     try:
-        assert len(r.moving) == 2 * 3  # the bottle's three parts, both halves
-        neck = bodies["held"][1][1]
+        assert len(r.moving) == 2 * 1  # the bottle, one solid: both halves
+        glass = bodies["held"][1][1]
         k = ds.sizes["time"] - 1
         r.draw(k)
         zb = float(ds["ball_z"].values[k])
-        np.testing.assert_allclose(r.moving[0][0].get_xy()[: len(neck)], neck + [0.0, zb])
+        np.testing.assert_allclose(r.moving[0][0].get_xy()[: len(glass)], glass + [0.0, zb])
         static = [p for p in r.ax.patches if all(p is not m for m, *_ in r.moving)]
         assert len(static) == 2 + 1  # the tube wall's halves, and the ball
     finally:
@@ -126,8 +126,8 @@ def test_export_revolves_each_body_and_moves_the_carried_ones():
     sc = schema.load(ROOT / "scenarios" / "method2.yaml")
     radius = np.hypot(wall.points[:, 0], wall.points[:, 1])
     assert radius.max() == pytest.approx(sc.physics.rim_radius_mm, rel=1e-12)
-    neck0, neck = parts[3][2](ds, 0), parts[3][2](ds, k)
-    np.testing.assert_allclose(neck.points[:, 2] - neck0.points[:, 2],
+    glass0, glass = parts[3][2](ds, 0), parts[3][2](ds, k)
+    np.testing.assert_allclose(glass.points[:, 2] - glass0.points[:, 2],
                                float(ds["ball_z"].values[k] - ds["ball_z"].values[0]) * r_mm)
     np.testing.assert_allclose(wall.points, parts[2][2](ds, 0).points)  # the tube stays put
 

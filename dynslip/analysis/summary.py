@@ -5,8 +5,12 @@ the trajectory dataset and the driver's result.
 Trapped (the criterion): the run ended at rest in its last stage (``until: rest`` met),
 the contact edge lies past the equator ($\\theta_{max} > \\pi/2$), the ball's reaction is
 below ``numerics.trap_reaction_tol``, and the mesh resolved the contact
-(:func:`dynslip.analysis.resolution.chord_check`); a failed run or an unresolved contact
-has no answer (``None``).
+(:func:`dynslip.analysis.resolution.chord_check`). Trapped is unknown (``None``), each reason
+in ``trapped_unknown_reasons`` (:func:`unknown_reasons`), where the run failed, the mesh does
+not resolve the ball or a held body (the relative check too), the energy residual exceeds
+``numerics.energy_bound`` of the work (every body's work counted), the ball or a free body ran
+away, a stage ended at its time limit before its condition, the sheet let go of the tube (its
+edge slid past the rim), or moving bodies passed into each other.
 """
 
 from __future__ import annotations
@@ -37,7 +41,8 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     slack = next(
         (s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None
     )
-    work = np.abs(ds["work_clamp"].values) + np.abs(ds["work_ball"].values)
+    work = (np.abs(ds["work_clamp"].values) + np.abs(ds["work_ball"].values)
+            + np.abs(ds["work_bodies"].values))
     work_scale = float(np.max(work)) if work.size else float("nan")
     resid = ds["energy_residual"].values
     last = result.stage_end[-1] if result.stage_end else None
@@ -61,28 +66,35 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "is reported, not enforced (the run stops on the absolute depth)"
         )
     trap = trap_check(ball, end, theta_max)
-    if failed or not mesh_check["resolved"]:
-        trapped = None  # a failed run, or sheet through the ball: no answer (analysis.resolution)
-    else:
-        trapped = bool(at_rest and trap["past"] and abs(reaction) < sc.numerics.trap_reaction_tol)
+    rel_resid = float(np.max(np.abs(resid)) / work_scale) if work_scale > 0 else float("nan")
+    events = let_go_events(p, ds)
+    reasons = unknown_reasons(sc, ds, result, mesh_check, rel_resid, events)
+    trapped = None if reasons else bool(
+        at_rest and trap["past"] and abs(reaction) < sc.numerics.trap_reaction_tol)
+    lip = (math.sin(theta_max) / rbar_max) if np.isfinite(theta_max) and rbar_max > 0 else None
+    path_lt = float(np.nanmax(ds["lambda_theta"].values))
+    path_lp = float(np.nanmax(ds["lambda_phi"].values))
     st = result.stats
     summary = {
         "status": "failed" if failed else "ok",
         "message": result.failed or "",
         "trapped": trapped,
+        "trapped_unknown_reasons": reasons,
+        "events": events,
         "mesh_check": mesh_check,
         "trap_criterion": trap,
         "theta_max": theta_max,
         "rbar_max": rbar_max,
         "opening_radius": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
-        "rest_state_check": {
-            "sin_theta_max": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
-            "rbar_max": rbar_max,
-            "holds": bool(np.isfinite(theta_max) and math.sin(theta_max) <= rbar_max),
-            "hoop_stretch_at_lift_off": (math.sin(theta_max) / rbar_max)
-            if rbar_max > 0
-            else float("nan"),
+        "lip": {
+            "sin_theta_max": math.sin(theta_max) if np.isfinite(theta_max) else None,
+            "rbar_max": rbar_max if np.isfinite(rbar_max) else None,
+            "hoop_stretch": lip,
             "paper_rough": dict(ROUGH_END_STATE),
+            "means": ("the lip's hoop stretch sin(theta_max) / rbar_max at the contact's edge: "
+                      "above 1 the lip is hoop-stretched (a taut span leaving the lip "
+                      "horizontally is a rest state too), below 1 hoop-compressed; reported, "
+                      "not a test of rest"),
         },
         "largest_stretch": {
             "lambda_theta": float(lt[i_t]),
@@ -90,7 +102,17 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "theta": float(end["theta"].values[i_t]),
             "in_contact": bool(contact[i_t]),
             "lambda_phi_max": float(np.nanmax(lp)),
-            "path_max_lambda_theta": float(np.nanmax(ds["lambda_theta"].values)),
+            "path_max_lambda_theta": path_lt,
+            "path_max_lambda_phi": path_lp,
+            "path_max": max(path_lt, path_lp),
+            "path_max_i1_uniaxial": uniaxial_equivalent(ds),
+            "latex_damage_stretch": LATEX_DAMAGE_STRETCH,
+            "past_damage": bool(max(path_lt, path_lp, uniaxial_equivalent(ds))
+                                > LATEX_DAMAGE_STRETCH),
+            "means": ("the largest principal stretch on the path (meridional and hoop), and the "
+                      "uniaxial stretch with the same I1 as the path's largest I1 "
+                      "(lambda^2 + 2/lambda = I1, incompressible), against latex's damage "
+                      "stretch of about 6 (the paper, Section 2.1)"),
         },
         "friction_law": p.friction.law,
         "mu": p.friction.nominal_mu,
@@ -121,9 +143,8 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "residual_end": float(resid[-1]),
             "residual_max_abs": float(np.max(np.abs(resid))),
             "work_scale": work_scale,
-            "relative_residual": float(np.max(np.abs(resid)) / work_scale)
-            if work_scale > 0
-            else float("nan"),
+            "relative_residual": rel_resid,
+            "bound": sc.numerics.energy_bound,
             "initial_energy": float(ds.attrs["energy_initial"]),
         },
         "stages": result.stage_end,
@@ -167,8 +188,96 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
                 f"({tol * p.ball_radius_mm:.3g} mm): the model has no contact between rigid "
                 "bodies, so the path is not a world of solids and trapped has no answer")
             summary["trapped"] = None
+            summary["trapped_unknown_reasons"].append(
+                f"body {overlaps[0]['name']!r} passes into the {overlaps[0]['into']} (the model "
+                "has no contact between rigid bodies)")
     summary["outcome"] = outcome_words(summary)
     return summary
+
+
+#: latex is damaged past about this stretch in one direction (the paper, Section 2.1)
+LATEX_DAMAGE_STRETCH = 6.0
+
+
+def uniaxial_equivalent(ds: xr.Dataset) -> float:
+    r"""The uniaxial stretch with the path's largest first invariant: $\lambda^2 + 2/\lambda =
+    I_1$ (incompressible), $I_1 = \lambda_\theta^2 + \lambda_\phi^2 +
+    (\lambda_\theta\lambda_\phi)^{-2}$ at every node and frame; the root >= 1."""
+    lt = np.asarray(ds["lambda_theta"].values, float)
+    lp = np.asarray(ds["lambda_phi"].values, float)
+    i1 = lt**2 + lp**2 + 1.0 / (lt * lp) ** 2
+    i1_max = float(np.nanmax(i1))
+    roots = np.roots([1.0, 0.0, -i1_max, 2.0])
+    return float(max(r.real for r in roots if abs(r.imag) < 1e-9))
+
+
+def let_go_events(p, ds: xr.Dataset) -> list:
+    """The sheet let go of the tube: over a stage whose band holds the edge, the edge slid
+    past the tube's rim (below the rim's lowest point, where the band's wall ends): the first
+    frame where it did, as ``[{name, stage, time_s, edge_z_mm, rim_z_mm}]`` (empty: never)."""
+    if p.tube is None:
+        return []
+    band = [k for k, s in enumerate(p.stages) if s.clamp == "band"]
+    stage = np.asarray(ds["stage"].values)
+    rim = np.full(stage.shape, p.tube_rim_z)
+    names = [name for name, *_ in p.named_bodies()]
+    if "body_z" in ds and "tube wall" in names:
+        rim = rim + np.asarray(ds["body_z"].values[:, names.index("tube wall")], float)
+    edge = np.asarray(ds["z"].values[:, -1], float)
+    past = np.isin(stage, band) & (edge < rim)
+    if not past.any():
+        return []
+    i = int(np.argmax(past))
+    r = p.ball_radius_mm
+    return [{"name": "sheet let go", "stage": p.stages[int(stage[i])].name,
+             "time_s": float(ds["time"].values[i]), "edge_z_mm": float(edge[i] * r),
+             "rim_z_mm": float(rim[i] * r),
+             "means": "the sheet's edge slid along the tube's outer wall past its rim: the band "
+                      "no longer holds it on the tube (the model's band has no wall there)"}]
+
+
+def unknown_reasons(sc, ds: xr.Dataset, result, mesh_check: dict, rel_resid: float,
+                    events: list) -> list:
+    """Why trapped has no answer, one line each (empty: it has one)."""
+    p, nu = sc.physics, sc.numerics
+    r = p.ball_radius_mm
+    out = []
+    if result.failed is not None:
+        out.append(f"the run failed: {result.failed}")
+    if not mesh_check["resolved"]:
+        out.append("the mesh does not resolve the contact with the ball (a chord "
+                   f"{mesh_check['max_chord_depth']:.3g} R deep, limit {mesh_check['limit']:g})")
+    for name, b in mesh_check.get("bodies", {}).items():
+        if not b["resolved"]:
+            out.append(f"the mesh does not resolve the {name} (a chord "
+                       f"{b['max_relative_chord_depth']:.3g} of its radius "
+                       f"{b['radius_mm']:.3g} mm deep at t = {b['relative_time_s']:.4g} s; "
+                       f"limit {mesh_check['limit']:g}): more nodes")
+    if np.isfinite(rel_resid) and rel_resid > nu.energy_bound:
+        out.append(f"the energy residual is {rel_resid:.3g} of the work, above the bound "
+                   f"{nu.energy_bound:g} (numerics.energy_bound)")
+    moved = abs(float(ds["ball_z"].values[-1]) - float(ds["ball_z"].values[0])) * r
+    if moved > nu.runaway_mm:
+        out.append(f"the ball ran away: {moved:.4g} mm from where it started (numerics."
+                   f"runaway_mm = {nu.runaway_mm:g})")
+    if "body_z" in ds:
+        names = [name for name, *_ in p.named_bodies()]
+        for name in p.free_names():
+            k = names.index(name)
+            d = abs(float(ds["body_z"].values[-1, k]) - float(ds["body_z"].values[0, k])) * r
+            if d > nu.runaway_mm:
+                out.append(f"body {name!r} ran away: {d:.4g} mm from where it started")
+    for s in result.stage_end:
+        if not s["condition_met"] and _stage_until(p, s["name"]) != "duration":
+            out.append(f"stage {s['name']!r} ended at its time limit (t = {s['t_end']:.4g} s) "
+                       f"before its condition (until: {_stage_until(p, s['name'])})")
+    done = len(result.stage_end)
+    if result.failed is None and done < len(p.stages):
+        out.append(f"the run ended after {done} of {len(p.stages)} stages")
+    for e in events:
+        out.append(f"the sheet let go of the tube at t = {e['time_s']:.4g} s (stage "
+                   f"{e['stage']!r}): its edge slid past the rim")
+    return out
 
 
 def trap_criterion(ball):
@@ -256,11 +365,11 @@ def outcome_words(s: dict) -> str:
                 f"{o['depth_mm']:.3g} mm at t = {o['time_s']:.4g} s (the model has no contact "
                 f"between rigid bodies; {contact})")
     if s["trapped"] is None:
-        return f"no answer: the mesh does not resolve the contact ({contact})"
+        why = s.get("trapped_unknown_reasons") or ["no answer"]
+        more = f" (and {len(why) - 1} more reasons: summary.json)" if len(why) > 1 else ""
+        return f"trapped unknown: {why[0]}{more}; {contact}"
     if s["trapped"]:
         return f"trapped; {contact}"
-    if not s["end_at_rest"] and s["end_at_rest_says"].startswith("NOT AT REST"):
-        return f"not trapped (not at rest at the end); {contact}"
     return f"not trapped; {contact}"
 
 

@@ -32,9 +32,12 @@ def print_end_table(console, s: dict) -> None:
         ("deepest chord in the ball (R)", s["mesh_check"]["max_chord_depth"]),
         ("theta_max (rad)", s["theta_max"]),
         ("rbar_max (R)", s["rbar_max"]),
-        ("sin(theta_max) <= rbar_max", s["rest_state_check"]["holds"]),
+        ("lip hoop stretch sin(theta_max) / rbar_max", s["lip"]["hoop_stretch"]),
         ("mu_mobilised_max", s["mu_mobilised_max"]),
         ("largest lambda_theta", s["largest_stretch"]["lambda_theta"]),
+        ("largest stretch on the path (I1-uniaxial; latex: 6)",
+         f"{s['largest_stretch']['path_max']:.3g} "
+         f"({s['largest_stretch']['path_max_i1_uniaxial']:.3g})"),
         ("energy residual / work", s["energy_balance"]["relative_residual"]),
     ]
     if s["mesh_check"].get("bodies"):
@@ -59,6 +62,11 @@ def print_end_table(console, s: dict) -> None:
         t.add_row(k, fmt(v))
     console.print(t)
     console.print(f"outcome: {s['outcome']}", highlight=False)
+    for e in s.get("events", ()):
+        console.print(f"[bold]event: {e['name']} at t = {e['time_s']:.4g} s (stage "
+                      f"{e['stage']!r})[/bold]", highlight=False)
+    for why in s.get("trapped_unknown_reasons", ())[1:]:
+        console.print(f"trapped unknown also because {why}", highlight=False)
     if not s["end_at_rest"]:
         console.print(f"[bold]{s['end_at_rest_says']}[/bold]", highlight=False)
     limit = s["mesh_check"].get("limit")

@@ -56,7 +56,7 @@ def build_core(sc):
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
     eps = jnp.asarray(nu.friction_smoothing)
-    moved = set(p.stage_moved_names())
+    moved = set(p.moved_names())
     # a free body: its applied force in G h0 R, its drag as the ball's (eta_b of its multiple)
     free = {
         b.name: dict(free=True, force=jnp.asarray((b.force_N or 0.0) / p.force_scale_N),

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from dynslip.app import forming, static
 from dynslip.app.outputs import Outputs
-from dynslip.errors import InputError
+from dynslip.errors import ComputationError, InputError
 
 __all__ = ["RUNNERS", "PREFLIGHTS", "runner", "preflight", "run", "run_into"]
 
@@ -82,4 +82,14 @@ def run_into(
     with staged as staging:
         if header is not None:
             console.print(header)
-        return run(scn, staging, console)
+        return answered(run(scn, staging, console))
+
+
+def answered(summary):
+    """``summary`` of a run that answered; a forming run whose trapped is unknown raises
+    :class:`ComputationError` with every reason (exit 3: a computation that did not give its
+    answer; the caller keeps its files as an incomplete run)."""
+    why = summary.get("trapped_unknown_reasons") if isinstance(summary, dict) else None
+    if why and summary.get("status") == "ok":
+        raise ComputationError("trapped: unknown: " + "; ".join(why))
+    return summary

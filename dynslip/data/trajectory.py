@@ -83,6 +83,9 @@ PER_TIME = {
     "clamp_force_rho": ("1", "radial force the clamp exerts on the sheet, + outward", "G*h0*R"),
     "ball_z": ("1", "ball centre height", "R"),
     "ball_reaction": ("1", "force of the hold on the ball, + along +z (0 once released)", "G*h0*R"),
+    "ball_reaction_static": ("1", "the hold's force on the ball net of drag (the sheet's drag "
+                             "forces and the ball's own): the reaction a support would carry at "
+                             "rest, + along +z (the applied force once released)", "G*h0*R"),
     "theta_max": ("1", "largest polar angle in contact", None),
     "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
     "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),

@@ -153,6 +153,12 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     # the band: its slip's drag and friction (together F_z w); the clamp's work is the band's
     # carrier's, at the clamp's velocity
     d_drag = d_drag + eta_a[-1] * w_band**2
+    # the hold's reaction net of drag: the sheet's drag is relative to the ball, so its reaction
+    # (eta A u on every node with constitutive drag) acts on the ball (in c_ball), and the
+    # ball's own drag is the hold's too; without them the reaction is the one a support at
+    # rest would carry (a stop rule reads it, so a slack span's drag does not end a stage)
+    drag_z = jnp.sum(jnp.where(moving, eta_a * u[1], 0.0))
+    f_static = jnp.where(held, f_hold - args.ball_drag * vb + drag_z, fb)
     d_fric = d_fric + jnp.where(band, (-g_z[-1] - s_band) * w_band, 0.0)
     w_clamp = cz * (v[1, -1] - w_band) + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
@@ -175,6 +181,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
         "clamp_force": cz,
         "clamp_force_rho": crho,
         "ball_reaction": f_hold,
+        "ball_reaction_static": f_static,
         "ball_v": vb,
         "zc": z[-1],
         "rhoc": rho[-1],
@@ -268,7 +275,8 @@ def place_free_moving(model: SheetModel, layout: Layout, t, y, args: StageArgs,
 
 
 def bodies_power(model: SheetModel, rho, z, zb, vb, hf):
-    r"""The power of the stage-moved held bodies on the sheet (G h0 R^2 / s):
+    r"""The power of the moving held bodies (moved by the stages, or carried with the ball) on
+    the sheet (G h0 R^2 / s):
     $\sum_k v_k\,(-\sum_i \partial E_{h,k}/\partial z_i + \sum_i f_{ik} t_{k,z})$, the axial
     force each exerts on the sheet (penalty and friction) times its velocity. (Friction's part
     relative to the body is the dissipation; this is the rest of $f\cdot\dot x$.)"""
@@ -277,12 +285,12 @@ def bodies_power(model: SheetModel, rho, z, zb, vb, hf):
     axial = hf.axial_per_body(vb) if hf is not None else None
     total = jnp.zeros(())
     for k, e in enumerate(entries):
-        if not e.stage:
+        if not (e.stage or e.moves_with_ball):
             continue
         push = -body_load(model, e, rho, z, zb)
         if e.friction is not None:
             push = push + axial[fric.index(k)]
-        total = total + e.velocity * push
+        total = total + e.speed(vb) * push
     return total
 
 

@@ -164,7 +164,8 @@ class MemberRun:
         self.body_z = np.zeros(len(model.bodies)) if stage_moved(model.bodies) else None
         # bodies free along the axis: their heights are state unknowns (load stepping only)
         nf = n_free(model.bodies)
-        n_acc = N_ACC_MOVED if self.body_z is not None or nf else N_ACC
+        carried = any(e.moves_with_ball for e in held_entries(model.bodies))
+        n_acc = N_ACC_MOVED if self.body_z is not None or nf or carried else N_ACC
         # the slip distances of the held bodies whose friction law has memory (none: 0, the
         # state unchanged)
         self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf,

@@ -225,10 +225,12 @@ class Rest(AbstractStop):
 
 
 class BallReactionBelow(AbstractStop):
-    """Ends when the hold's force on the ball (+ up) falls below ``force`` (G h0 R), signed: a
-    held ball standing in for one resting on a support (the tube's frame, where the bottle
-    moves with the ball) ends the stage where the support would stop carrying it, also when a
-    save interval steps past zero into a pull the support cannot give."""
+    """Ends when the hold's force on the ball (+ up), net of drag, falls below ``force``
+    (G h0 R), signed: a held ball standing in for one resting on a support ends the stage where
+    the support would stop carrying it, also when a save interval steps past zero into a pull
+    the support cannot give. Net of drag (the frame's ``ball_reaction_static``): the sheet's
+    drag, which a slack span moving past the ball puts on the hold, is not a load a support at
+    rest would carry."""
 
     duration: float
 
@@ -245,7 +247,7 @@ class BallReactionBelow(AbstractStop):
         return None
 
     def check(self, frame, t, state):
-        return bool(float(frame["ball_reaction"]) < self.force), state
+        return bool(float(frame["ball_reaction_static"]) < self.force), state
 
     def scaled(self, factor):
         return BallReactionBelow(force=self.force, duration=self.duration * factor)

@@ -9,7 +9,8 @@ A body is one flat entry ``{name, kind, <the kind's sizes>, z_mm, motion, fricti
 sizes of another kind are refused. ``z_mm`` places the body: the centre of a sphere, disc or
 torus, the bottom of a cylinder, the base of a cone; a profile's points are shifted by it.
 The checks that need the geometry (a profile not connected or crossing itself, bodies that
-overlap each other or the ball at the start, the flat sheet starting inside one) are made by
+overlap each other or the ball at the start, bodies that share a face with each other, the
+tube or the bottle, the flat sheet starting inside one) are made by
 :func:`check_bodies` with the core's geometry (:mod:`dynslip.physics.bodies`), each as one line
 naming the body's field, its value and what is allowed.
 """
@@ -311,14 +312,26 @@ def body_core(spec: BodySpec, r: float):
     return spec.core(spec.kind, r)
 
 
+#: the longest stretch (units of R) along which two bodies may touch and still count as touching
+#: at a point: surfaces within 1e-9 R of each other near a point contact (sampled by
+#: :func:`~dynslip.physics.bodies.overlap.shared_face`) stay well below it
+SHARED_FACE_MAX = 1e-3
+
+
 def check_bodies(bodies, ball, others, r: float, sheet_z: float, sheet_rho: float) -> None:
     """The geometry checks of ``physics.bodies`` (raises ValueError, one line): every body a
     valid solid, none overlapping another, the ball (at its start, the origin) or ``others``
-    (the tube's and bottle's core bodies), the flat sheet at height ``sheet_z`` out to
-    ``sheet_rho`` (units of R) outside every body, names unique."""
+    (the tube's and bottle's core bodies), none sharing a face with another or with
+    ``others`` (a face inside matter, where a sheet node is hooked; touching at a point is
+    allowed: :func:`~dynslip.physics.bodies.overlap.shared_face` over more than
+    :data:`SHARED_FACE_MAX` R), the flat sheet at height ``sheet_z`` out to ``sheet_rho``
+    (units of R) outside every body, names unique."""
     import numpy as np
 
-    from dynslip.physics.bodies import BodyGeometryError, inside, penetration
+    from dynslip.physics.bodies import BodyGeometryError, inside, penetration, shared_face
+
+    def shared(a, b):
+        return max(shared_face(a, b), shared_face(b, a))
 
     names = [b.name for b in bodies]
     dup = sorted({n for n in names if names.count(n) > 1})
@@ -343,11 +356,20 @@ def check_bodies(bodies, ball, others, r: float, sheet_z: float, sheet_rho: floa
             if depth > 1e-9:
                 raise ValueError(f"{where}: overlaps the {name} by {depth * r:.4g} mm; allowed: "
                                  f"apart or touching")
+            face = shared(c, o)
+            if face > SHARED_FACE_MAX:
+                raise ValueError(f"{where}: shares a face with the {name} over {face * r:.4g} mm "
+                                 f"(a face inside matter); allowed: apart or touching at a point")
         for j in range(k):
             depth = penetration(c, cores[j])
             if depth > 1e-9:
                 raise ValueError(f"{where}: overlaps body {bodies[j].name!r} by "
                                  f"{depth * r:.4g} mm; allowed: apart or touching")
+            face = shared(c, cores[j])
+            if face > SHARED_FACE_MAX:
+                raise ValueError(f"{where}: shares a face with body {bodies[j].name!r} over "
+                                 f"{face * r:.4g} mm (a face inside matter); allowed: apart or "
+                                 f"touching at a point")
         ins = inside(c, sheet)
         if ins.any():
             rho = float(sheet[np.argmax(ins), 0]) * r

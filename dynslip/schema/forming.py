@@ -67,10 +67,15 @@ class FormingPhysics(Strict):
     gravity: bool = F(False, description="ball weight on (off by default: a downward-opening "
                                          "membrane pocket "
                       "cannot carry it; physics.md Section 4)")
-    tube: TubeSpec | None = F(None, description="the tube's wall as a held body (the tube's "
-                              "frame: the tube at rest, the ball moved); none by default")
-    bottle: BottleSpec | None = F(None, description="the bottle under the ball as held bodies "
-                                  "that move with it (the tube's frame); none by default")
+    tube: TubeSpec | None = F(None, description="the tube's wall as a held body, moved with the "
+                              "band by the stages' tube_velocity_mm_s; none by default")
+    bottle: BottleSpec | None = F(None, description="the bottle under the ball, one solid at rest "
+                                  "in the lab; none by default")
+    frame: Literal["lab", "tube"] = F(
+        "lab", description="the frame the run is computed and saved in: lab (the ball on its "
+        "support and the bottle at rest, the tube and its band moved by tube_velocity_mm_s) or "
+        "tube (the tube at rest, the held ball and the bottle moved at minus it: the same path "
+        "while the ball is held, shifted; docs/experiment.md)")
     ball: BallSpec = F(BallSpec(), description="the ball's kind: a sphere of ball_radius_mm (the "
                        "default) or a disc (a coin; R = ball_radius_mm is then only the length "
                        "unit); schema/bodies.py")
@@ -110,6 +115,7 @@ class FormingPhysics(Strict):
                              f"tube (allowed: below rim_radius_mm = {self.rim_radius_mm})")
         self._bottle_fits()
         self._bodies_fit()
+        self._tube_path()
         if any(s.clamp == "band" for s in self.stages) and self.tube is None:
             raise ValueError("stages: clamp: band holds the edge on the tube's wall: it needs "
                              "physics.tube")
@@ -204,9 +210,9 @@ class FormingPhysics(Strict):
         t, b = self.tube, self.bottle
         out = [("tube wall", self.tube_body(), False, t.mu)] if t is not None else []
         if b is not None:
-            names = ("bottle neck", "bottle shoulder", "bottle body")
-            out += [(n, part, True, b.mu)
-                    for n, part in zip(names, self.bottle_parts(), strict=True)]
+            parts = self.bottle_parts()
+            names = ["bottle"] if len(parts) == 1 else [f"bottle {k}" for k in range(len(parts))]
+            out += [(n, part, False, b.mu) for n, part in zip(names, parts, strict=True)]
         out += [(s.name, body_core(s, self.ball_radius_mm), s.motion == "with_ball",
                  s.friction.core_params(self.ball_radius_mm)) for s in self.bodies]
         return out
@@ -219,27 +225,106 @@ class FormingPhysics(Strict):
         """The names of ``physics.bodies`` moved by the stages (motion: stage)."""
         return [b.name for b in self.bodies if b.motion == "stage"]
 
+    def tube_moves(self) -> bool:
+        """Whether a stage moves the tube (tube_velocity_mm_s)."""
+        return any(s.tube_velocity_mm_s != 0.0 for s in self.stages)
+
+    def apparatus_moved_names(self) -> list:
+        """The apparatus's bodies the stages move: the tube's wall in the lab frame, the bottle
+        in the tube's frame (where the tube moves)."""
+        if not self.tube_moves():
+            return []
+        if self.frame == "lab":
+            return ["tube wall"]
+        return [name for name, *_ in self.held_specs() if name.startswith("bottle")]
+
+    def moved_names(self) -> list:
+        """Every held body moved by the stages: the apparatus's and ``physics.bodies``'."""
+        return self.apparatus_moved_names() + self.stage_moved_names()
+
+    def tube_shift_mm_s(self, stage) -> float:
+        """What the frame adds to the ball's and every lab-fixed body's velocity over ``stage``
+        (mm/s): 0 in the lab frame, minus the tube's velocity in the tube's."""
+        return -stage.tube_velocity_mm_s if self.frame == "tube" else 0.0
+
     def body_velocities(self, stage) -> tuple:
         """The axial velocity (R/s) over ``stage`` of each held body, in :meth:`held_specs`
         order (0 for those not moved by the stages); empty when no body is."""
-        if not self.stage_moved_names():
+        if not self.moved_names():
             return ()
         r = self.ball_radius_mm
-        return tuple(stage.body_velocity_mm_s.get(name, 0.0) / r
+        apparatus = set(self.apparatus_moved_names())
+        tube = stage.tube_velocity_mm_s if self.frame == "lab" else self.tube_shift_mm_s(stage)
+        return tuple((tube if name in apparatus else stage.body_velocity_mm_s.get(name, 0.0)) / r
                      for name, *_ in self.held_specs())
+
+    def _tube_path(self):
+        """The tube's path: moved only where there is a tube, its rim above the table (the
+        bottle's base) at each stage's end (at its longest for a condition stage), the band on
+        the tube's outer wall, and the tube's frame only without ``physics.bodies``."""
+        if not self.tube_moves():
+            return
+        i = next(i for i, s in enumerate(self.stages) if s.tube_velocity_mm_s != 0.0)
+        if self.tube is None:
+            raise ValueError(f"physics.stages.{i}.tube_velocity_mm_s = "
+                             f"{self.stages[i].tube_velocity_mm_s}: moves the tube; allowed only "
+                             f"with physics.tube")
+        if self.frame == "tube" and any(s.ball == "support" for s in self.stages):
+            raise ValueError("physics.frame = tube: a stage rests the ball on its support, "
+                             "which is the lab's (the bottle's lip) and moves in the tube's "
+                             "frame; allowed: frame: lab, or ball: hold where the tube moves "
+                             "and no support stage")
+        if self.frame == "tube" and self.bodies:
+            raise ValueError(f"physics.frame = tube: the tube's frame moves the lab's bodies with "
+                             f"the ball; allowed only without physics.bodies ({len(self.bodies)} "
+                             f"given): use frame: lab")
+        r = self.ball_radius_mm
+        rim0 = self.tube_rim_z * r
+        table = self.table_z_mm()
+        shift, band = 0.0, self.sheet_start_mm
+        for i, s in enumerate(self.stages):
+            dur = s.duration_s
+            if s.clamp_to_z_mm is not None:
+                band = s.clamp_to_z_mm
+            elif dur is not None:
+                shift += s.tube_velocity_mm_s * dur
+                band += s.clamp_velocity_mm_s * dur
+            if table is not None and rim0 + shift <= table:
+                raise ValueError(
+                    f"physics.stages.{i}.tube_velocity_mm_s = {s.tube_velocity_mm_s} (stage "
+                    f"{s.name!r}): the tube's rim would reach {rim0 + shift:.4g} mm, below the "
+                    f"table (the bottle's base at {table:.4g} mm); allowed: a push that keeps "
+                    f"the rim above {table:.4g} mm")
+            top = rim0 + self.tube.height_mm
+            if s.clamp == "band" and not rim0 <= band <= top:
+                raise ValueError(
+                    f"physics.stages.{i} (stage {s.name!r}): the band at {band:.4g} mm on the "
+                    f"tube, past its end; allowed: on the outer wall, from the rim "
+                    f"({rim0:.4g} mm) to the top ({top:.4g} mm)")
+
+    def table_z_mm(self) -> float | None:
+        """The table's height (mm from the resting ball's centre, the lab frame): the bottle's
+        base (None without a bottle)."""
+        if self.bottle is None:
+            return None
+        import numpy as np
+
+        z = min(float(np.min(np.asarray(part.outline())[:, 1])) for part in self.bottle_parts())
+        return z * self.ball_radius_mm
 
     def named_bodies(self) -> list:
         """:meth:`held_specs` without the friction: ``(name, core body, moves_with_ball)``."""
         return [spec[:3] for spec in self.held_specs()]
 
     def bottle_parts(self) -> tuple:
-        """The bottle's core bodies (units of R;
+        """The bottle's core bodies, one smooth solid (units of R;
         :func:`~dynslip.physics.bodies.apparatus.bottle`)."""
         from dynslip.physics.bodies.apparatus import bottle
 
         b = self.bottle
         return bottle(self.ball_radius_mm, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm,
-                      b.shoulder_height_mm, b.body_od_mm, b.body_height_mm)
+                      b.shoulder_height_mm, b.body_od_mm, b.body_height_mm, b.neck_fillet_mm,
+                      b.shoulder_fillet_mm, b.base_fillet_mm)
 
     def _bottle_fits(self):
         b = self.bottle
@@ -371,6 +456,14 @@ class FormingNumerics(Strict):
     trap_reaction_tol: float = F(1e-3, gt=0, lt=1,
                                  description="trapped needs |ball reaction| below this (units G h0 "
                                              "R) at the end")
+    energy_bound: float = F(0.05, gt=0, le=1.0,
+                            description="trapped is unknown (exit 3) where the energy balance's "
+                                        "largest residual exceeds this fraction of the work "
+                                        "(every body's counted), in (0, 1]")
+    runaway_mm: float = F(1000.0, unit="mm", gt=0, le=1e6,
+                          description="trapped is unknown (exit 3) where the ball or a free body "
+                                      "ends farther than this from where it started (ran away), "
+                                      "in (0, 1e6] mm")
 
 
 class FormingScenario(ScenarioBase):

@@ -75,7 +75,9 @@ def build_protocol(sc):
             vz = math.copysign(s.clamp_speed_mm_s / r, dz)
         else:
             dur = s.duration_s
-            vz = s.clamp_velocity_mm_s / r
+            # the band and a moving clamp are on the tube: in the lab they move with it
+            lab = p.frame == "lab" and s.clamp in ("move", "band")
+            vz = (s.clamp_velocity_mm_s + (s.tube_velocity_mm_s if lab else 0.0)) / r
         z += vz * dur
         stop = stop_rule(s, dur, r, fs)
         ckw = {"clamp_vz": vz}
@@ -90,7 +92,8 @@ def build_protocol(sc):
             ckw["body_vz"] = moved
         if s.ball == "hold":
             stages.append(Stage(s.name, stop, ball_mode=BALL_HOLD,
-                                ball_vz=s.ball_velocity_mm_s / r, **ckw))
+                                ball_vz=(s.ball_velocity_mm_s + p.tube_shift_mm_s(s)) / r,
+                                **ckw))
         elif s.ball == "release":
             stages.append(Stage(s.name, stop, ball_mode=BALL_FORCE, ball_force_end=0.0, **ckw))
         elif s.ball == "support":

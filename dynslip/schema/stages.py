@@ -68,6 +68,13 @@ class StageSpec(Strict):
                                               "held ball (ball: "
                                   "hold); the pole of the "
                                   "ball points up, the pocket's opening down")
+    tube_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
+                                  description="signed velocity (up > 0) in the lab of the tube "
+                                              "(its wall, rim and band; physics.tube) over this "
+                                              "stage, in [-1e4, 1e4] mm/s: the push-down < 0, the "
+                                              "raise > 0; it needs ball: hold or support (the "
+                                              "ball on its support) and a clamp that moves with "
+                                              "the tube (clamp: band or move, no clamp_to_z_mm)")
     body_velocity_mm_s: dict[str, float] = F(
         default_factory=dict, unit="mm/s",
         description="signed axial velocity (up > 0), in [-1e4, 1e4] mm/s, over this stage of "
@@ -151,6 +158,13 @@ class StageSpec(Strict):
         for name, v in self.body_velocity_mm_s.items():
             if not (math.isfinite(v) and -1e4 <= v <= 1e4):
                 raise ValueError(f"body_velocity_mm_s[{name!r}] = {v}: allowed [-1e4, 1e4] mm/s")
+        if self.tube_velocity_mm_s != 0.0 and (
+                self.ball not in ("hold", "support") or self.clamp_to_z_mm is not None
+                or self.clamp not in ("move", "band")):
+            raise ValueError(f"tube_velocity_mm_s = {self.tube_velocity_mm_s}: the tube moves "
+                             "with the ball on its support and the sheet's edge on the tube; "
+                             "allowed with ball: hold or support and clamp: band or move, "
+                             "without clamp_to_z_mm")
         if self.ball_velocity_mm_s != 0.0 and self.ball != "hold":
             raise ValueError("ball_velocity_mm_s moves a held ball: it needs ball: hold")
         if self.until == "rest":

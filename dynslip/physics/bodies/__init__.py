@@ -15,7 +15,7 @@ from dynslip.physics.bodies.cone import Cone
 from dynslip.physics.bodies.contact import Contact, contact_energy_density, contact_forces
 from dynslip.physics.bodies.cylinder import Cylinder
 from dynslip.physics.bodies.disc import Disc
-from dynslip.physics.bodies.overlap import inside, overlap, penetration
+from dynslip.physics.bodies.overlap import inside, overlap, penetration, shared_face
 from dynslip.physics.bodies.profile import Profile
 from dynslip.physics.bodies.segments import Arc, Line, Projection
 from dynslip.physics.bodies.sphere import Sphere
@@ -52,4 +52,5 @@ __all__ = [
     "inside",
     "overlap",
     "penetration",
+    "shared_face",
 ]
