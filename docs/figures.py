@@ -3,6 +3,8 @@
     python docs/figures.py                 # the shipped settings (N = 50): about 2 min on 2 cores
     python docs/figures.py --fast          # numerics.nodes = 30 everywhere: a check that all draw
     python docs/figures.py --only fronts_let_go.png
+    python docs/figures.py --stale         # only the figures whose key is not today's
+    python docs/figures.py --check         # list those, draw nothing (exit 1 if any)
 
 :data:`RUNS` are the runs the figures are drawn from (the scenario, the fields set, and the
 command line that makes the same run); :data:`FIGURES` is the manifest: every image under
@@ -12,19 +14,48 @@ is shown, and that docs/img holds nothing else, so a figure cannot outlive the c
 made it. The runs are written to ``outputs/figures/<run>/`` (``--runs DIR``), the
 figures to docs/img/ (``--img DIR``); a run folder of an earlier call is reused with
 ``--reuse``.
+
+Each figure carries, in a tEXt chunk of its PNG (``dynslip-key``; Pillow's
+``Image.open(p).text`` reads it), the key of what drew it (:func:`figure_key`): the package's
+physics (the files a measured table depends on, docs/results.py's ``PACKAGE`` less
+``NOT_PHYSICS``), the plotting code (:data:`PLOTTING`), the scenario files of its run
+(``start_from`` followed) and the run's ``--set`` fields, each file hashed and combined in
+sorted path order as docs/results.py does for a table. A figure whose key is not today's is
+stale: ``--check`` lists them, ``--stale`` redraws exactly those, ``tests/test_docs.py``
+names them. The chunk is written after drawing (:func:`stamp`), whatever drew the PNG
+(matplotlib here, or a copy of the run's own figure).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import shutil
+import sys
 import tempfile
 import textwrap
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 IMG = ROOT / "docs" / "img"
+#: the plotting code every figure depends on, beside the package's physics
+PLOTTING = ("dynslip/plot/**/*.py", "docs/figures.py")
+#: the tEXt keyword of the key in a figure's PNG
+KEY_FIELD = "dynslip-key"
+
+
+def _results():
+    """docs/results.py, beside this file (loaded by path: docs/ is not a package), whose key
+    the figures share."""
+    name = "docs_results"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name("results.py"))
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod  # dataclasses look their module up by name
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
 
 
 #: the fast settings of ``--fast``: 30 nodes, the fewest at which these paths' contact stays
@@ -152,6 +183,70 @@ FIGURES = {
         "world",
     ),
 }
+
+
+def figure_key(name: str, fast: bool = False) -> str:
+    """The key of what draws figure ``name``: physics, plotting code, its run's scenario files
+    and ``--set`` fields (``fast``: those of ``--fast``), and the function that draws it."""
+    res = _results()
+    fig = FIGURES[name]
+    run = RUNS[fig.run]
+    files = [*res.source_files(), *res.source_files(PLOTTING, ()),
+             *res.scenario_files([run.scenario])]
+    return res.files_key(files, extra=f"{run.command(fast)}\n{fig.draw}")
+
+
+_PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _chunks(data: bytes):
+    """(start, type, body, end) of each chunk of a PNG file's bytes."""
+    i = len(_PNG)
+    while i + 8 <= len(data):
+        n = int.from_bytes(data[i : i + 4], "big")
+        yield i, data[i + 4 : i + 8], data[i + 8 : i + 8 + n], i + 12 + n
+        i += 12 + n
+
+
+def read_key(path: Path) -> str | None:
+    """The ``dynslip-key`` text of a PNG file; None without one (or no such file)."""
+    data = path.read_bytes() if path.is_file() else b""
+    if not data.startswith(_PNG):
+        return None
+    for _, kind, body, _ in _chunks(data):
+        word, _, text = body.partition(b"\0")
+        if kind == b"tEXt" and word == KEY_FIELD.encode():
+            return text.decode("latin-1")
+    return None
+
+
+def stamp(path: Path, key: str) -> None:
+    """Write ``key`` as the PNG's ``dynslip-key`` tEXt chunk (before IEND; an earlier one
+    replaced); the image itself is not touched."""
+    data = path.read_bytes()
+    body = KEY_FIELD.encode() + b"\0" + key.encode("latin-1")
+    text = len(body).to_bytes(4, "big") + b"tEXt" + body
+    text += zlib.crc32(b"tEXt" + body).to_bytes(4, "big")
+    out = [_PNG]
+    for start, kind, old, end in _chunks(data):
+        if kind == b"tEXt" and old.partition(b"\0")[0] == KEY_FIELD.encode():
+            continue
+        out += [text] if kind == b"IEND" else []
+        out.append(data[start:end])
+    path.write_bytes(b"".join(out))
+
+
+def stale_figures(img: Path = IMG, fast: bool = False, names=None) -> dict[str, str]:
+    """Each figure (of ``names``, default all) in ``img`` whose key is not today's, with what
+    is wrong."""
+    out = {}
+    for name in names or sorted(FIGURES):
+        now, was = figure_key(name, fast), read_key(img / name)
+        if was != now:
+            why = ("missing" if not (img / name).is_file() else "no key" if was is None
+                   else f"drawn with key {was}")
+            out[name] = f"{why}, today's key {now}"
+    return out
 
 
 def copy_meridian(run_dir: Path, out: Path) -> None:
@@ -334,8 +429,21 @@ def main(argv=None) -> int:
     )
     p.add_argument("--img", type=Path, default=IMG, help="folder of the figures (default docs/img)")
     p.add_argument("--reuse", action="store_true", help="reuse a run folder of an earlier call")
+    p.add_argument("--stale", action="store_true",
+                   help="draw only the figures whose key is not today's")
+    p.add_argument("--check", action="store_true",
+                   help="list the figures whose key is not today's, draw nothing")
     args = p.parse_args(argv)
     wanted = args.only or sorted(FIGURES)
+    if args.check or args.stale:
+        stale = stale_figures(args.img, args.fast, wanted)
+        if args.check:
+            for name, why in stale.items():
+                print(f"stale: {name}: {why}")
+            print(f"{len(stale)} of {len(wanted)} stale")
+            return 1 if stale else 0
+        wanted = [n for n in wanted if n in stale]
+        print(f"{len(wanted)} stale: {', '.join(wanted) or 'nothing to draw'}", flush=True)
     args.img.mkdir(parents=True, exist_ok=True)
     done: dict[str, Path] = {}
     for name in wanted:
@@ -343,6 +451,7 @@ def main(argv=None) -> int:
         if fig.run not in done:
             done[fig.run] = make_run(fig.run, args.runs, args.fast, args.reuse)
         globals()[fig.draw](done[fig.run], args.img / name)
+        stamp(args.img / name, figure_key(name, args.fast))
         print(f"{args.img / name}: {fig.command}", flush=True)
     return 0
 
