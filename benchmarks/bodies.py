@@ -77,7 +77,8 @@ def _one(nodes: int) -> dict:
     from dynslip.physics.bodies.held import Held
     from dynslip.physics.friction import Coulomb
     from dynslip.physics.linalg import bordered_solve
-    from dynslip.physics.simulate import MemberRun, simulate
+    from dynslip.physics.member import MemberRun
+    from dynslip.physics.simulate import simulate
     from dynslip.schema.base import load
 
     model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))

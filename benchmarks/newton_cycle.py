@@ -28,8 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import dynslip
-from dynslip.physics import simulate as sim
 from dynslip.physics.field import evaluate, vector_field
+from dynslip.physics.member import MemberRun
 
 PATH = "benchmarks/method2_let_go.yaml"
 TOP_MM = 20.4  # the clamp's start height (ball radius + sheet gap)
@@ -38,13 +38,13 @@ SPEED_MM_S = 2.0  # the push-down's clamp speed
 
 def _capture(hook):
     """Run ``hook(run, seg, out)`` on every save segment the driver solves."""
-    orig = sim.MemberRun.advance
+    orig = MemberRun.advance
 
     def advance(self, seg, out, run_s):
         hook(self, seg, out)
         return orig(self, seg, out, run_s)
 
-    sim.MemberRun.advance = advance
+    MemberRun.advance = advance
 
 
 def _value(v: str):

@@ -80,7 +80,8 @@ def _one(nodes: int) -> dict:
     from dynslip.physics import increment as ni
     from dynslip.physics import newton_matrix as nm
     from dynslip.physics.linalg import bordered_solve
-    from dynslip.physics.simulate import MemberRun, simulate
+    from dynslip.physics.member import MemberRun
+    from dynslip.physics.simulate import simulate
     from dynslip.schema.base import load
 
     model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))

@@ -100,7 +100,16 @@ def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
     sc = _scenario(nodes, "load_step" if base else solver)
     model, protocol, kw = build_core(sc)
     if solver == "load_step_full":
-        kw["settings"] = dataclasses.replace(kw["settings"], solver="load_step_full")
+        from dynslip.physics.loadstep import FullStateLoadStep
+
+        st = kw["settings"]
+        full = FullStateLoadStep(
+            max_steps=st.max_steps, newton_max_iter=st.newton_max_iter,
+            newton_backtrack=st.newton_backtrack, linear_solver=st.linear_solver,
+            heal_rate=st.heal_rate, max_increment=st.max_increment,
+            max_increment_free=st.max_increment_free,
+        )
+        kw["settings"] = dataclasses.replace(st, solver=full)
     if solver == "load_step_law":
         kw["settings"] = dataclasses.replace(kw["settings"], newton_weight=0.0)
     if solver == "kvaerno5":
@@ -152,8 +161,7 @@ def _scipy(ref, core) -> tuple[dict, object]:
     from dynslip.physics.field import Layout, _f, sheet_structure, vector_field
     from dynslip.physics.frames import frame_record, initial_state, reset_internal
     from dynslip.physics.linalg import to_dense
-    from dynslip.physics.member import stage_args
-    from dynslip.physics.simulate import Result
+    from dynslip.physics.member import Result, stage_args
 
     sc, model, protocol, kw = core
     settings = kw["settings"]

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-from dynslip.physics.batch import simulate_batch, stack
+from dynslip.physics.batch import simulate_batch
 from dynslip.physics.friction import make_friction
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import (
@@ -31,7 +31,8 @@ from dynslip.physics.protocols import (
     ThetaMaxBelow,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate, stack
+from dynslip.physics.solvers import Settings
 
 NODES = 20
 RIM = 2.54

@@ -25,7 +25,8 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material, relaxed_tensions
 from dynslip.physics.protocols import CLAMP_BAND, Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from test_forming import residual
 
 N = 32

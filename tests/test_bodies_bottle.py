@@ -29,7 +29,8 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from helpers import run_refused, set_field
 
 # the quick loop (-m 'not slow') leaves these out: each test runs the sheet over the bottle (N = 24)

@@ -27,7 +27,8 @@ from dynslip.physics.materials import make_material
 from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from test_newton import _dense
 
 N = 24

@@ -33,7 +33,8 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from helpers import check_newton_matrix
 from test_forming import residual
 

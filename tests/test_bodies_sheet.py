@@ -29,7 +29,8 @@ from dynslip.physics.protocols import (
     StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from helpers import newton_matrix_and_jacfwd
 from test_forming import residual
 

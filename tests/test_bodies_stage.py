@@ -24,7 +24,8 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 
 # the quick loop (-m 'not slow') leaves these out: two runs of the moving world (N = 24)
 pytestmark = pytest.mark.slow

@@ -26,7 +26,8 @@ from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from helpers import check_newton_matrix
 from test_bodies_friction import _args, _small_state
 

@@ -16,7 +16,8 @@ import pytest
 
 from dynslip.physics.bodies.observe import SLIP_BACK, SLIP_ON, STUCK
 from dynslip.physics.protocols import Protocol, Stage, StopRule
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from test_bodies_friction import (
     EPS,
     FRICTIONAL,

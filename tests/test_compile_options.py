@@ -56,24 +56,3 @@ def test_large_meshes_keep_the_defaults(monkeypatch):
     assert calls[1] == sim.COMPILER_OPTIONS and calls[2] is None  # refused: the defaults
     np.testing.assert_allclose(large(X), _f(X), rtol=1e-14)
 
-
-def test_work_beside_the_compile_runs_in_a_thread_and_cannot_fail_it():
-    """``compile_step(..., beside)`` runs the callables in a thread while XLA compiles, waits
-    for them before it returns, and drops their errors (a warm-up: the call it warmed reports
-    them where it belongs)."""
-    import threading
-
-    lowered = jax.jit(_f).lower(X)
-    seen = []
-
-    def fails():
-        raise RuntimeError("a warm-up that fails")
-
-    def notes():
-        seen.append(threading.current_thread().name)
-
-    compiled = sim.compile_step(lowered, 50, [fails, notes])
-    # after the failing one, in the worker thread (dynslip.physics.beside), before the return
-    assert len(seen) == 1 and seen[0].startswith("dynslip-beside")
-    assert seen[0] != threading.current_thread().name
-    np.testing.assert_allclose(compiled(X), _f(X), rtol=1e-14)

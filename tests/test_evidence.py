@@ -17,7 +17,8 @@ from conftest import SCENARIOS, assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from dynslip.schema.base import load
 from test_forming import MAT, NODES, PRE, RIM, Z0, push_protocol
 

@@ -19,7 +19,8 @@ import xarray as xr
 from conftest import SCENARIOS
 from dynslip.app.kinds import run as run_scenario
 from dynslip.physics.friction import SlipWeakening
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from dynslip.schema.base import load
 from test_forming import MODEL, PRE, Z0, push_protocol
 

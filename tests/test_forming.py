@@ -22,7 +22,8 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from dynslip.schema.base import validate_data
 
 NODES = 40

@@ -17,11 +17,14 @@ import numpy as np
 import optimistix as optx
 import pytest
 
+from dynslip.physics.frames import initial_state
 from dynslip.physics.friction import Coulomb, make_friction
+from dynslip.physics.layout import Layout
 from dynslip.physics.loadstep import DampedNewton, FullStateLoadStep, LoadStepEuler, increments
 from dynslip.physics.member import stage_args
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import Layout, Settings, initial_state, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from dynslip.physics.upstream import ImplicitEuler
 from test_forming import MAT, PRE, RIM, Z0, push_protocol
 

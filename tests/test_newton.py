@@ -190,7 +190,9 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
     Newton's, whose slip distance is implicit, and the slip distances agree where they are large."""
     import math
 
-    from dynslip.physics.simulate import Settings, simulate
+    from dynslip.physics.loadstep import FullStateLoadStep
+    from dynslip.physics.simulate import simulate
+    from dynslip.physics.solvers import Settings
     from test_forming import MODEL as SHEET
     from test_forming import PRE, Z0, push_protocol
 
@@ -208,7 +210,7 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
             settings=Settings(solver=solver, save_interval=1.0),
         )
 
-    a, b = run("load_step"), run("load_step_full")
+    a, b = run("load_step"), run(FullStateLoadStep())
     assert a.failed is None and b.failed is None
     fa, fb = a.frames[-1], b.frames[-1]
     d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))
@@ -217,56 +219,11 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
     assert np.max(fb["slip_distance"]) > 0.02  # the push-down weakens the contact
 
 
-def test_frozen_branches_equal_the_law_on_them():
-    """The active-set pass's branches: stuck gives S = 0 and slipping gives F_t -+ T, which is
-    the law itself wherever the law is on that branch (|F_t| <= T - e, |F_t| >= T + e)."""
-    normal, eps, area = jnp.asarray(2.0), 1e-3, jnp.asarray(0.5)
-    delta = jnp.asarray(0.01)
-    thr = float(WEAK.threshold(normal, delta, area))
-    for ft, mode in [(1.5 * thr, ni.SLIP_UP), (-1.5 * thr, ni.SLIP_DOWN), (0.5 * thr, ni.STICK)]:
-        ft = jnp.asarray(ft)
-        law = WEAK.slip_force(ft, normal, delta, eps=eps, area=area)
-        held = ni.frozen_slip(WEAK, jnp.asarray(mode), law, ft, normal, delta, area)
-        assert float(held) == pytest.approx(float(law), abs=1e-14)
-        assert float(ni.frozen_slip(WEAK, jnp.asarray(ni.FREE), law, ft, normal, delta, area)) == (
-            float(law)
-        )
-    # held slipping across its stick boundary, the branch stays linear in F_t
-    ft = jnp.asarray(0.5 * thr)
-    held = ni.frozen_slip(WEAK, jnp.asarray(ni.SLIP_UP), 0.0, ft, normal, delta, area)
-    assert float(held) == pytest.approx(-0.5 * thr, rel=1e-12)
-
-
-@pytest.mark.slow  # the active-set pass is off by default (its own compile: 14 s of the quick loop)
-@pytest.mark.parametrize("modes", MODES[:2])
-def test_active_set_pass_ends_on_the_laws_own_root(modes):
-    """With nodes held on their branch after one or two stick/slip flips (``freeze`` 1, 2),
-    Newton converges on the held branches, gives the law back and ends on the law's own root:
-    the increment equals plain Newton's to the tolerance, slip distances included. (The pass
-    does run here: it takes 16-19 iterations where plain Newton takes 12.)"""
-    layout = Layout(N, 1)
-    y0 = _state(layout, seed=3)
-    args = _args(WEAK, *modes)
-    zero = (jnp.zeros((N, 2)), jnp.zeros(()))
-    out = []
-    for freeze in (0, 1, 2):
-        solver = nw.MotionNewton(max_iter=60, freeze=freeze)
-        y1, ok, it, *_ = solver.increment(
-            MODEL, layout, jnp.asarray(0.0), jnp.asarray(0.05), y0, args, zero, 1e-12, 1e-12
-        )
-        assert bool(ok)
-        out.append((np.asarray(y1), int(it)))
-    print("iterations (freeze 0, 1, 2):", [it for _, it in out])
-    assert len({it for _, it in out}) > 1  # the pass changed Newton's path
-    for held, _ in out[1:]:
-        np.testing.assert_allclose(held, out[0][0], rtol=0, atol=1e-9)
-
-
 @pytest.mark.parametrize("law", ["slip_weakening", "coulomb"])
 def test_node_force_jacobian_equals_jacfwd(law):
     """The closed form of d u_i / d g_i (the normal part, and the slip law's slope on the
     tangent) is jacfwd of the node's rate in its force: at the pole, on stuck and slipping
-    nodes, and on every branch the active-set pass can hold a node on."""
+    nodes."""
     friction = WEAK if law == "slip_weakening" else make_friction("coulomb", mu=0.3, eps=1e-3)
     layout = Layout(N, friction.n_internal())
     y0 = _state(layout)
@@ -275,20 +232,16 @@ def test_node_force_jacobian_equals_jacfwd(law):
     idx = jnp.arange(N)
     d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(N)
     mem = inc.delta0 is not None
-    slopes = []
-    for frozen in (None, jnp.asarray(np.arange(N) % 4, jnp.int32)):
-        inc_f = eqx.tree_at(lambda i: i.frozen, inc, frozen, is_leaf=lambda x: x is None)
 
-        def rate(i, qi, gi, di, inc_f=inc_f):
-            return ni.node_rate(MODEL, friction, inc_f, i, qi, gi, di if mem else None)[0]
+    def rate(i, qi, gi, di):
+        return ni.node_rate(MODEL, friction, inc, i, qi, gi, di if mem else None)[0]
 
-        ref = jax.vmap(jax.jacfwd(rate, argnums=2))(idx, inc.q0, g, d0)
-        got = jax.vmap(
-            lambda i, qi, gi, di, inc_f=inc_f: ni.node_force_jacobian(
-                MODEL, friction, inc_f, i, qi, gi, di if mem else None)
-        )(idx, inc.q0, g, d0)
-        np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * float(jnp.abs(ref).max()))
-        slopes.append(np.asarray(ref))
+    ref = jax.vmap(jax.jacfwd(rate, argnums=2))(idx, inc.q0, g, d0)
+    got = jax.vmap(
+        lambda i, qi, gi, di: ni.node_force_jacobian(
+            MODEL, friction, inc, i, qi, gi, di if mem else None)
+    )(idx, inc.q0, g, d0)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-13 * float(jnp.abs(ref).max()))
     # both slopes of the law occur (stuck: the tangent's part 0; slipping: 1)
     fn, ft, n, t, normal, area = jax.vmap(lambda i, qi, gi: ni.node_contact(MODEL, i, qi, gi))(
         idx, inc.q0, g)

@@ -11,7 +11,9 @@ from dynslip.physics.field import Layout, sheet_structure, vector_field
 from dynslip.physics.frames import initial_state
 from dynslip.physics.linalg import extract_blocks, to_dense
 from dynslip.physics.member import stage_args
-from dynslip.physics.simulate import segment_solver
+from dynslip.physics.newton import zero_rate
+from dynslip.physics.simulate import segment_step
+from dynslip.physics.solvers import solver_for
 from dynslip.schema.base import load
 
 N = 12
@@ -50,9 +52,10 @@ def _solve(linear_solver, y, t1):
     import dataclasses
 
     settings = dataclasses.replace(SETTINGS, solver="kvaerno5", linear_solver=linear_solver)
-    solve = segment_solver(settings)
+    step = segment_step(solver_for(settings))  # the run's step: the segment and its frame
     f = jnp.asarray
-    out = solve(MODEL, LAYOUT, y, f(0.0), f(t1), f(1e-3), ARGS, f(1e-7), f(1e-9))
+    out, _ = step(MODEL, LAYOUT, y, f(0.0), f(t1), f(1e-3), ARGS, f(1e-7), f(1e-9),
+                  zero_rate(N), f(settings.contact_threshold))
     assert bool(out.ok)
     return out.y, int(out.steps)
 

@@ -14,9 +14,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.protocols import BALL_FORCE, Protocol, Stage, StopRule
-from dynslip.physics.simulate import Settings, StageArgs, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from test_forming import MODEL, PRE, RIM, Z0, residual
 
 K = 1e3

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from dynslip.physics.friction import Coulomb, SlipWeakening, make_friction
-from dynslip.physics.simulate import Settings, simulate
+from dynslip.physics.simulate import simulate
+from dynslip.physics.solvers import Settings
 from test_forming import MAT, MODEL, PRE, Z0, push_protocol, residual
 
 MU_S, MU_K, D_C = 0.99, 0.82, 0.02

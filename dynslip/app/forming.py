@@ -16,13 +16,11 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.app import warmup
 from dynslip.app.endtable import print_end_table
 from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import PARTIAL_KEPT, ComputationError
-from dynslip.physics.beside import Beside
 
 __all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset", "FLUSH_FRAMES"]
 
@@ -46,7 +44,7 @@ def build_core(sc):
     from dynslip.physics.bodies.held import Held
     from dynslip.physics.protocols import ball_drag_coefficient
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-    from dynslip.physics.simulate import Settings
+    from dynslip.physics.solvers import Settings
     from dynslip.schema.forming import build_protocol
 
     p, nu = sc.physics, sc.numerics
@@ -208,13 +206,6 @@ def run_forming(sc, out, console=None) -> dict:
         outs.netcdf(ds, "trajectory.nc")
         return ds
 
-    writing = [None]  # the partial file being written beside the run
-
-    def written():  # wait for it: the files are written in order, the last one last
-        w, writing[0] = writing[0], None
-        if w is not None:
-            w.result()
-
     def on_frame(rec):
         frames_seen.append(rec)
         if len(frames_seen) == 1:
@@ -225,25 +216,18 @@ def run_forming(sc, out, console=None) -> dict:
             t=rec["time"],
             description=f"{names[int(rec['stage'])]} ({int(rec['stage']) + 1}/{len(names)})",
         )
-        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file,
-            written()  # written beside the next segments (0.07 s each with the main job's)
-            writing[0] = Beside(flush, list(frames_seen))
+        if outs.writes and len(frames_seen) % FLUSH_FRAMES == 0:  # a readable partial file
+            flush(list(frames_seen))
 
     try:
         with prog:
-            result = simulate(model, protocol, on_frame=on_frame, start=start,
-                              beside=warmup.beside(sc, model, outs.writes), **kw)
+            result = simulate(model, protocol, on_frame=on_frame, start=start, **kw)
     except BaseException:  # interrupted (SIGINT, SIGTERM) or any error: keep what was computed
-        try:
-            written()
-        except Exception:  # noqa: BLE001, S110 - the whole file is written next
-            pass
         try:
             flush(frames_seen)
         except Exception:  # noqa: BLE001 - the original error is the one to report
             pass
         raise
-    written()
     if result.failed:
         ds = flush(result.frames)
         if ds is not None:
@@ -263,7 +247,7 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
     of a lockstep batch): the trajectory checked against its contract, the summary (with the
     release metrics of a ``start_from`` run), the figures where ``outs`` writes; returns the
     summary."""
-    from dynslip.analysis.summary import summarize  # xarray: imported while the step compiles
+    from dynslip.analysis.summary import summarize
     from dynslip.plot.forming import make_figures
 
     rbar = np.asarray(model.mesh.rbar)

@@ -285,7 +285,7 @@ def run_forming_batch(
 
     t0 = time.perf_counter()
     recs: list[dict | None] = [None] * len(datas)
-    batches: dict[str, list] = {}
+    batches: dict[tuple, list] = {}
     for i, data in enumerate(datas):
         try:
             sc = validate_data(data, "<member>")

@@ -22,7 +22,7 @@ small (tens of nodes) problems, shared by B members. ``docs/sweeps.md`` has the
 measurement.
 
 Compiled once per (static key of the members, B): the key of
-:func:`dynslip.physics.member.static_key` (the solver object, mesh size, the non-array
+:func:`dynslip.physics.member.static_key` (the solver object, the layout, the non-array
 parts of model and loads), which must be equal for every member.
 """
 
@@ -30,18 +30,20 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from dynslip.physics.member import MemberRun, Result
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
-from dynslip.physics.simulate import MemberRun, Result, drive, stack
+from dynslip.physics.simulate import drive
 
-__all__ = ["simulate_batch", "batch_key", "stack"]
+__all__ = ["simulate_batch", "batch_key"]
 
 
-def batch_key(model: SheetModel, protocol: Protocol, kwargs: dict) -> str:
-    """Members with equal keys can run in one batch: the compiled step's static key (the solver
-    object, mesh size, non-array parts of model and first stage's loads)."""
+def batch_key(model: SheetModel, protocol: Protocol, kwargs: dict) -> tuple:
+    """Members with equal keys can run in one batch: the compiled step's static key
+    (:func:`dynslip.physics.member.static_key`: the solver object, the layout, the structure,
+    non-array leaves and array shapes of model and first stage's loads), a hashable value."""
     run = MemberRun(model, protocol, **{k: v for k, v in kwargs.items() if k != "on_frame"})
-    return repr(run.key)
+    return run.key
 
 
 def simulate_batch(

@@ -29,7 +29,6 @@ __all__ = [
     "node_held_frame",
     "node_rate",
     "residual",
-    "residual_and_signs",
     "residual_and_state",
     "sheet_held_frame",
     "slip_update",
@@ -81,17 +80,12 @@ class Increment(eqx.Module):
     t1: jax.Array
     h: jax.Array
     args: StageArgs
-    # per node, the friction branch held by the active-set pass (FREE: the law itself)
-    frozen: jax.Array | None = None
     # the held bodies' slip distances at the start (K_mem, n): mu of a held law with memory is
     # taken at them (the return map's delta0); None without such a body
     held_delta0: jax.Array | None = None
     # the complementarity parameter c of the ball friction's weighted form (:func:`weighted_slip`,
     # G h0); None: the law's own form
     weight: float | None = None
-
-
-FREE, STICK, SLIP_UP, SLIP_DOWN = 0, 1, 2, 3  # the active-set pass's branches per node
 
 
 def node_contact(model: SheetModel, i, q, g):
@@ -104,34 +98,6 @@ def node_contact(model: SheetModel, i, q, g):
     ft = jnp.where(pole, 0.0, f @ t)
     area = model.mesh.area[i]
     return fn, ft, n, t, area * penalty_pressure(model.penalty, d), area
-
-
-def frozen_slip(friction, mode, s, ft, normal, delta_mu, area):
-    r"""The slip force on the branch ``mode`` holds: the law's own ``s`` (FREE), stuck (0), or
-    slipping either way along the tangent at the threshold, $F_t \mp T$ (smooth in $F_t$, so
-    Newton does not flip the node across its stick boundary)."""
-    thr = friction.threshold(normal, delta_mu, area)
-    return jnp.where(
-        mode == STICK,
-        0.0,
-        jnp.where(mode == SLIP_UP, ft - thr, jnp.where(mode == SLIP_DOWN, ft + thr, s)),
-    )
-
-
-def slip_signs(model: SheetModel, friction, inc: Increment, q, g):
-    """Per node, the sign of the law's own slip force against the ball (0: stuck) at relative
-    positions ``q`` under the energy gradient ``g``: the state the active-set pass counts
-    flips of."""
-
-    def one(i, qi, gi, di):
-        _, ft, _, _, normal, area = node_contact(model, i, qi, gi)
-        eps = inc.args.eps * area
-        return jnp.sign(friction.slip_force(ft, normal, di, eps=eps, area=area))
-
-    idx = jnp.arange(q.shape[0])
-    if inc.delta0 is None:
-        return jax.vmap(lambda i, qi, gi: one(i, qi, gi, None))(idx, q, g).astype(jnp.int32)
-    return jax.vmap(one)(idx, q, g, inc.delta0).astype(jnp.int32)
 
 
 def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
@@ -174,8 +140,6 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
         if delta0 is not None:
             delta_mu = delta0
             delta1 = jnp.where(normal > 0, delta0 + inc.h / eta_a * jnp.abs(s), delta0)
-    if inc.frozen is not None:
-        s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta_mu, area)
     u = (fn * n + s * t) / eta_a
     if hf is not None:
         u = u + hf.force(vb) / eta_a
@@ -196,10 +160,10 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     the rate reads the force only through $F_n = f\cdot n$ and $F_t = f\cdot t$ ($f = -g$; at
     the pole $F_n = f_z\,{\rm sign}\,n_z$, $F_t = 0$), so
     $\partial u/\partial g = -(n\,\partial F_n/\partial f^T + S'(F_t)\,t\,\partial F_t/
-    \partial f^T)/(\eta A)$, with $S'$ the slip law's slope (one scalar forward pass, the
-    active-set pass's branch included; $\mu$ at the increment's start, as the return map takes
-    it). Two forward directions fewer than ``jacfwd`` in $g$ (the Newton matrix's largest part
-    at large N); checked against it in tests/test_newton.py."""
+    \partial f^T)/(\eta A)$, with $S'$ the slip law's slope (one scalar forward pass; $\mu$ at
+    the increment's start, as the return map takes it). Two forward directions fewer than
+    ``jacfwd`` in $g$ (the Newton matrix's largest part at large N); checked against it in
+    tests/test_newton.py."""
     args = inc.args
     pole = i == 0
     _, ft, n, t, normal, area = node_contact(model, i, q, g)
@@ -210,10 +174,7 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
 
     def slip(ft):
         # the weighted form's slope in F_t: its curve's at the shifted trial
-        s = friction.slip_force(ft + shift, normal, delta0, eps=eps, area=area, weight=w)
-        if inc.frozen is not None:
-            s = frozen_slip(friction, inc.frozen[i], s, ft, normal, delta0, area)
-        return s
+        return friction.slip_force(ft + shift, normal, delta0, eps=eps, area=area, weight=w)
 
     _, ds = jax.jvp(slip, (ft,), (jnp.ones_like(ft),))
     dfn = jnp.where(pole, jnp.stack([jnp.zeros(()), jnp.sign(n[1])]), n)
@@ -391,9 +352,3 @@ def residual(model, friction, inc: Increment, q, zb):
     \\Delta t\\,v_b$."""
     return residual_and_state(model, friction, inc, q, zb)[:2]
 
-
-def residual_and_signs(model, friction, inc: Increment, q, zb):
-    """:func:`residual_and_state` and :func:`slip_signs` from one evaluation of the forces:
-    ``(r_q, r_z, signs, state)``."""
-    r_q, r_z, state = residual_and_state(model, friction, inc, q, zb)
-    return r_q, r_z, slip_signs(model, friction, inc, q, state[0]), state

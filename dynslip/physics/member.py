@@ -16,8 +16,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics.beside import Beside
-from dynslip.physics.bodies.chords import prepare as prepare_chords
 from dynslip.physics.bodies.held import held_entries, n_free, n_memory, stage_moved
 from dynslip.physics.failures import NonFinite, RunFailure, StepLimit
 from dynslip.physics.field import N_ACC, N_ACC_MOVED, Layout, StageArgs, _f
@@ -92,13 +90,17 @@ def _to_numpy(rec):
 
 
 def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
-    """Everything a compiled segment step is specialised on: the solver object (its static
-    settings; the tolerances are arrays), the mesh size and the non-array parts of the model
-    and stage loads."""
+    """Everything a compiled segment step is specialised on, as a hashable value: the solver
+    object (an equinox module, hashed and compared by its fields; the tolerances are arrays),
+    the layout (static ints) and, of the model and stage loads, what ``eqx.filter_jit`` keys
+    on: the pytree's structure (with the equinox modules' static fields), each non-array leaf
+    with its type (so 1 and 1.0 differ) and each array's shape and dtype."""
+    leaves, treedef = jax.tree_util.tree_flatten((model, args))
     return (
-        repr(solver_for(settings)),
-        layout.n,
-        repr(eqx.filter((model, args), eqx.is_array, inverse=True)),
+        solver_for(settings),
+        layout,
+        treedef,
+        tuple((x.shape, np.dtype(x.dtype)) if eqx.is_array(x) else (type(x), x) for x in leaves),
     )
 
 
@@ -205,7 +207,6 @@ class MemberRun:
         self.e0: float | None = None
         self.si = -1
         self.done = False
-        self._pending = None  # the held bodies' mesh check of the last frame (_settle)
         self._begin_stage(0)
         self.key = static_key(settings, self.layout, model, self.args)
 
@@ -244,10 +245,8 @@ class MemberRun:
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
         """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
-        (and the run done, with ``failed`` set) where the solver did not reach the segment's end,
-        or where the last frame's mesh check failed (:meth:`_settle`: the output is dropped)."""
-        if not self._settle():
-            return False
+        (and the run done, with ``failed`` set) where the solver did not reach the segment's
+        end."""
         y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
         if _counts_newton(self.solver):
             self.stats["newton_iterations"] += int(out.newton_iterations)
@@ -278,13 +277,6 @@ class MemberRun:
         self.seg += 1
         return True
 
-    def prepare(self) -> None:
-        """Compile the mesh check against the held bodies (:meth:`_settle`), which the first
-        frame after the initial one would compile: the driver runs this while the step
-        compiles (:func:`dynslip.physics.simulate.compile_step`)."""
-        if self.settings.max_chord_depth is not None and self.model.bodies:
-            prepare_chords([e.body for e in held_entries(self.model.bodies)], self.layout.n)
-
     @property
     def stage(self):
         return self.protocol.stages[self.si]
@@ -292,8 +284,8 @@ class MemberRun:
     # -- recording and the stop check
     def record(self, rec: dict) -> None:
         """Keep the frame of the current state (``frame_record``'s values), check the mesh
-        (:meth:`_settle`), then the stop rule: the stage ends when it is met or its last
-        segment is done."""
+        (:meth:`_mesh_check`), then the stop rule: the stage ends when it is met or its last
+        segment is done. A failed check fails the run at this frame (the frame is kept)."""
         rec = _to_numpy(rec)
         rec["time"] = float(self.t)
         rec["stage"] = self.si
@@ -307,59 +299,44 @@ class MemberRun:
             self._fail(NonFinite(self.stage.name, self.t, "elastic energy not finite (a "
                                  "stretch outside the material's range)"))
             return
-        limit = self.settings.max_chord_depth
-        held = None
-        if limit is not None:
-            why = ball_unresolved(self.model, rec, self.frames[0], limit, self.stage.name, self.t)
-            if why is not None:
-                self._fail(why)
-                return
-            if held_entries(self.model.bodies):
-                # the held bodies' chord search runs beside the next segment (module
-                # dynslip.physics.meshcheck); the run comes back to this frame if it fails
-                held = Beside(held_unresolved, self.model, self.settings.body_names, rec, limit,
-                              self.stage.name, self.t)
-                back = dict(self.__dict__, stage_end=list(self.stage_end), stats=dict(self.stats))
+        why = self._mesh_check(rec)
+        if why is not None:
+            self._fail(why)
+            return
         met, self.stop_state = self.stage.stop.check(rec, self.t, self.stop_state)
         if met:
             self.met = True
         if met or self.seg >= len(self.seg_ts):
             self._end_stage()
-        if held is not None:
-            self._pending = (held, back)
-            if self.done:
-                self._settle()
 
     def _fail(self, failure: RunFailure) -> None:
         self.failure, self.failed = failure, str(failure)
         self._end_stage()
 
-    def _settle(self) -> bool:
-        """Wait for the held bodies' mesh check of the last frame (:meth:`record`); where it
-        failed, put the run back as it was at that frame before its stop rule, fail it there
-        (the frame is kept, as a failed check in line keeps it) and return False. The run is
-        past what the mesh resolves against a held body when a chord is deeper than
-        ``Settings.max_chord_depth`` inside it, at its height in the frame
-        (:func:`~dynslip.physics.meshcheck.held_unresolved`); against the ball, or the pole
-        through it, :meth:`record` checks in line (:func:`~.meshcheck.ball_unresolved`). The
-        pole's crossing is the ball's only: a held body is off the axis or pressed by the pole
-        from one side (docs/bodies.md, "The mesh check against every body"). One limit for
-        every body, in R. No shipped scenario reaches it against a held body at its default
-        mesh, nor the main job at N = 30 (the same page), so the rule stops a run on any body;
-        a chord straight across a body thinner than twice the limit reads its half thickness
-        and passes (the tube's 3 mm wall: 0.075 R at N = 30). The depth relative to the
-        profile's local radius, which catches that, is reported in ``summary.json`` and the
-        end table, not enforced here (docs/bodies.md, "The relative test")."""
-        if self._pending is None:
-            return True
-        held, back = self._pending
-        self._pending = None
-        why = held.result()
-        if why is None:
-            return True
-        self.__dict__.update(back)
-        self._fail(why)
-        return False
+    def _mesh_check(self, rec: dict) -> RunFailure | None:
+        """Why the frame ``rec`` is past what the mesh resolves (a
+        :class:`~dynslip.physics.failures.ContactUnresolved`), or None; never checked where
+        ``Settings.max_chord_depth`` is None. Against the ball: a chord deeper than that limit
+        inside the ball, or the pole through it
+        (:func:`~dynslip.physics.meshcheck.ball_unresolved`). Against a held body: a chord
+        deeper than the limit inside it, at its height in the frame
+        (:func:`~dynslip.physics.meshcheck.held_unresolved`). The pole's crossing is the ball's
+        only: a held body is off the axis or pressed by the pole from one side
+        (docs/bodies.md, "The mesh check against every body"). One limit for every body, in R.
+        No shipped scenario reaches it against a held body at its default mesh, nor the main
+        job at N = 30 (the same page), so the rule stops a run on any body; a chord straight
+        across a body thinner than twice the limit reads its half thickness and passes (the
+        tube's 3 mm wall: 0.075 R at N = 30). The depth relative to the profile's local radius,
+        which catches that, is reported in ``summary.json`` and the end table, not enforced here
+        (docs/bodies.md, "The relative test")."""
+        limit = self.settings.max_chord_depth
+        if limit is None:
+            return None
+        why = ball_unresolved(self.model, rec, self.frames[0], limit, self.stage.name, self.t)
+        if why is None and held_entries(self.model.bodies):
+            why = held_unresolved(self.model, self.settings.body_names, rec, limit,
+                                  self.stage.name, self.t)
+        return why
 
     def _end_stage(self) -> None:
         last = self.frames[-1]
@@ -387,7 +364,6 @@ class MemberRun:
         self.stats["time_per_step_ms"] = 1e3 * self.stats["run_s"] / max(self.stats["steps"], 1)
 
     def result(self) -> Result:
-        self._settle()
         return Result(
             frames=self.frames,
             stage_end=self.stage_end,

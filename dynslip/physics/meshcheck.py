@@ -1,15 +1,8 @@
 r"""The run's mesh check (``Settings.max_chord_depth``), frame by frame: how deep an element
 chord dips into the ball (:func:`ball_unresolved`, closed form, on the host) and into each held
-body (:func:`held_unresolved`, a search per body, about 1 ms each at 50 nodes), which the run
-makes in a thread while the next save segment computes (:class:`~.beside.Beside`;
-:meth:`dynslip.physics.member.MemberRun.record`).
-
-Why a thread: the segment step is one XLA execution that holds one core and releases the GIL;
-the chord search is another, on the other core. The main job's four held bodies cost 0.37 s of
-84 frames checked one after the other (docs/speed.md, "2026-12-06"); beside the segments they
-cost nothing. A failed check is acted on when the run takes the next segment's output: the run
-goes back to the checked frame and fails there, so the result is the one the check in line
-gave (``MemberRun._settle``).
+body (:func:`held_unresolved`, a search per body, about 1 ms each at 50 nodes), checked in line
+as each frame is recorded (:meth:`dynslip.physics.member.MemberRun.record`): a failed check
+fails the run at that frame, which is kept.
 """
 
 from __future__ import annotations

@@ -75,12 +75,10 @@ with its own friction law or none: :mod:`dynslip.physics.bodies.held`, docs/bodi
 Where the parts live: the element and node terms (energy, penalties, their gradient and
 Hessian blocks) in :mod:`dynslip.physics.terms`; the increment's data and residual in
 :mod:`dynslip.physics.increment`; its Newton matrix (and the free held bodies' system) in
-:mod:`dynslip.physics.newton_matrix`; here the increment's loop and the segment's. The
-active-set pass (``MotionNewton.freeze``) lives in the increment's loop because it changes the
-residual and matrix that loop evaluates.
+:mod:`dynslip.physics.newton_matrix`; here the increment's loop and the segment's.
 
 Longer than 400 lines: the increment's Newton loop (predictor, one residual call site,
-backtracking, the active-set pass, the residual floor) and the segment's loop with its
+backtracking, the residual floor) and the segment's loop with its
 increment controller are one algorithm, documented here as one. The cut worth making, not yet
 made: the increment controller (:meth:`MotionNewton.next_size`, :func:`increment_cap`) to a
 module of its own.
@@ -95,13 +93,8 @@ import jax.numpy as jnp
 from dynslip.physics.bodies.held import place_bodies
 from dynslip.physics.field import Layout, evaluate, heal
 from dynslip.physics.increment import (
-    FREE,
-    SLIP_DOWN,
-    SLIP_UP,
-    STICK,
     Increment,
     increment_rates,
-    residual_and_signs,
     residual_and_state,
     sheet_held_frame,
 )
@@ -164,11 +157,7 @@ class MotionNewton(eqx.Module):
     :func:`dynslip.physics.linalg.block_tridiagonal_solve`), ``"cyclic"`` or ``"thomas"``.
     Increments grow by 1.5
     after at most ``grow_below`` iterations and shrink by 0.7 after at least ``shrink_above``.
-    ``freeze`` (0: off, the default): the active-set pass, a node whose friction against the
-    ball flipped between stick and slip ``freeze`` times within an increment is held on its
-    branch (:func:`frozen_slip`) until Newton converges, then the law is given back and Newton
-    goes on to the law's own root (not with free bodies); docs/speed.md measures it (more
-    iterations on the let-go path, hence off). ``floor_factor``, ``floor_count``: the residual
+    ``floor_factor``, ``floor_count``: the residual
     floor (module docstring; 0: off); ``fail_cap``, ``fail_relax``: the memory of a failed
     increment's size within a segment (module docstring; 0: off). ``weight``: the
     complementarity parameter $c$ of the ball friction's weighted form in which Newton iterates
@@ -185,7 +174,6 @@ class MotionNewton(eqx.Module):
     max_increment_free: float = eqx.field(static=True, default=5.0)
     heal_rate: float = eqx.field(static=True, default=0.0)
     max_steps: int = eqx.field(static=True, default=20000)
-    freeze: int = eqx.field(static=True, default=0)
     floor_factor: float = eqx.field(static=True, default=10.0)
     floor_count: int = eqx.field(static=True, default=2)
     fail_cap: float = eqx.field(static=True, default=FAIL_CAP)
@@ -214,8 +202,6 @@ class MotionNewton(eqx.Module):
         rq, rz = rate
         q = q0 + h * rq
         nf = layout.n_free
-        # the active-set pass (``freeze``): not with free bodies, whose border it would not see
-        active = self.freeze > 0 and not nf
         # the weighted form of the ball's friction law (``weight``; not with free bodies, whose
         # residual is built apart)
         weighted = self.weight > 0 and not nf
@@ -225,38 +211,29 @@ class MotionNewton(eqx.Module):
             res0, blocks0, placed = free_system(model, friction, inc, layout.free(y0))
             zb = jnp.concatenate([jnp.reshape(zb0 + h * rz, (1,)), layout.free(y0)])
 
-            def res(q, zb, mode):
+            def res(q, zb):
                 # the end state is evaluated after the loop (``state`` None)
-                return (*res0(q, zb), jnp.zeros(n, jnp.int32), None)
+                return (*res0(q, zb), None)
 
-            def blocks(q, zb, mode, state):
+            def blocks(q, zb, state):
                 return blocks0(q, zb)
         else:
             zb = zb0 + h * rz
 
-            def data(mode):
-                # the increment with the active-set pass's branches and the law's weight
-                return Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
-                                 frozen=mode if active else None, held_delta0=hdelta0,
-                                 weight=self.weight if weighted else None)
+            # the increment with the law's weight
+            data = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
+                             held_delta0=hdelta0, weight=self.weight if weighted else None)
 
-            def res(q, zb, mode):
-                # the residual, the slip signs and the state the increment's end reads
-                # (:func:`residual_and_state`; with every node given back its law, as at
-                # convergence, the held branches' state is the law's own)
-                if not active:
-                    r_q, r_z, state = residual_and_state(model, friction, data(mode), q, zb)
-                    return r_q, r_z, jnp.zeros(n, jnp.int32), state
-                return residual_and_signs(model, friction, data(mode), q, zb)
+            def res(q, zb):
+                # the residual and the state the increment's end reads (:func:`residual_and_state`)
+                return residual_and_state(model, friction, data, q, zb)
 
-            def blocks(q, zb, mode, state):
+            def blocks(q, zb, state):
                 # the ball's velocity at (q, zb) from the residual's evaluation there
-                return newton_blocks(model, friction, data(mode), q, zb, vb=state[1])
+                return newton_blocks(model, friction, data, q, zb, vb=state[1])
 
         def size(rq, rz):
             return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))
-
-        free_mode = jnp.zeros(n, jnp.int32)
 
         def cond(c):
             it, done, bad = c[4], c[5], c[6]
@@ -267,43 +244,28 @@ class MotionNewton(eqx.Module):
         # correction, so the residual has one call site: each is compiled anew (about 10% of
         # the world's step). ``it`` counts the corrections, as before.
         def body(c):
-            q, zb, r_q, r_z, it, _, _, mode, flips, sgn, final, small, state, dq, dz, first = c
+            q, zb, r_q, r_z, it, _, _, small, state, dq, dz, first = c
             f0 = jnp.where(first, jnp.inf, size(r_q, r_z))
 
             # the full step, then up to ``backtrack`` halvings while the residual rises: one
             # loop whose first pass is the full step, so the residual is traced once here (each
             # call site of it is compiled anew: 2 s of the world's compile per copy)
             def bt_cond(b):
-                _alpha, tq, tz, _, _, k = b
+                _alpha, tq, tz, _, k = b
                 f1 = size(tq, tz)
                 return (k == 0) | (~((f1 <= f0) | (f1 <= atol)) & (k <= self.backtrack))
 
             def bt_body(b):
-                alpha, _, _, _, _, k = b
+                alpha, _, _, _, k = b
                 alpha = jnp.where(k == 0, 1.0, 0.5 * alpha)
-                tq, tz, ts, tstate = res(q - alpha * dq, zb - alpha * dz, mode)
-                return alpha, tq, tz, ts, tstate, k + 1
+                tq, tz, tstate = res(q - alpha * dq, zb - alpha * dz)
+                return alpha, tq, tz, tstate, k + 1
 
-            unset = (jnp.full_like(r_q, jnp.inf), jnp.full_like(r_z, jnp.inf), sgn, state)
-            alpha, tq, tz, ts, state, _ = jax.lax.while_loop(
+            unset = (jnp.full_like(r_q, jnp.inf), jnp.full_like(r_z, jnp.inf), state)
+            alpha, tq, tz, state, _ = jax.lax.while_loop(
                 bt_cond, bt_body, (jnp.array(1.0), *unset, jnp.array(0))
             )
             qn, zbn = q - alpha * dq, zb - alpha * dz
-            sgn = jnp.where(first, ts, sgn)  # the predictor's signs: no flip on the first pass
-            if active:
-                # a node whose law flipped between stick and slip ``freeze`` times is held on
-                # the branch it is on; once Newton converges so, the law is given back to every
-                # node and Newton goes on to the law's own root (``final``: no more freezing)
-                flips = flips + ((ts != sgn) & (mode == FREE)).astype(jnp.int32)
-                hold = (~final) & (mode == FREE) & (flips >= self.freeze)
-                branch = jnp.where(ts == 0, STICK, jnp.where(ts > 0, SLIP_UP, SLIP_DOWN))
-                new_mode = jnp.where(hold, branch, mode)
-                tq, tz, ts, state = jax.lax.cond(
-                    jnp.any(new_mode != mode),
-                    lambda: res(qn, zbn, new_mode),
-                    lambda: (tq, tz, ts, state),
-                )
-                mode = new_mode
             step = jnp.maximum(
                 jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
                 jnp.max(jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn))),
@@ -320,14 +282,6 @@ class MotionNewton(eqx.Module):
                 done = done | (
                     (small >= self.floor_count) & (size(tq, tz) <= self.floor_factor * atol)
                 )
-            if active:
-                release = done & jnp.any(mode != FREE)
-                tq, tz, ts, state = jax.lax.cond(
-                    release, lambda: res(qn, zbn, free_mode), lambda: (tq, tz, ts, state)
-                )
-                mode = jnp.where(release, free_mode, mode)
-                final = final | release
-                done = done & ~release
             bad = ~(
                 jnp.all(jnp.isfinite(qn)) & jnp.all(jnp.isfinite(zbn)) & jnp.isfinite(size(tq, tz))
             )
@@ -336,11 +290,10 @@ class MotionNewton(eqx.Module):
             go = (~done) & (~bad) & (it < self.max_iter)
             dq, dz = jax.lax.cond(
                 go,
-                lambda: bordered_solve(*blocks(qn, zbn, mode, state), tq, tz, self.linear),
+                lambda: bordered_solve(*blocks(qn, zbn, state), tq, tz, self.linear),
                 lambda: (jnp.zeros_like(dq), jnp.zeros_like(dz)),
             )
-            return (qn, zbn, tq, tz, it, done, bad, mode, flips, ts, final, small, state, dq, dz,
-                    jnp.array(False))
+            return qn, zbn, tq, tz, it, done, bad, small, state, dq, dz, jnp.array(False)
 
         # the loop's carry before the first pass: the residual and state are placeholders that
         # the first pass replaces (shapes as ``res`` returns them)
@@ -351,11 +304,10 @@ class MotionNewton(eqx.Module):
                      _unset_projections(model, n, 0.0))
         init = (
             q, zb, jnp.zeros_like(q), jnp.zeros_like(zb), jnp.array(0, jnp.int32),
-            jnp.array(False), jnp.array(False), free_mode, jnp.zeros(n, jnp.int32), free_mode,
-            jnp.array(False), jnp.array(0, jnp.int32), state, jnp.zeros_like(q), jnp.zeros_like(zb),
-            jnp.array(True),
+            jnp.array(False), jnp.array(False), jnp.array(0, jnp.int32), state,
+            jnp.zeros_like(q), jnp.zeros_like(zb), jnp.array(True),
         )
-        q, zb, _, _, it, done, bad, *_, state, _, _, _ = jax.lax.while_loop(cond, body, init)
+        q, zb, _, _, it, done, bad, _, state, _, _, _ = jax.lax.while_loop(cond, body, init)
         zk = None
         if nf:
             zb, zk = zb[0], zb[1:]

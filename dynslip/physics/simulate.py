@@ -25,86 +25,49 @@ stiff diffrax solver (Kvaerno5, the reference) with a PID controller, one stage 
 (a restart at every stage boundary: the protocol's kinks), each stage run in save segments;
 condition stops (clamp force below a threshold, rest) are
 checked between segments, so their resolution is the save interval. The vector field
-and the segment solve are jitted once per mesh size and shared by every run
-(:func:`segment_solver`).
+and the segment step are jitted once per solver and shared by every run
+(:func:`segment_step`), and compiled once per static key (:func:`_compiled`).
 
 One driver for both solver families (:func:`drive`); the run's state machine
-(:class:`MemberRun`: stage set-up, segments, recording and stop rules), which
-:mod:`dynslip.physics.batch` steps in lockstep, lives in :mod:`dynslip.physics.member`. The
+(:class:`~dynslip.physics.member.MemberRun`: stage set-up, segments, recording and stop rules),
+which :mod:`dynslip.physics.batch` steps in lockstep, lives in :mod:`dynslip.physics.member`. The
 field, the solvers, the frames and the failures live in :mod:`dynslip.physics.field`,
 :mod:`.solvers` (with :mod:`.loadstep` and :mod:`.newton`), :mod:`.frames` and
-:mod:`.failures`; their names are also this module's, as before.
+:mod:`.failures`.
 """
 
 from __future__ import annotations
 
+import functools
 import time as _time
+from collections import OrderedDict
 
 import equinox as eqx
 import jax
 import numpy as np
 
-from dynslip.physics.beside import Beside
-from dynslip.physics.failures import (
-    ContactUnresolved,
-    NonFinite,
-    RunFailure,
-    SolverFailure,
-    StepLimit,
-)
-from dynslip.physics.field import N_ACC, Layout, StageArgs, _f, vector_field
-from dynslip.physics.frames import frame_record, initial_state
-from dynslip.physics.member import MemberRun, Result, Segment, static_key
+from dynslip.physics.field import _f
+from dynslip.physics.frames import frame_record
+from dynslip.physics.member import MemberRun, Result
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
-from dynslip.physics.solvers import SOLVERS, Settings, TimeStepping, solver_for
 
 __all__ = [
-    "Layout",
-    "StageArgs",
-    "Settings",
-    "SolverFailure",
-    "RunFailure",
-    "StepLimit",
-    "NonFinite",
-    "ContactUnresolved",
-    "Result",
-    "SOLVERS",
-    "TimeStepping",
-    "solver_for",
-    "segment_solver",
-    "segment_step",
-    "compile_step",
     "COMPILER_OPTIONS",
-    "LARGE_COMPILER_OPTIONS",
     "FAST_COMPILE_NODES",
-    "simulate",
+    "LARGE_COMPILER_OPTIONS",
+    "compile_step",
     "drive",
+    "segment_step",
+    "simulate",
     "stack",
-    "MemberRun",
-    "Segment",
-    "static_key",
-    "initial_state",
-    "vector_field",
-    "frame_record",
-    "N_ACC",
 ]
 
-
-_SOLVE_CACHE: dict = {}
-_COMPILED: dict = {}  # ahead-of-time compiled segment steps, keyed by everything static
-
-
-def segment_solver(settings: Settings):
-    """Jitted ``solve(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) ->
-    SegmentOutput`` of the solver object of ``settings`` (:func:`solver_for`); shared by every
-    caller (compiled once per mesh size and material class)."""
-    solver = solver_for(settings)
-    if solver not in _SOLVE_CACHE:
-        _SOLVE_CACHE[solver] = eqx.filter_jit(solver.segment)
-    return _SOLVE_CACHE[solver]
-
-
+#: How many compiled segment steps (and jitted step functions) a process keeps: a run needs one,
+#: a lockstep batch of a sweep two per distinct static key (its full batches and the last,
+#: smaller one). An evicted one is compiled again (or read from the persistent compilation
+#: cache) when it is asked for again: the same program, the same numbers.
+CACHE_SIZE = 8
 
 
 #: XLA's compile options for the segment step of a mesh of at most :data:`FAST_COMPILE_NODES`
@@ -122,84 +85,60 @@ FAST_COMPILE_NODES = 200
 LARGE_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": True}
 
 
-def compile_step(lowered, nodes: int, beside=()):
+def compile_step(lowered, nodes: int):
     """``lowered.compile()``, with :data:`COMPILER_OPTIONS` for a mesh of ``nodes`` <=
     :data:`FAST_COMPILE_NODES`, else :data:`LARGE_COMPILER_OPTIONS` (without them where this
-    jaxlib refuses one). ``beside``: callables run in a thread meanwhile (:class:`_Beside`)."""
-    with _Beside(beside):
-        options = COMPILER_OPTIONS if nodes <= FAST_COMPILE_NODES else LARGE_COMPILER_OPTIONS
-        try:
-            return lowered.compile(compiler_options=options)
-        except jax.errors.JaxRuntimeError as err:
-            if "No such compile option" not in str(err):
-                raise
-            return lowered.compile()
+    jaxlib refuses one)."""
+    options = COMPILER_OPTIONS if nodes <= FAST_COMPILE_NODES else LARGE_COMPILER_OPTIONS
+    try:
+        return lowered.compile(compiler_options=options)
+    except jax.errors.JaxRuntimeError as err:
+        if "No such compile option" not in str(err):
+            raise
+        return lowered.compile()
 
 
-class _Beside:
-    """Run ``work`` (callables) in the process's worker thread (:class:`~.beside.Beside`) while
-    the block runs, and wait for it at the block's end: what a run will do anyway after the
-    step's compile (import the output libraries, compile the mesh check:
-    :meth:`MemberRun.prepare`), done while XLA compiles the step, which releases the GIL and
-    keeps about 1.5 of this machine's 2 cores busy (docs/speed.md, "sixth session": the main
-    job cold about 1 s shorter). Only a warm-up: an error in ``work``
-    is dropped, and the call it warmed raises it where it belongs."""
-
-    def __init__(self, work):
-        self.work = tuple(work)
-        self.pending = None
-
-    def _run(self):
-        for w in self.work:
-            try:
-                w()
-            except Exception:  # noqa: BLE001, S110 - a warm-up; the real call reports it
-                pass
-
-    def __enter__(self):
-        if self.work:
-            self.pending = Beside(self._run)
-        return self
-
-    def __exit__(self, *exc):
-        if self.pending is not None:
-            self.pending.result()
-        return False
+#: The ahead-of-time compiled segment steps, least recently used first, keyed by
+#: :func:`~dynslip.physics.member.static_key` (and, for a batch, its size): at most
+#: :data:`CACHE_SIZE`.
+_COMPILED: OrderedDict = OrderedDict()
 
 
 def _compiled(key, compile_fn, stats_list):
-    """The ahead-of-time compiled step of ``key`` (compiled now, its time added to each stats'
-    compile_s)."""
-    if key not in _COMPILED:
-        c0 = _time.perf_counter()
-        _COMPILED[key] = compile_fn()
-        for st in stats_list:
-            st["compile_s"] += _time.perf_counter() - c0
-    return _COMPILED[key]
+    """The ahead-of-time compiled step of ``key`` (compiled now where it is not kept, its time
+    added to each stats' compile_s; the least recently used one dropped past
+    :data:`CACHE_SIZE`)."""
+    if key in _COMPILED:
+        _COMPILED.move_to_end(key)
+        return _COMPILED[key]
+    c0 = _time.perf_counter()
+    compiled = compile_fn()
+    for st in stats_list:
+        st["compile_s"] += _time.perf_counter() - c0
+    _COMPILED[key] = compiled
+    if len(_COMPILED) > CACHE_SIZE:
+        _COMPILED.popitem(last=False)
+    return compiled
 
 
-_STEPS: dict = {}
-
-
+@functools.lru_cache(maxsize=CACHE_SIZE)
 def segment_step(solver, batched: bool = False):
     """Jitted ``step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold)
     -> (SegmentOutput, frame)``: one save segment of ``solver`` and the frame of its end state
     (:func:`frame_record` at ``t1``), in one program, so a segment costs one call and one
     transfer. ``batched``: vmapped over a leading member axis of every input but the layout
-    (a model's float constants, such as Gent's J_m, broadcast)."""
-    key = (solver, batched)
-    if key not in _STEPS:
+    (a model's float constants, such as Gent's J_m, broadcast). Kept for the :data:`CACHE_SIZE`
+    solvers last asked for (a solver object is hashed and compared by its fields)."""
 
-        def step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold):
-            out = solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
-            return out, frame_record(model, layout, t1, out.y, args, contact_threshold,
-                                     forces=out.forces, vb=out.ball_velocity)
+    def step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold):
+        out = solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
+        return out, frame_record(model, layout, t1, out.y, args, contact_threshold,
+                                 forces=out.forces, vb=out.ball_velocity)
 
-        if batched:
-            a = eqx.if_array(0)
-            step = eqx.filter_vmap(step, in_axes=(a, None, a, a, a, a, a, a, a, a, a))
-        _STEPS[key] = eqx.filter_jit(step)
-    return _STEPS[key]
+    if batched:
+        a = eqx.if_array(0)
+        step = eqx.filter_vmap(step, in_axes=(a, None, a, a, a, a, a, a, a, a, a))
+    return eqx.filter_jit(step)
 
 
 def stack(trees):
@@ -215,16 +154,14 @@ def stack(trees):
     return eqx.combine(stacked, static[0])
 
 
-def drive(runs: list[MemberRun], beside=()) -> list[Result]:
+def drive(runs: list[MemberRun]) -> list[Result]:
     """The host loop of one run (``len(runs) == 1``: :func:`segment_step` as compiled) or of
     B members in lockstep (the step vmapped over them, one call per save segment for all:
     :mod:`dynslip.physics.batch`). Each tick asks every member for its next segment, solves
     them together, and hands each active member its output and frame
     (:meth:`MemberRun.advance`, :meth:`MemberRun.record`); the first tick is a zero-length
     segment per member, whose frame is the initial one. Raises ``ValueError`` when the
-    members need different compiled steps (:func:`static_key`). ``beside``: the caller's
-    work to run while the step compiles (:func:`compile_step`), after the members' own
-    (:meth:`MemberRun.prepare`)."""
+    members need different compiled steps (:func:`~dynslip.physics.member.static_key`)."""
     first = runs[0]
     if any(r.key != first.key for r in runs[1:]):
         raise ValueError(
@@ -265,9 +202,7 @@ def drive(runs: list[MemberRun], beside=()) -> list[Result]:
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(
             key,
-            lambda inputs=inputs: compile_step(
-                step.lower(*inputs), layout.n, [r.prepare for r in runs] + list(beside)
-            ),
+            lambda inputs=inputs: compile_step(step.lower(*inputs), layout.n),
             [runs[b].stats for b in active],
         )
         r0 = _time.perf_counter()
@@ -294,17 +229,15 @@ def drive(runs: list[MemberRun], beside=()) -> list[Result]:
 
 def simulate(model: SheetModel, protocol: Protocol, **kwargs) -> Result:
     """Run ``protocol`` from a flat pre-stretched sheet (or from ``start``, a saved end
-    state, see :func:`state_from`); return the saved frames.
+    state, see :func:`~dynslip.physics.frames.state_from`); return the saved frames.
 
     Keyword arguments: ``friction`` (an :class:`~dynslip.physics.friction.AbstractFriction`),
     ``eps``, ``drag``, ``ball_drag``, ``pre_stretch``, ``z_sheet``, and optionally ``weight``,
-    ``settings`` (:class:`Settings`), ``on_frame`` (called with every frame), ``start`` and
-    ``support_stiffness`` (:class:`MemberRun`); ``beside``: callables to run while the step
-    compiles (:func:`drive`).
+    ``settings`` (:class:`~dynslip.physics.solvers.Settings`), ``on_frame`` (called with every
+    frame), ``start`` and ``support_stiffness`` (:class:`~dynslip.physics.member.MemberRun`).
 
     Raises nothing on solver failure: the result's ``failed`` holds the message and
     ``frames`` what was computed before it (the runner turns it into exit 3). Many members
     of the same shape run in lockstep with :func:`dynslip.physics.batch.simulate_batch`.
     """
-    beside = kwargs.pop("beside", ())
-    return drive([MemberRun(model, protocol, **kwargs)], beside)[0]
+    return drive([MemberRun(model, protocol, **kwargs)])[0]

@@ -1,14 +1,15 @@
 r"""The segment solvers, as objects built from the driver's :class:`Settings` (the schema's
 ``numerics``): load stepping by Newton on the motion alone
-(:class:`dynslip.physics.newton.MotionNewton`, the default), the full-state Newton baseline
-(:class:`dynslip.physics.loadstep.FullStateLoadStep`) and stiff diffrax solvers
-(:class:`TimeStepping`: Kvaerno5, the reference, and others). Every object has
+(:class:`dynslip.physics.newton.MotionNewton`, the default) and stiff diffrax solvers
+(:class:`TimeStepping`: Kvaerno5, the reference, and others). A solver object given as
+``Settings.solver`` is used as it is (the full-state Newton baseline,
+:class:`dynslip.physics.loadstep.FullStateLoadStep`, in the tests). Every object has
 ``segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``;
 :mod:`dynslip.physics.simulate` drives them.
 
-diffrax (and the modules built on it, :mod:`~dynslip.physics.loadstep` and
-:mod:`~dynslip.physics.upstream`) is imported where a solver that uses it is built or run: 0.2 s
-of every run's start that load stepping, the default, does not need.
+diffrax (and :mod:`~dynslip.physics.upstream`, built on it) is imported where a solver that
+uses it is built or run: 0.2 s of every run's start that load stepping, the default, does not
+need.
 """
 
 from __future__ import annotations
@@ -42,16 +43,12 @@ class Settings:
         0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
     )
     linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
-    # solver "load_step" (dynslip.physics.loadstep): Newton iteration limit per increment, and the
+    # solver "load_step" (dynslip.physics.newton): Newton iteration limit per increment, and the
     # increment bound in drag times, driven stages / stages with the ball or clamp under a force
     newton_max_iter: int = 20
     newton_backtrack: int = (
         4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
     )
-    # the active-set pass: a node whose friction flipped between stick and slip this many times
-    # within an increment is held on its branch until Newton converges, then the law is given
-    # back (0: off, the default; docs/speed.md measures it)
-    newton_freeze: int = 0
     # the complementarity parameter c (G h0) of the ball's friction law in its weighted form, in
     # which Newton iterates (dynslip.physics.increment.weighted_slip: the law's roots for every
     # c; a node's weight max(1, c dt / (eta A)); 0: the law's own form)
@@ -138,7 +135,6 @@ def _motion_newton(s: Settings) -> MotionNewton:
     linear = s.linear_solver if s.linear_solver in ("thomas", "cyclic") else "auto"
     return _from_settings(
         MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear,
-        freeze=s.newton_freeze,
         weight=s.newton_weight,
     )
 
@@ -153,18 +149,11 @@ def _time_stepping(method: str) -> Callable[[Settings], TimeStepping]:
     return make
 
 
-def _full_state(s: Settings):
-    from dynslip.physics.loadstep import FullStateLoadStep
-
-    return _from_settings(FullStateLoadStep, s)
-
-
 #: The segment solvers by the schema's ``numerics.solver`` name: each builds its solver object
 #: from the :class:`Settings`. Every object has ``segment(model, layout, y0, t0, t1, dt0, args,
 #: rtol, atol, rate) -> SegmentOutput``.
 SOLVERS: dict[str, Callable[[Settings], eqx.Module]] = {
     "load_step": _motion_newton,
-    "load_step_full": _full_state,
     "kvaerno5": _time_stepping("Kvaerno5"),
     "kvaerno4": _time_stepping("Kvaerno4"),
     "kvaerno3": _time_stepping("Kvaerno3"),
@@ -175,9 +164,7 @@ SOLVERS: dict[str, Callable[[Settings], eqx.Module]] = {
 def solver_for(settings: Settings):
     """The segment solver object of ``settings.solver``: the object itself, or the one
     :data:`SOLVERS` builds for its name (``load_step``, the default,
-    :class:`dynslip.physics.newton.MotionNewton`; ``load_step_full``, the full-state Newton
-    baseline :class:`dynslip.physics.loadstep.FullStateLoadStep`; a diffrax solver,
-    :class:`TimeStepping`)."""
+    :class:`dynslip.physics.newton.MotionNewton`; a diffrax solver, :class:`TimeStepping`)."""
     if not isinstance(settings.solver, str):
         return settings.solver
     try:
