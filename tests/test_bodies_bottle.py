@@ -200,16 +200,17 @@ def test_bad_bottle_input(tmp_path, capsys, dotted, value, words):
     run_refused(tmp_path, capsys, SCENARIO, set_field(dotted, value), *words)
 
 
-def test_bottle_scenario_builds_the_bottle_moving_with_the_ball():
-    """The scenario builds the tube (at rest) and the bottle, one solid (moving with the ball,
-    Coulomb 0.7), the neck's lip tangent-below the resting ball, its body inside the tube."""
+def test_bottle_scenario_builds_the_bottle_at_rest_and_the_tube_moved():
+    """The scenario builds the tube (moved by the stages: the lab frame) and the bottle, one
+    solid at rest (Coulomb 0.7), the neck's lip tangent-below the resting ball, its body
+    inside the tube."""
     from dynslip.app.forming import build_core
     from dynslip.schema.base import load
 
     model, _, _ = build_core(load(SCENARIO))
     tube, glass = model.bodies
-    assert not tube.moves_with_ball
-    assert glass.moves_with_ball
+    assert tube.stage and not tube.moves_with_ball
+    assert not (glass.stage or glass.moves_with_ball or glass.free)
     assert float(glass.friction.mu) == 0.7
     # the lip touches the unit ball (distance 0 from the sphere of radius 1: the support ring)
     theta = np.linspace(2.4, math.pi, 400)

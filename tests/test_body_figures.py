@@ -25,12 +25,13 @@ NAMES = ["tube wall", "bottle"]
 
 def _method2_trajectory(nt=6, nr=12):
     """A synthetic trajectory carrying the main job's scenario and a per-body state: the tube
-    wall touched by the outer nodes from frame 2 on, the bottle never."""
+    wall touched by the outer nodes from frame 2 on, the bottle never. The lab frame: the
+    ball at rest; :func:`_tube_moving` adds the tube's saved displacement."""
     state = np.zeros((nt, nr), np.int8)
     state[:, 1:4] = 1
     ds = synthetic_trajectory(state)
     ds.attrs["scenario"] = schema.load(ROOT / "scenarios" / "method2.yaml").to_json()
-    ds = ds.assign(ball_z=("time", np.linspace(0.0, 1.0, nt)))
+    ds = ds.assign(ball_z=("time", np.zeros(nt)))
     k = len(NAMES)
     body_state = np.zeros((nt, k, nr), np.int8)
     body_state[2:, 0, -4:-1] = [1, 2, 3]
@@ -49,6 +50,13 @@ def _method2_trajectory(nt=6, nr=12):
     )
 
 
+def _tube_moving(ds):
+    """``ds`` with the tube's wall moved down by the stages (``body_z``), the bottle at rest."""
+    nt = ds.sizes["time"]
+    body_z = np.stack([np.linspace(0.0, -1.0, nt), np.zeros(nt)], 1)
+    return ds.assign(body_z=(("time", "body"), body_z))
+
+
 def _cli(*args, cwd):
     return subprocess.run([sys.executable, "-m", "dynslip.cli", *map(str, args)], check=False,
                           cwd=cwd, capture_output=True, text=True, timeout=300)
@@ -59,14 +67,12 @@ def test_drawn_bodies_of_the_main_job_and_of_the_coin():
     d = drawn_bodies(ds)
     assert d["ball"] is None  # the unit sphere: drawn as the circle
     assert [n for n, _, _ in d["held"]] == NAMES
-    # the tube's wall at rest, the bottle displaced by the ball's height (a file without body_z)
-    assert [w is not None for _, _, w in d["held"]] == [False, True]
-    np.testing.assert_array_equal(d["held"][1][2], ds["ball_z"].values)
+    # in the lab frame nothing is carried with the ball: a file without body_z draws both at rest
+    assert [w is not None for _, _, w in d["held"]] == [False, False]
     # a file with body_z: every body at its saved displacement (here the wall moved by a stage)
-    body_z = np.stack([np.linspace(0.0, -0.5, ds.sizes["time"]), ds["ball_z"].values], 1)
-    moved = drawn_bodies(ds.assign(body_z=(("time", "body"), body_z)))
-    for (_, _, shift), z in zip(moved["held"], body_z.T, strict=True):
-        np.testing.assert_array_equal(shift, z)
+    moved = drawn_bodies(_tube_moving(ds))
+    np.testing.assert_array_equal(moved["held"][0][2], _tube_moving(ds)["body_z"].values[:, 0])
+    assert moved["held"][1][2] is None  # the bottle, at rest: drawn once
     sc = schema.load(ROOT / "scenarios" / "method2.yaml")
     wall = d["held"][0][1]
     # the tube's outer wall: the rim's radius (the sheet's clamp circle) over the ball's
@@ -100,24 +106,24 @@ def test_animation_draws_each_body_and_moves_those_carried_by_the_ball():
     from dynslip.analysis.front_summary import fronts_dataset
     from dynslip.plot.animate import _Renderer
 
-    ds = _method2_trajectory()
+    ds = _tube_moving(_method2_trajectory())
     bodies = drawn_bodies(ds)
     r = _Renderer(ds, fronts_dataset(ds), np.arange(ds.sizes["time"]), (480, 240), bodies=bodies)
     try:
-        assert len(r.moving) == 2 * 1  # the bottle, one solid: both halves
-        glass = bodies["held"][1][1]
+        assert len(r.moving) == 2 * 1  # the tube's wall, moved by the stages: both halves
+        wall = bodies["held"][0][1]
         k = ds.sizes["time"] - 1
         r.draw(k)
-        zb = float(ds["ball_z"].values[k])
-        np.testing.assert_allclose(r.moving[0][0].get_xy()[: len(glass)], glass + [0.0, zb])
+        zt = float(ds["body_z"].values[k, 0])
+        np.testing.assert_allclose(r.moving[0][0].get_xy()[: len(wall)], wall + [0.0, zt])
         static = [p for p in r.ax.patches if all(p is not m for m, *_ in r.moving)]
-        assert len(static) == 2 + 1  # the tube wall's halves, and the ball
+        assert len(static) == 2 + 1  # the bottle's halves, and the ball
     finally:
         r.close()
 
 
 def test_export_revolves_each_body_and_moves_the_carried_ones():
-    ds = _method2_trajectory()
+    ds = _tube_moving(_method2_trajectory())
     parts = _parts(ds)
     assert [n for _, n, _ in parts] == ["sheet", "ball", *NAMES]
     r_mm = float(ds.attrs["R_m"]) * 1e3
@@ -126,10 +132,11 @@ def test_export_revolves_each_body_and_moves_the_carried_ones():
     sc = schema.load(ROOT / "scenarios" / "method2.yaml")
     radius = np.hypot(wall.points[:, 0], wall.points[:, 1])
     assert radius.max() == pytest.approx(sc.physics.rim_radius_mm, rel=1e-12)
+    wall0 = parts[2][2](ds, 0)
+    np.testing.assert_allclose(wall.points[:, 2] - wall0.points[:, 2],
+                               float(ds["body_z"].values[k, 0]) * r_mm)  # the tube moved down
     glass0, glass = parts[3][2](ds, 0), parts[3][2](ds, k)
-    np.testing.assert_allclose(glass.points[:, 2] - glass0.points[:, 2],
-                               float(ds["ball_z"].values[k] - ds["ball_z"].values[0]) * r_mm)
-    np.testing.assert_allclose(wall.points, parts[2][2](ds, 0).points)  # the tube stays put
+    np.testing.assert_allclose(glass.points, glass0.points)  # the bottle stays put
 
 
 def test_revolved_cylinder_is_on_its_radius_and_height():

@@ -45,6 +45,16 @@ BAND = {
 FINE = {"numerics.max_increment": 0.02}
 
 
+def _trajectory(scn):
+    """The trajectory a run computed, whether or not trapped has an answer (a small mesh does
+    not resolve the tube's rim: its answer is unknown, what it computed is kept)."""
+    try:
+        return api.run(scn).trajectory
+    except ComputationError as err:
+        assert "trapped: unknown" in str(err), err
+        return err.partial.trajectory
+
+
 def _scenario(tmp_path, data, name="s.yaml", **sets):
     path = tmp_path / name
     path.write_text(yaml.safe_dump(data))
@@ -56,8 +66,8 @@ def test_the_lab_frame_and_the_tubes_frame_agree_while_the_ball_is_held(tmp_path
     """The model is Galilean: the sheet's drag is relative to the ball, friction relative to
     each body. So moving the tube down (lab) or the ball and the bottle up (the tube's frame)
     gives one path, shifted by the ball's height in the tube's frame."""
-    lab = api.run(_scenario(tmp_path, BAND, **FINE)).trajectory
-    tube = api.run(_scenario(tmp_path, BAND, **FINE, **{"physics.frame": "tube"})).trajectory
+    lab = _trajectory(_scenario(tmp_path, BAND, **FINE))
+    tube = _trajectory(_scenario(tmp_path, BAND, **FINE, **{"physics.frame": "tube"}))
     assert lab.sizes["time"] == tube.sizes["time"]
     np.testing.assert_allclose(lab["time"], tube["time"], rtol=0, atol=1e-12)
     assert np.all(lab["ball_z"].values == 0.0)  # the ball stays on its support in the lab

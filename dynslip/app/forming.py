@@ -52,7 +52,7 @@ def build_core(sc):
     m = p.material
     material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
-    mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading)
+    mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading, nu.edge_grading)
     eps = jnp.asarray(nu.friction_smoothing)
     moved = set(p.moved_names())
     # a free body: its applied force in G h0 R, its drag as the ball's (eta_b of its multiple)
@@ -299,9 +299,23 @@ def _world_figure(sc, ds, model, outs: Outputs, outcome) -> None:
              enumerate(zip(entries, moves, strict=True)) if m]
     theta = ds["theta_max"].values
     widest = int(np.nanargmax(theta)) if np.isfinite(theta).any() else 0
-    frames = {"widest contact": widest, "end": ds.sizes["time"] - 1}
+    last = ds.sizes["time"] - 1
+    # the deepest push (the sheet's edge lowest, or the ball highest relative to it: the
+    # tube's bottom), the widest contact and the end: the pocket's making
+    depth = ds["ball_z"].values - ds["z"].values[:, -1]
+    deep = int(np.argmax(depth))
+    # halfway back from the deepest push: the lip and the neck under the ball while it refills
+    after = np.arange(depth.size) >= deep
+    half = int(np.argmin(np.where(after, np.abs(depth - 0.5 * (depth[deep] + depth[last])),
+                                  np.inf)))
+    frames: dict = {}
+    for label, i in (("deepest push", deep), ("halfway back", half),
+                     ("widest contact", widest), ("end", last)):
+        if i not in frames.values():
+            frames[label] = i
     end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
+    zb = float(ds["ball_z"].values[last])
     fig = plot_world(ds, frames, held=held, moved=moved, limits=None,
-                     ball=_drawn_ball(model.ball),
+                     ball=_drawn_ball(model.ball), zoom=((0.0, 2.8), (zb - 2.2, zb + 1.4)),
                      title=f"{sc.name} (N = {ds.sizes['rbar']})\n{end}")
     save_figure(fig, outs.folder / "world.png", dpi=120)

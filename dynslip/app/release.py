@@ -38,6 +38,7 @@ GEOMETRY_FIELDS = (
     "physics.pre_stretch",
     "numerics.nodes",
     "numerics.mesh_grading",
+    "numerics.edge_grading",
 )
 
 
@@ -116,7 +117,14 @@ def load_start(sc, console=None, run=None) -> tuple[dict, dict]:
                 f"{json.dumps(b)} ({src}); allowed: the start's value"
             )
     end = ds.isel(time=-1)
-    start = {"rho": end["rho"].values, "z": end["z"].values, "zb": float(end["ball_z"])}
+    # a start whose tube was moved by its stages (the lab frame): translated along the axis so
+    # that the tube sits at its reference placement, where this run's tube is (no gravity: a
+    # translation changes nothing else)
+    shift = 0.0
+    if "body_z" in ds and "tube wall" in list(ds["body"].values) and sc.physics.tube is not None:
+        shift = float(end["body_z"].values[list(ds["body"].values).index("tube wall")])
+    start = {"rho": end["rho"].values, "z": end["z"].values - shift,
+             "zb": float(end["ball_z"]) - shift}
     if "slip_distance" in ds:
         start["slip_distance"] = end["slip_distance"].values
     info = {
@@ -124,6 +132,7 @@ def load_start(sc, console=None, run=None) -> tuple[dict, dict]:
         "start_time_s": float(end["time"]),
         "start_theta_max": float(end["theta_max"]),
         "start_rbar_max": float(end["rbar_max"]),
-        "start_trapped_ball_z": float(end["ball_z"]),
+        "start_trapped_ball_z": float(end["ball_z"]) - shift,
+        "start_shift_R": -shift,
     }
     return start, info

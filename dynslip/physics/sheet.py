@@ -80,16 +80,19 @@ class Mesh(eqx.Module):
         return int(self.rbar.shape[0])
 
 
-def make_mesh(n: int, r_edge: float, grading: float = 1.0) -> Mesh:
+def make_mesh(n: int, r_edge: float, grading: float = 1.0, edge_grading: float = 1.0) -> Mesh:
     """Mesh of ``n`` nodes from the pole to the material radius ``r_edge``, at
-    ``rbar_i = r_edge (i/(n-1))**grading``: uniform for ``grading = 1``, graded toward the
-    pole for ``grading > 1`` (first element ``r_edge/(n-1)**grading``, last about
-    ``grading`` times the uniform one)."""
+    ``rbar_i = r_edge v_i**grading``, ``v_i = 1 - (1 - i/(n-1))**edge_grading``: uniform for
+    both 1; ``grading > 1`` grades it toward the pole (first element ``r_edge/(n-1)**grading``,
+    last about ``grading`` times the uniform one), ``edge_grading > 1`` toward the held edge
+    (last element ``r_edge/(n-1)**edge_grading``, first about ``edge_grading`` times the
+    uniform one: where the sheet wraps a tube's rim near its edge)."""
     if n < 4:
         raise ValueError("a sheet mesh needs at least 4 nodes")
-    if grading < 1.0:
+    if grading < 1.0 or edge_grading < 1.0:
         raise ValueError("mesh grading must be at least 1 (1 is uniform)")
-    return mesh_from_radii(r_edge * np.linspace(0.0, 1.0, n) ** grading)
+    v = 1.0 - (1.0 - np.linspace(0.0, 1.0, n)) ** edge_grading
+    return mesh_from_radii(r_edge * v**grading)
 
 
 def mesh_from_radii(rbar) -> Mesh:

@@ -23,16 +23,34 @@ def plot_world(
     limits=((0, 3.2), (-6.5, 2.0)),
     ball=None,
     moved=(),
+    zoom=None,
 ) -> Figure:
     """``frames``: label -> time index. ``held``: bodies in the frame of the run; ``with_clamp``
     and ``with_ball``: bodies displaced by the clamp's or the ball's height of each frame;
     ``moved``: ``(body, shift)`` pairs, displaced by ``shift[i]`` at frame i (the trajectory's
     ``body_z``).
     ``limits``: the axes' ``((rho0, rho1), (z0, z1))``, or None to fit the frames and bodies.
-    ``ball``: the ball's body, its outline dotted (None: the unit sphere). Units of R on both
+    ``ball``: the ball's body, its outline dotted (None: the unit sphere). ``zoom``: limits of a
+    second panel, the same frames drawn closer (the pocket about the ball). Units of R on both
     axes."""
-    fig = Figure(figsize=(6.0, 8.0), constrained_layout=True)
-    ax = fig.add_subplot()
+    fig = Figure(figsize=(6.0 if zoom is None else 10.0, 8.0), constrained_layout=True)
+    axes = fig.subplots(1, 1 if zoom is None else 2, squeeze=False)[0]
+    for k, ax in enumerate(axes):
+        _draw(ax, ds, frames, held, with_clamp, with_ball, ball, moved)
+        lim = limits if k == 0 else zoom
+        _limits(ax, ds, frames, lim)
+        ax.legend(loc="upper right", fontsize=7)
+    axes[0].set_title(title + "\nball dotted, moving bodies shaded per frame, held bodies grey",
+                      fontsize=9)
+    if zoom is not None:
+        axes[1].set_title("about the ball", fontsize=9)
+    if out is not None:
+        fig.savefig(out, dpi=120)
+    return fig
+
+
+def _draw(ax, ds, frames, held, with_clamp, with_ball, ball, moved):
+    """The frames' sheet, ball and moving bodies, and the held bodies, on ``ax``."""
     colours = ["tab:blue", "tab:red", "tab:green", "tab:purple"]
     for body in held:
         o = body.outline()
@@ -63,6 +81,9 @@ def plot_world(
     ax.set_aspect("equal")
     ax.set_xlabel("rho / R")
     ax.set_ylabel("z / R")
+
+
+def _limits(ax, ds, frames, limits):
     if limits is None:  # the sheet and the ball of the frames drawn, with a margin
         idx = list(frames.values())
         zs = ds["z"].values[idx]
@@ -73,9 +94,3 @@ def plot_world(
     else:
         ax.set_xlim(*limits[0])
         ax.set_ylim(*limits[1])
-    ax.set_title(title + "\nball dotted, moving bodies shaded per frame, held bodies grey",
-                 fontsize=9)
-    ax.legend(loc="upper right", fontsize=7)
-    if out is not None:
-        fig.savefig(out, dpi=120)
-    return fig

@@ -365,6 +365,11 @@ class FormingNumerics(Strict):
                             "grades the mesh toward the pole (where the push-down stretches the "
                             "cap most), in "
                             "[1, 4]")
+    edge_grading: float = F(1.0, ge=1.0, le=4.0,
+                            description="grades the mesh toward the held edge, in [1, 4]: node "
+                                        "material radii rbar_i = rbar_edge v_i^g with v_i = 1 - "
+                                        "(1 - i/(N-1))^e (e this, g mesh_grading; 1 is uniform): "
+                                        "where the sheet wraps a tube's rim near its edge")
     drag_time_s: float = F(0.1, unit="s", gt=0, le=MAX_TIME_S,
                            description="drag time tau = eta R^2/(G h0) of the overdamped sheet; "
                                        "loading is "

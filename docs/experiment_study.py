@@ -1,0 +1,230 @@
+"""The experiment's study (docs/experiment.md; issue 42 items 5 and 6): every number of its
+tables is measured by a command this script runs and records beside the number.
+
+- ``jm``: the critical mu_s (the least mu_s that traps, mu_k tied at its ratio 0.83) of the
+  main job (method 2 in the lab frame), method 1 and the let-go path, per material (Gent J_m
+  30, 50, 75, 97.2, 150, and neo-Hookean), at each mesh size (``dynslip window --nodes``),
+  with the largest stretch on the path of the run at the measured friction;
+- ``depth``: the main job's path pushed 100 to 220 mm, per J_m, at the measured friction:
+  trapped, theta_max, rbar_max, the largest stretch;
+- ``release``: the release force of the main job's pocket (release_pull_tube.yaml), per N.
+
+Usage: ``python docs/experiment_study.py {jm,depth,release,table} [--only NAME]``; results go
+to ``outputs/study/`` (each case in its own folder, rerun only when missing) and
+``docs/data/experiment_study.json`` (what the tables read); ``table`` prints the markdown
+tables of docs/experiment.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "outputs" / "study"
+DATA = ROOT / "docs" / "data" / "experiment_study.json"
+
+MATERIALS = {  # name: --set values
+    "gent 30": ["physics.material.model=gent", "physics.material.jm=30"],
+    "gent 50": ["physics.material.model=gent", "physics.material.jm=50"],
+    "gent 75": ["physics.material.model=gent", "physics.material.jm=75"],
+    "gent 97.2": ["physics.material.model=gent", "physics.material.jm=97.2"],
+    "gent 150": ["physics.material.model=gent", "physics.material.jm=150"],
+    "neo-Hookean": ["physics.material.model=neo_hookean"],
+}
+#: the paths, their scenario, the mesh sizes of the window search and its range
+PATHS = {
+    "method 2 (main job)": ("scenarios/method2.yaml", "100,150"),
+    "method 1": ("scenarios/method1.yaml", "50,100"),
+    "let-go": ("scenarios/method2_let_go.yaml", "50,100"),
+}
+WINDOW = ["--lo", "0.3", "--hi", "2.4", "--coarse", "4", "--tol", "0.02"]
+MEASURED = ["physics.friction.law=slip_weakening", "physics.friction.mu_s=0.99",
+            "physics.friction.mu_k=0.82", "physics.friction.d_c_mm=0.4"]
+DEPTHS_MM = (100, 150, 200, 220)
+
+
+def _slug(*parts) -> str:
+    return "_".join(str(p).replace(" ", "").replace("(", "").replace(")", "").replace(".", "p")
+                    for p in parts)
+
+
+def _sets(values) -> list[str]:
+    out = []
+    for v in values:
+        out += ["--set", v]
+    return out
+
+
+def _run(cmd: list[str], log: Path) -> int:
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with log.open("w") as f:
+        f.write(" ".join(cmd) + "\n")
+        f.flush()
+        return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, check=False).returncode
+
+
+def _summary(folder: Path) -> dict | None:
+    """The summary of a run folder, or of its kept incomplete run (an unknown answer)."""
+    for f in [folder, *sorted(folder.parent.glob(folder.name + ".incomplete-*"))[-1:]]:
+        if (f / "summary.json").is_file():
+            return json.loads((f / "summary.json").read_text())
+    return None
+
+
+def _load() -> dict:
+    return json.loads(DATA.read_text()) if DATA.is_file() else {}
+
+
+def _save(data: dict) -> None:
+    DATA.parent.mkdir(parents=True, exist_ok=True)
+    tmp = DATA.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    tmp.replace(DATA)
+
+
+def _commit() -> str:
+    r = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
+                       text=True, check=False)
+    return r.stdout.strip()
+
+
+def run_run(scenario: str, sets: list[str], name: str) -> dict:
+    """One ``dynslip run``: its command and the numbers the tables read."""
+    folder = OUT / name
+    cmd = ["dynslip", "run", scenario, "--out", str(folder), "--force", *_sets(sets)]
+    if _summary(folder) is None:
+        _run(cmd, OUT / f"{name}.log")
+    s = _summary(folder) or {}
+    ls = s.get("largest_stretch", {})
+    return {
+        "command": " ".join(["dynslip", "run", scenario, *_sets(sets)]),
+        "trapped": s.get("trapped"),
+        "unknown": s.get("trapped_unknown_reasons"),
+        "theta_max": s.get("theta_max"),
+        "rbar_max": s.get("rbar_max"),
+        "largest_stretch": ls.get("path_max"),
+        "largest_stretch_i1_uniaxial": ls.get("path_max_i1_uniaxial"),
+        "energy_residual": s.get("energy_balance", {}).get("relative_residual"),
+        "release_force_N": s.get("release_force"),
+        "commit": _commit(),
+    }
+
+
+def run_window(scenario: str, nodes: str, sets: list[str], name: str) -> dict:
+    """One ``dynslip window --nodes``: the critical mu_s per N."""
+    folder = OUT / name
+    cmd = ["dynslip", "window", scenario, "--nodes", nodes, *WINDOW, "--out", str(folder),
+           "--force", *_sets(sets)]
+    if not (folder / "window.json").is_file():
+        _run(cmd, OUT / f"{name}.log")
+    w = json.loads((folder / "window.json").read_text()) if (folder / "window.json").is_file() \
+        else {}
+    per_n = {}
+    for n, c in (w.get("critical_mu_per_nodes") or w.get("per_nodes") or {}).items():
+        per_n[str(n)] = c
+    if not per_n and "critical_mu" in w:
+        per_n[nodes.split(",")[-1]] = w["critical_mu"]
+    return {"command": " ".join(["dynslip", "window", scenario, "--nodes", nodes, *WINDOW,
+                                 *_sets(sets)]),
+            "window": w, "commit": _commit()}
+
+
+def study_jm(only: str | None) -> None:
+    data = _load()
+    for path, (scenario, nodes) in PATHS.items():
+        for mat, sets in MATERIALS.items():
+            key = f"{path} | {mat}"
+            if only and only not in key:
+                continue
+            w = run_window(scenario, nodes, sets, _slug("w", path, mat))
+            r = run_run(scenario, sets + MEASURED, _slug("r", path, mat))
+            data.setdefault("jm", {})[key] = {"window": w, "measured": r}
+            _save(data)
+            print(key, "done", flush=True)
+
+
+def study_depth(only: str | None) -> None:
+    data = _load()
+    for mat in ("gent 50", "gent 97.2"):
+        for d in DEPTHS_MM:
+            key = f"{d} mm | {mat}"
+            if only and only not in key:
+                continue
+            sets = MATERIALS[mat] + [f"physics.stages.push_down.duration_s={d / 2.0:g}"]
+            data.setdefault("depth", {})[key] = run_run("scenarios/method2.yaml", sets,
+                                                        _slug("d", d, mat))
+            _save(data)
+            print(key, "done", flush=True)
+
+
+def study_release(only: str | None) -> None:
+    data = _load()
+    for n in (100, 150, 200):
+        key = f"N = {n}"
+        if only and only not in key:
+            continue
+        sets = [f"numerics.nodes={n}"]
+        data.setdefault("release", {})[key] = run_run("scenarios/release_pull_tube.yaml", sets,
+                                                      _slug("rel", n))
+        _save(data)
+        print(key, "done", flush=True)
+
+
+def _crit(w: dict) -> str:
+    """The critical mu_s per N of a window.json (``--nodes``: ``critical_mu`` maps N to
+    ``{value, err}``), and its extrapolation where the window search made one, as text."""
+    crit = w.get("critical_mu") or {}
+    if "value" in crit:  # one mesh size
+        crit = {str(w.get("resolution_check", {}).get("nodes", "")): crit}
+    out = [f"{n}: {c['value']:.3f}" if c else f"{n}: none" for n, c in crit.items()]
+    ex = w.get("extrapolation") or {}
+    if ex.get("extrapolable"):
+        out.append(f"extrapolated {ex['value']:.3f} +- {ex['err']:.2g}")
+    return "; ".join(out)
+
+
+def _f(v, fmt=".3g"):
+    return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, fmt)
+
+
+def table() -> None:
+    data = _load()
+    print("| path | material | critical mu_s by N | trapped at 0.99 / 0.82 | largest stretch "
+          "(I1-uniaxial) | command |")
+    print("|---|---|---|---|---|---|")
+    for key, row in data.get("jm", {}).items():
+        path, mat = key.split(" | ")
+        m = row["measured"]
+        trapped = {True: "yes", False: "no", None: "unknown"}[m["trapped"]]
+        print(f"| {path} | {mat} | {_crit(row['window']['window'])} | {trapped} | "
+              f"{_f(m['largest_stretch'])} ({_f(m['largest_stretch_i1_uniaxial'])}) | "
+              f"`{row['window']['command']}` |")
+    print()
+    print("| push | material | trapped | theta_max | rbar_max | largest stretch (I1-uniaxial) | "
+          "command |")
+    print("|---|---|---|---|---|---|---|")
+    for key, m in data.get("depth", {}).items():
+        d, mat = key.split(" | ")
+        trapped = {True: "yes", False: "no", None: "unknown"}[m["trapped"]]
+        print(f"| {d} | {mat} | {trapped} | {_f(m['theta_max'])} | {_f(m['rbar_max'])} | "
+              f"{_f(m['largest_stretch'])} ({_f(m['largest_stretch_i1_uniaxial'])}) | "
+              f"`{m['command']}` |")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=["jm", "depth", "release", "table"])
+    ap.add_argument("--only", default=None, help="run only the cases whose key contains this")
+    a = ap.parse_args(argv)
+    {"jm": study_jm, "depth": study_depth, "release": study_release}.get(
+        a.what, lambda _: table())(a.only)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
