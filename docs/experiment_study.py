@@ -61,11 +61,17 @@ def _sets(values) -> list[str]:
 
 
 def _run(cmd: list[str], log: Path) -> int:
+    """Run a ``dynslip ...`` command line with this checkout's package (``python -m
+    dynslip.cli``: a worktree at a fixed commit measures that commit), its output in ``log``."""
+    import os
+
     log.parent.mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
     with log.open("w") as f:
         f.write(" ".join(cmd) + "\n")
         f.flush()
-        return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, check=False).returncode
+        return subprocess.run([sys.executable, "-m", "dynslip.cli", *cmd[1:]], cwd=ROOT, env=env,
+                              stdout=f, stderr=subprocess.STDOUT, check=False).returncode
 
 
 def _summary(folder: Path) -> dict | None:
