@@ -171,7 +171,8 @@ def test_pinned_rim_tube_path_does_not_trap_at_the_measured_friction(tmp_path):
     holding the sheet's edge, the tube pushed down
     past the ball on its bottle neck and raised (scenarios/method2_pinned.yaml as shipped, Gent
     J_m = 50), at the measured friction mu_s = 0.99, mu_k = 0.82, does not trap the ball: the
-    sheet wraps past the equator in the push-down, and the raise pulls it off the ball. At
+    sheet wraps past the equator in the push-down, and the raise, until the tube's pull net of
+    the sheet's drag vanishes, peels it back to a cap at the pole. At
     N = 30 the mesh check resolves every frame with margin (deepest chord below half the
     0.1 R limit), so "not trapped" is an answer, not a mesh artefact.
 
@@ -192,6 +193,7 @@ def test_pinned_rim_tube_path_does_not_trap_at_the_measured_friction(tmp_path):
         after_raise = np.flatnonzero(stage >= names.index("raise"))
         raise_end = int(np.flatnonzero(stage == names.index("raise"))[-1])
         theta_hold = float(hold_end["theta_max"])
+        theta_raise_end = float(ds["theta_max"].values[raise_end])
         contact_after = (ds["state"].values[raise_end:] > 0).sum(axis=1)
     mc = s["mesh_check"]
     print(
@@ -203,64 +205,51 @@ def test_pinned_rim_tube_path_does_not_trap_at_the_measured_friction(tmp_path):
     assert mc["resolved"] and mc["max_chord_depth"] <= 0.5 * mc["limit"]  # resolved, not marginal
     assert s["trapped"] is False
     assert theta_hold > math.pi / 2  # the push-down wrapped the sheet past the equator
-    assert after_raise.size and contact_after.max() == 0  # the raise pulled it off the ball
+    # the raise peeled the contact back to a cap about the pole (3 nodes or fewer)
+    assert after_raise.size and theta_raise_end < 0.3 and contact_after.max() <= 3
 
 
 @pytest.mark.slow
-def test_headline_the_experiment_in_its_world_does_not_trap_at_the_measured_friction(tmp_path):
-    """THE HEADLINE (a regression, labelled): the main job, scenarios/method2.yaml as shipped,
-    the experiment's path in its world (the tube's rounded rim with its friction, the sheet
-    beyond it to the band, the bottle, the push-down within the tube's height), at the measured
-    friction mu_s = 0.99, mu_k = 0.82, does not trap the ball. Checked from the run's own saved
-    path at N = 30, resolved by the mesh check with margin:
-    - the ball travels at most the tube's height allows (the rim stays above 1 - H/R);
-    - the raise peels the contact back toward the pole: by the end of the raise (where the
-      support stops carrying the ball) it has shrunk to less than half its widest extent, and
-      none is left at the end;
-    - the sheet never touches the bottle (its clearance, the bottle moving with the ball, stays
-      positive on every frame), and stays within latex's damage stretch of 6.
+def test_headline_the_experiment_in_its_world_traps_at_the_measured_friction(tmp_path):
+    """THE HEADLINE (a regression, labelled): the main job, scenarios/method2.yaml as shipped
+    (N = 150), the experiment's path in the lab frame (the tube pushed 220 mm down over the
+    ball on its bottle, its rim above the table, then raised until the support stops carrying
+    the ball; Gent J_m = 97.2), at the measured friction mu_s = 0.99, mu_k = 0.82, traps the
+    ball in the paper's pocket:
+    - trapped, with an answer (no reason for unknown: every body resolved, the energy balance
+      closed to 2% of the work, every stage's condition met);
+    - the contact ends past the equator near the paper's 1.8 rad, the lip's material near its
+      rbar 0.9;
+    - the ball lifted off its support (no reaction at the end), the bottle at rest;
+    - the push laid the tent on the bottle, and the tube's rim stayed above the table;
+    - the largest stretch on the path is reported past latex's 6, and flagged.
 
-    Regression values (``dynslip run scenarios/method2.yaml --set numerics.nodes=30``): trapped
-    false; widest contact theta 1.661 in the hold, 0.524 at the end of the raise; closest
-    approach to the bottle 0.48 R; the rim 3.97 R below the ball's centre at the bottom (the
-    tube allows 4.08 R); largest stretch 3.27; deepest chord 0.016 R. N = 100 and 200 give the
-    same verdict (docs/experiment.md). If the model ever traps here, this test fails and the
-    README's headline must change."""
-    from dynslip.analysis.clearance import clearance
-    from dynslip.physics.bodies.apparatus import bottle, deepest_rim
-
-    sc = load(SCENARIOS / "method2.yaml", ["numerics.nodes=30"])
+    Regression values (``dynslip run scenarios/method2.yaml``): theta_max 2.064, rbar_max
+    0.888, largest stretch 7.11 (I1-uniaxial 7.76), energy residual 0.43% of the work. If the
+    model ever stops trapping here, this test fails and the README's answer must change."""
+    sc = load(SCENARIOS / "method2.yaml")
     p = sc.physics
     assert (p.friction.law, p.friction.mu_s, p.friction.mu_k) == ("slip_weakening", 0.99, 0.82)
-    assert p.tube is not None and p.bottle is not None and p.tube.height_mm == 101.6
+    assert p.frame == "lab" and p.tube is not None and p.bottle is not None
     s = run_scenario(sc, tmp_path, None)
     with xr.open_dataset(tmp_path / "trajectory.nc") as ds:
         ds = ds.load()
-    b = p.bottle
-    parts = bottle(p.ball_radius_mm, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm,
-                   b.shoulder_height_mm, b.body_od_mm, b.body_height_mm)  # fmt: skip
-    c = clearance(ds.assign(clamp_z=ds["ball_z"]), parts, moves_with_clamp=True)
-    rim = (p.ball_radius_mm + p.sheet_gap_mm + p.tube.rim_gap_mm) / p.ball_radius_mm
-    lowest_rim = float(rim - ds["ball_z"].max())  # the rim's height below the ball's centre, R
-    theta = ds["theta_max"].values
-    names = [st["name"] for st in s["stages"]]
-    raise_end = int(np.flatnonzero(ds["stage"].values == names.index("raise"))[-1])
-    mc = s["mesh_check"]
-    print(
-        f"headline (method2.yaml, N = 30): trapped {s['trapped']}; deepest chord "
-        f"{mc['max_chord_depth']:.4f} R; widest contact {np.nanmax(theta):.3f}, at the end of the "
-        f"raise {theta[raise_end]:.3f}; bottle "
-        f"clearance {c['min']:.3f} R; lowest rim {lowest_rim:.3f} R (allowed "
-        f"{deepest_rim(p.ball_radius_mm, p.tube.height_mm):.3f}); largest stretch "
-        f"{s['largest_stretch']['path_max_lambda_theta']:.2f}"
-    )
-    assert s["status"] == "ok"
-    assert mc["resolved"] and mc["max_chord_depth"] <= 0.5 * mc["limit"]
-    assert s["trapped"] is False and s["contact_nodes"] == 0
-    assert theta[raise_end] < 0.5 * np.nanmax(theta)  # the raise peeled the contact back
-    assert lowest_rim >= deepest_rim(p.ball_radius_mm, p.tube.height_mm)  # within the tube
-    assert c["min"] > 0 and not c["touched"]  # the bottle is never touched
-    assert s["largest_stretch"]["path_max_lambda_theta"] < 6.0  # within latex's damage stretch
+    names = [name for name, *_ in p.named_bodies()]
+    rim = p.tube_rim_z + ds["body_z"].values[:, names.index("tube wall")]
+    print(f"headline (method2.yaml): trapped {s['trapped']}; theta_max {s['theta_max']:.3f}, "
+          f"rbar_max {s['rbar_max']:.3f}; lowest rim {rim.min() * p.ball_radius_mm:.1f} mm "
+          f"(table {p.table_z_mm():.1f} mm); largest stretch "
+          f"{s['largest_stretch']['path_max']:.2f}; energy "
+          f"{s['energy_balance']['relative_residual']:.2e}")
+    assert s["status"] == "ok" and s["trapped_unknown_reasons"] == []
+    assert s["trapped"] is True and s["end_at_rest"]
+    assert 1.8 < s["theta_max"] < 2.3 and 0.8 < s["rbar_max"] < 1.0
+    assert abs(s["ball_reaction_end"]) < sc.numerics.trap_reaction_tol and s["ball_z_end"] >= 0
+    assert np.all(ds["body_z"].values[:, names.index("bottle")] == 0.0)  # the bottle at rest
+    assert next(b for b in s["bodies"] if b["name"] == "bottle")["touched"]
+    assert rim.min() * p.ball_radius_mm > p.table_z_mm()
+    assert s["largest_stretch"]["past_damage"] and s["largest_stretch"]["path_max"] > 6.0
+    assert s["energy_balance"]["relative_residual"] < 0.02
 
 
 # --------------------------------------------------------- a formed pocket (N = 20), shared

@@ -468,7 +468,7 @@ def test_let_go_method2_traps_the_ball(tmp_path, scenarios_dir):
                     "theta_max",
                     "rbar_max",
                     "opening_radius",
-                    "rest_state_check",
+                    "lip",
                     "largest_stretch",
                     "mu_mobilised_max",
                     "energy_balance",

@@ -129,15 +129,19 @@ def test_a_run_not_at_rest_says_so_in_words():
     words = rest_words(p, ds, result, at_rest=False)
     assert words.startswith("NOT AT REST") and "'rest'" in words and "time limit" in words
     assert "-0.11" in words and "-0.31" in words
+    # a stage that ended at its time limit before its condition: trapped has no answer
     summary = {
         "status": "ok",
-        "trapped": False,
+        "trapped": None,
+        "trapped_unknown_reasons": ["stage 'rest' ended at its time limit (t = 6 s) before "
+                                    "its condition (until: rest)"],
         "end_at_rest": False,
         "end_at_rest_says": words,
         "theta_max": 1.8,
         "rbar_max": 0.9,
     }
-    assert "not at rest" in outcome_words(summary)
+    words = outcome_words(summary)
+    assert words.startswith("trapped unknown: stage 'rest' ended at its time limit"), words
     p, ds, result = _stage_run(met_last=True)
     assert rest_words(p, ds, result, at_rest=True).startswith("at rest")
 

@@ -86,6 +86,9 @@ PER_TIME = {
     "ball_reaction_static": ("1", "the hold's force on the ball net of drag (the sheet's drag "
                              "forces and the ball's own): the reaction a support would carry at "
                              "rest, + along +z (the applied force once released)", "G*h0*R"),
+    "clamp_force_static": ("1", "axial force the clamp exerts on the sheet net of the sheet's "
+                           "drag (what the sheet's shape alone asks of it), + along +z",
+                           "G*h0*R"),
     "theta_max": ("1", "largest polar angle in contact", None),
     "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
     "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),

@@ -159,6 +159,8 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     # rest would carry (a stop rule reads it, so a slack span's drag does not end a stage)
     drag_z = jnp.sum(jnp.where(moving, eta_a * u[1], 0.0))
     f_static = jnp.where(held, f_hold - args.ball_drag * vb + drag_z, fb)
+    # the clamp's axial force net of the same drag: what the sheet's shape alone asks of it
+    cz_static = jnp.where(held_edge, cz - drag_z, cz)
     d_fric = d_fric + jnp.where(band, (-g_z[-1] - s_band) * w_band, 0.0)
     w_clamp = cz * (v[1, -1] - w_band) + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
@@ -182,6 +184,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
         "clamp_force_rho": crho,
         "ball_reaction": f_hold,
         "ball_reaction_static": f_static,
+        "clamp_force_static": cz_static,
         "ball_v": vb,
         "zc": z[-1],
         "rhoc": rho[-1],

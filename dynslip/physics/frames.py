@@ -70,6 +70,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         "ball_z": zb,
         "ball_reaction": aux["ball_reaction"],
         "ball_reaction_static": aux["ball_reaction_static"],
+        "clamp_force_static": aux["clamp_force_static"],
         "ball_velocity": aux["ball_v"],
         "theta_max": theta_max,
         "rbar_max": rbar_max,

@@ -117,7 +117,9 @@ class Duration(AbstractStop):
 
 
 class ClampForceBelow(AbstractStop):
-    """Ends when the magnitude of the clamp's axial force falls below ``force`` (G h0 R)."""
+    """Ends when the magnitude of the clamp's axial force, net of the sheet's drag (the frame's
+    ``clamp_force_static``: a clamp moving a free sheet carries its drag, which is no pull of
+    the pocket), falls below ``force`` (G h0 R)."""
 
     duration: float
 
@@ -136,7 +138,7 @@ class ClampForceBelow(AbstractStop):
         return None
 
     def check(self, frame, t, state):
-        return bool(abs(float(frame["clamp_force"])) < self.force), state
+        return bool(abs(float(frame["clamp_force_static"])) < self.force), state
 
     def scaled(self, factor):
         return ClampForceBelow(force=self.force, duration=self.duration * factor)
