@@ -27,7 +27,7 @@ BAND = SCENARIOS / "method2_band.yaml"
         ("physics.tube.height_mm", 0.0, ("height_mm",)),
         ("physics.tube.mu", -0.1, ("mu",)),
         ("physics.band_grip_N_per_mm", -1.0, ("band_grip_N_per_mm",)),
-        ("physics.tube", None, ("clamp: band", "physics.tube")),
+        ("physics.tube", None, ("tube_velocity_mm_s", "allowed only with physics.tube")),
         ("physics.stages.3.force_threshold_N", None, ("ball_reaction_below", "force_threshold_N")),
         ("physics.stages.3.ball", "support", ("ball_reaction_below", "ball: hold")),
     ],
