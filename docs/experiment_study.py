@@ -184,6 +184,34 @@ def study_release(only: str | None) -> None:
         print(key, "done", flush=True)
 
 
+def _crit_pm(w: dict) -> str:
+    """The critical mu_s at each N with its half bracket, ``150: 1.39 +- 0.02; 200: ...``."""
+    crit = w.get("critical_mu") or {}
+    if "value" in crit:
+        crit = {str(w.get("resolution_check", {}).get("nodes", "")): crit}
+    if not crit:
+        return "none in [0.4, 2.0]"
+    return "; ".join(f"{n}: {c['value']:.2f} +- {c['err']:.2f}" if c else f"{n}: none"
+                     for n, c in crit.items())
+
+
+def answer_table() -> None:
+    """The README's answer: critical mu_s per path and material, and the measured friction's
+    answer, with the commit the study ran at."""
+    data = _load()
+    print("| path | material | critical mu_s at N (mu_k tied, ratio 0.83) | trapped at the "
+          "measured 0.99 / 0.82 |")
+    print("|---|---|---|---|")
+    for key, row in data.get("jm", {}).items():
+        path, mat = key.split(" | ")
+        m = row["measured"]
+        trapped = {True: "**yes**", False: "no", None: "unknown"}[m["trapped"]]
+        print(f"| {path} | {mat} | {_crit_pm(row['window']['window'])} | {trapped} |")
+    commits = sorted({r["window"]["commit"] for r in data.get("jm", {}).values()})
+    print(f"\nMeasured at {', '.join(commits)} by `python docs/experiment_study.py jm` "
+          "(each row's command: docs/experiment.md).")
+
+
 def _crit(w: dict) -> str:
     """The critical mu_s per N of a window.json (``--nodes``: ``critical_mu`` maps N to
     ``{value, err}``), and its extrapolation where the window search made one, as text."""
@@ -227,11 +255,11 @@ def table() -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=["jm", "depth", "release", "table"])
+    ap.add_argument("what", choices=["jm", "depth", "release", "table", "answer"])
     ap.add_argument("--only", default=None, help="run only the cases whose key contains this")
     a = ap.parse_args(argv)
-    {"jm": study_jm, "depth": study_depth, "release": study_release}.get(
-        a.what, lambda _: table())(a.only)
+    {"jm": study_jm, "depth": study_depth, "release": study_release,
+     "answer": lambda _: answer_table()}.get(a.what, lambda _: table())(a.only)
     return 0
 
 

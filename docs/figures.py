@@ -84,7 +84,6 @@ class Run:
 
 RUNS = {
     "method2": Run("scenarios/method2.yaml"),
-    "method2_n30": Run("scenarios/method2.yaml", {"numerics.nodes": 30}),
     "method2_pinned": Run("scenarios/method2_pinned.yaml"),
     "method2_let_go": Run("scenarios/method2_let_go.yaml", {"numerics.save_interval_s": 0.5}),
     "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
@@ -123,14 +122,14 @@ FIGURES = {
         "method2", "dynslip run scenarios/method2.yaml (DIR/world.png)", "copy_world"
     ),
     "state_map_tube_wall_method2.png": Figure(
-        "method2_n30",
-        "dynslip run scenarios/method2.yaml --set numerics.nodes=30; "
+        "method2",
+        "dynslip run scenarios/method2.yaml; "
         "dynslip fronts DIR/trajectory.nc --body 'tube wall' (DIR/state_map_tube_wall.png)",
         "body_state_tube_wall",
     ),
     "animation_frame_method2_bodies.png": Figure(
-        "method2_n30",
-        "dynslip run scenarios/method2.yaml --set numerics.nodes=30; "
+        "method2",
+        "dynslip run scenarios/method2.yaml; "
         "dynslip.plot.animate.save_frame_png(DIR / 'trajectory.nc', PATH, time=<widest contact>, "
         "bodies=dynslip.app.drawn.drawn_bodies_at(DIR / 'trajectory.nc'))",
         "animation_frame_bodies",
@@ -414,7 +413,19 @@ def make_run(name: str, runs_dir: Path, fast: bool, reuse: bool) -> Path:
     r = RUNS[name]
     scn = dynslip.load(ROOT / r.scenario, set=r.fields(fast))
     print(f"  {r.command(fast)} --out {out}", flush=True)
-    dynslip.run(scn, out=out, force=True)
+    try:
+        dynslip.run(scn, out=out, force=True)
+    except dynslip.ComputationError as err:
+        kept = getattr(err, "dynslip_kept", None)
+        if kept is None or "trapped: unknown" not in str(err):
+            raise
+        # a run whose answer is unknown (a --fast mesh that does not resolve a body) still
+        # draws: its figures say so in their titles
+        import shutil
+
+        shutil.rmtree(out, ignore_errors=True)
+        Path(kept).rename(out)
+        print(f"  (trapped unknown: {str(err)[:120]}...)", flush=True)
     return out
 
 
