@@ -198,8 +198,8 @@ TABLES: dict[str, Table] = {
 
 #: tables of the docs with digits that are not measured: (file, header row) -> why
 REFERENCE: dict[tuple[str, str], str] = {
-    ("README.md", "| command | what it does |"): "the commands, a reference",
-    ("README.md", "| file | what |"): "the shipped scenarios and what each sets",
+    ("docs/guide.md", "| command | what it does |"): "the commands, a reference",
+    ("docs/guide.md", "| file | what |"): "the shipped scenarios and what each sets",
     ("docs/bodies.md", "| | ball (`ball`) | held bodies (`bodies`) |"):
         "what the solver supports, a reference",
     ("docs/experiment.md", "| part | size | source |"):
