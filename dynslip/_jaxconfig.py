@@ -92,7 +92,7 @@ def configure_runtime() -> Path | None:
 
     # Equinox's runtime checks (eqx.error_if inside diffrax/lineax) are host callbacks by
     # default, and JAX never writes executables with host callbacks to the persistent cache:
-    # the segment solve was recompiled by every process. With "nan" a failed check poisons
+    # the segment solve would be recompiled by every process. With "nan" a failed check poisons
     # the result instead, which the driver reports as a non-finite state (exit 3). Read when
     # equinox is imported.
     os.environ.setdefault("EQX_ON_ERROR", "nan")

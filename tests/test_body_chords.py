@@ -324,24 +324,6 @@ def test_the_end_table_warns_of_a_held_body_not_resolved():
     assert unresolved_body_words("tube wall", dict(c, resolved=True), 0.1, 50) is None
 
 
-def test_prepare_compiles_what_a_frame_check_runs():
-    """``chords.prepare`` (run while the step compiles) compiles the very search a run's check of
-    a frame then calls: the check after it compiles nothing more, and a mesh of another size
-    would (the warm-up is for the run's own mesh)."""
-    from dynslip.physics.bodies.chords import _profile_chords, prepare
-
-    n = 13  # a mesh size no other test of this module uses
-    bodies = [POST, RING]
-    prepare(bodies, n)
-    size = _profile_chords._cache_size()
-    th = np.linspace(0.1, 1.4, n)
-    for body in bodies:
-        deepest_chord_in(body, 1.0 + 0.2 * np.cos(th), 0.2 * np.sin(th), 0.0)
-    assert _profile_chords._cache_size() == size
-    deepest_chord_in(POST, np.linspace(0.0, 2.0, n + 1), np.zeros(n + 1), 0.0)
-    assert _profile_chords._cache_size() == size + 1
-
-
 def test_a_frame_searched_again_is_taken_from_the_last_frames_searched():
     """The summary's check of a trajectory takes each frame the run's check searched
     (``chords._SEEN``, by the frame's exact values): the same depths as a fresh search; a frame

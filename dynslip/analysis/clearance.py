@@ -23,8 +23,7 @@ import xarray as xr
 from dynslip.data.trajectory import body_shift
 from dynslip.physics.bodies.base import AbstractProfileBody, padded_profile, project_profile
 
-__all__ = ["body_contacts", "body_overlaps", "clearance", "contact_extent", "overlap_tolerance",
-           "prepare"]
+__all__ = ["body_contacts", "body_overlaps", "clearance", "contact_extent", "overlap_tolerance"]
 
 
 @functools.lru_cache(maxsize=64)
@@ -38,19 +37,8 @@ def _distance_fn(body):
 def _profile_distance(arrays, x, z):
     """One frame's (node,) distance to a profile body given by its padded arrays (traced), the
     body at ``z``: one compile for every profile body and mesh size, whatever the number of
-    frames (:func:`~dynslip.physics.bodies.base.padded_profile`), which :func:`prepare` makes
-    while the run's step compiles."""
+    frames (:func:`~dynslip.physics.bodies.base.padded_profile`)."""
     return project_profile(arrays, x, z).distance
-
-
-def prepare(bodies, nodes: int) -> None:
-    """Compile the distance of a frame of ``nodes`` nodes to each profile body of ``bodies``
-    (what the summary's :func:`body_contacts` then runs: a run's app layer calls it while the
-    step compiles, :func:`dynslip.physics.simulate.compile_step`)."""
-    x, z = np.zeros((nodes, 2)), np.float64(0.0)  # as the frames give them (not weakly typed)
-    for b in bodies:
-        if isinstance(b, AbstractProfileBody):
-            np.asarray(_profile_distance(padded_profile(b), x, z))
 
 
 def _distance(bodies, x, z) -> np.ndarray:

@@ -8,10 +8,10 @@ $r = N_2/N_1 = N_3/N_2$, Richardson extrapolation with the *measured* order
 $$p = \frac{\ln|(\mu_2-\mu_1)/(\mu_3-\mu_2)|}{\ln r},\qquad
   \mu_\infty = \mu_3 + \frac{\mu_3-\mu_2}{r^p-1},$$
 
-is applied only when the three values are monotone (otherwise the order is not
-measurable and the result is flagged ``extrapolable: false``); its uncertainty is
-$|\mu_\infty - \mu_3|$ plus the search's own half-bracket at $N_3$. "Converged" (issue
-11) means each of the two refinements moves $\mu_c$ by at most ``tol`` (0.02).
+is applied only when the three values are monotone (otherwise the order is not measurable and
+the result is flagged ``extrapolable: false``); its uncertainty is $|\mu_\infty - \mu_3|$ plus
+the search's own half-bracket at $N_3$. "Converged" means each of the two refinements moves
+$\mu_c$ by at most ``tol`` (0.02).
 """
 
 from __future__ import annotations

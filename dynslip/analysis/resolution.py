@@ -47,7 +47,7 @@ def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:
     ball and reads "not trapped". The pole node lies on the axis, which the ball fills from
     ``zb - 1`` to ``zb + 1``, so a pole that changes sides of the ball's centre has passed
     through it: that counts as depth 1 at the first frame on the other side
-    (``pole_crossed_ball``). ``body``: the ball's body (None: the unit ball, today's closed
+    (``pole_crossed_ball``). ``body``: the ball's body (None: the unit ball, in closed
     form; any other body by :func:`dynslip.physics.bodies.chords.chord_depths`)."""
     rho, z, zb, times, rbar = (ds[v].values for v in ("rho", "z", "ball_z", "time", "rbar"))
     depth, k, crossed = deepest_chord(rho, z, zb, np.sign(z[0, 0] - zb[0]), body)
@@ -97,10 +97,10 @@ def body_chord_check(ds: xr.Dataset, entries, limit: float, length_mm: float) ->
     ``resolved``: every *relative* depth at most ``limit``, the scale-free form of the ball's
     test (an element spans at most 2 arccos(1 - limit) of any arc): a rim thinner than twice
     the limit is judged on its own radius. Reported, not enforced: the run's stop rule
-    (``member.MemberRun._settle``) stays on the absolute depth, because the main job at
-    its default mesh (N = 50) crosses the tube's rounded rim with one element (relative depth
-    1) and would stop (docs/bodies.md, "The mesh check against every body"). No pole crossing:
-    that is the ball's (:func:`chord_check`)."""
+    (:func:`dynslip.physics.meshcheck.held_unresolved`) stays on the absolute depth, because
+    the main job at its default mesh (N = 50) crosses the tube's rounded rim with one element
+    (relative depth 1) and would stop (docs/bodies.md, "The mesh check against every body").
+    No pole crossing: that is the ball's (:func:`chord_check`)."""
     rho, z, times, rbar = (ds[v].values for v in ("rho", "z", "time", "rbar"))
     out = {}
     for k, (name, body, with_ball) in enumerate(entries):

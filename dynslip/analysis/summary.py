@@ -317,7 +317,7 @@ def contact_extent(ball, frame, theta_max: float) -> float:
 
 def trap_check(ball, frame, theta_max: float) -> dict:
     """Whether the end state's contact reaches past the ball's trapped threshold
-    (:func:`trap_criterion`): for the unit ball exactly today's theta_max > pi/2."""
+    (:func:`trap_criterion`): for the unit ball exactly theta_max > pi/2."""
     crit = trap_criterion(ball)
     s_max = contact_extent(ball, frame, theta_max)
     thr = float(crit.threshold())

@@ -33,7 +33,7 @@ def drawn_bodies(ds) -> dict | None:
         ball = p.ball_body()
         held = [(name, np.asarray(body.outline()), body_shift(ds, k, bool(with_ball)))
                 for k, (name, body, with_ball) in enumerate(p.named_bodies())]
-    except (KeyError, TypeError, ValueError, AttributeError):  # an older file: drawn as before
+    except (KeyError, TypeError, ValueError, AttributeError):  # no scenario this version validates
         return None
     unit = isinstance(ball, Sphere) and ball.is_unit
     return {"ball": None if unit else np.asarray(ball.outline()), "held": held}

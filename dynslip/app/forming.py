@@ -1,14 +1,14 @@
 """Runner of ``kind: forming`` scenarios: core objects, progress bar, trajectory.nc, summary,
 figures.
 
-The CLI hands :func:`run_forming` its staging folder and swaps it in on success. The
-trajectory is rewritten (atomically, ``complete = 0``) every ``FLUSH_FRAMES`` frames, so a run
-killed outright leaves a readable partial file, and a run whose final write fails (a full disk)
-keeps the last one (tests/test_faults.py); an interrupted run (SIGINT, SIGTERM, any error)
-writes what it has before it stops, and a failed run writes what it has and raises
+The CLI hands :func:`run_forming` its staging folder and swaps it in on success. The trajectory
+is rewritten (atomically, ``complete = 0``) every ``FLUSH_FRAMES`` frames, so a run killed
+outright leaves a readable partial file, and a run whose final write fails (a full disk) keeps
+the last one (tests/test_faults.py); an interrupted run (SIGINT, SIGTERM, any error) writes what
+it has before it stops, and a failed run writes what it has and raises
 :class:`dynslip.errors.ComputationError` (exit 3). By frames, not by wall time: the main job's
-three partial writes cost about 0.6 s of its cold run, but a short run's earlier flush is what
-a failed final write keeps (docs/speed.md, "fifth session").
+three partial writes cost about 0.6 s of its cold run, but a short run's earlier flush is what a
+failed final write keeps (docs/speed.md).
 """
 
 from __future__ import annotations
@@ -276,7 +276,7 @@ def finish(sc, model, result, outs: Outputs, names, start_info=None) -> dict:
 
 
 def _drawn_ball(ball):
-    """The ball's body for the figures: None for the unit sphere (drawn as today's circle)."""
+    """The ball's body for the figures: None for the unit sphere (drawn as a circle)."""
     from dynslip.physics.bodies import Sphere
 
     return None if isinstance(ball, Sphere) and ball.is_unit else ball

@@ -189,17 +189,6 @@ def provenance(scenario_json: str, kind: str) -> dict:
     }
 
 
-def import_writers() -> None:
-    """Import what writing a trajectory imports on first use: the netCDF library, the units
-    library of :func:`check_units` with its registry, and the dask and distributed modules that
-    xarray's ``to_netcdf`` looks up for a scheduler (0.3 s of them). A warm-up: a run calls it
-    while its step compiles (:mod:`dynslip.app.warmup`)."""
-    import dask.distributed  # noqa: F401
-    import netCDF4  # noqa: F401
-
-    _units()
-
-
 @functools.lru_cache(maxsize=1)
 def _units():
     """pint's unit registry, built once (0.15 s: its definitions parsed)."""

@@ -52,7 +52,7 @@ def _values(ds: xr.Dataset, name: str, k: int) -> np.ndarray:
     if name == "stuck":
         return (state_array(ds)[k] == STUCK).astype(np.int32)
     if name not in ds:
-        return np.zeros(ds.sizes["rbar"])  # e.g. slip_distance of an earlier trajectory
+        return np.zeros(ds.sizes["rbar"])  # a field the file lacks (e.g. slip_distance)
     return np.asarray(ds[name].transpose("time", "rbar").values[k], dtype=float)
 
 

@@ -54,7 +54,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     theta_max = jnp.where(any_c, jnp.max(jnp.where(contact, theta_all, -jnp.inf)), jnp.nan)
     rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
     slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
-    # per held body (none without: the ball's frame as before)
+    # per held body (none without held bodies: the ball's fields alone)
     g_rho, g_z, _ = aux["kin"]["grads"]
     per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
                                 args.drag, args.eps, contact_threshold,

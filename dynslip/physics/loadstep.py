@@ -1,10 +1,10 @@
 r"""Quasi-static load stepping on the whole state: implicit Euler increments controlled by Newton's
 iteration count.
 
-Since issue 23 ``numerics.solver: load_step`` runs :mod:`dynslip.physics.newton` (Newton on
-the motion alone); this module is the full-state Newton it replaced, kept as the physics-only
-choice ``load_step_full`` (:class:`FullStateLoadStep`), the baseline of
-``benchmarks/speed.py``, and for its increment loop over any diffrax term (:func:`increments`).
+``numerics.solver: load_step`` runs :mod:`dynslip.physics.newton` (Newton on the motion
+alone). This module is Newton on the whole state: :class:`FullStateLoadStep`, a solver object
+given as ``Settings.solver`` (no schema choice names it; the baseline of the tests and of
+``benchmarks/speed.py``), and its increment loop over any diffrax term (:func:`increments`).
 
 The forming path is slow loading of a rate-independent problem (stages of 10-90 s
 against a drag time $\tau = \eta R^2/(G h_0) = 0.1$ s). Implicit Euler on the overdamped law
@@ -226,13 +226,13 @@ def load_step_solver(
 
 
 class FullStateLoadStep(eqx.Module):
-    """The segment solver of this module (``load_step_full``): load increments of the sheet by
-    :class:`LoadStepEuler` (Newton on the whole state) at most ``max_steps`` per segment, at
-    most ``newton_max_iter`` Newton corrections each, ``newton_backtrack`` halvings
-    (:class:`DampedNewton`),
-    ``linear_solver`` ``"structured"`` or ``"dense"``, increments bounded by
-    :func:`increment_cap`, the friction law's healing (``heal_rate``) after every increment.
-    ``max_increment`` and ``max_increment_free`` may be traced (a test sweeps them)."""
+    """The segment solver of this module (a ``Settings.solver`` object): load increments of the
+    sheet by :class:`LoadStepEuler` (Newton on the whole state) at most ``max_steps`` per
+    segment, at most ``newton_max_iter`` Newton corrections each, ``newton_backtrack`` halvings
+    (:class:`DampedNewton`), ``linear_solver`` ``"structured"`` or ``"dense"``, increments
+    bounded by :func:`increment_cap`, the friction law's healing (``heal_rate``) after every
+    increment. ``max_increment`` and ``max_increment_free`` may be traced (a test sweeps
+    them)."""
 
     max_steps: int = eqx.field(static=True, default=20000)
     newton_max_iter: int = eqx.field(static=True, default=20)

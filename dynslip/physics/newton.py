@@ -1,4 +1,4 @@
-r"""Load increments by Newton on the motion alone (issue 23).
+r"""Load increments by Newton on the motion alone.
 
 The same implicit Euler increment as :mod:`dynslip.physics.loadstep`,
 $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
@@ -31,10 +31,11 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   active-set choice of contact solvers (Hueber, Stadler and Wohlmuth 2008), where the law's form
   decides by the force alone and a stiff sheet's forces swing the edge nodes across their
   threshold from one iteration to the next. On the frozen let-go path it cut the Newton
-  iterations 2x at N = 50 and 5-6x at N = 200-800 (docs/speed.md, 2026-12-06).
+  iterations 2x at N = 50 and 5-6x at N = 200-800 (docs/speed.md).
 - **Energy accumulators by quadrature.** After an increment is accepted, the work and
   dissipation rates of :func:`dynslip.physics.field.evaluate` at $x_1$ times $\Delta t$ (the
-  rectangle rule at the increment's end: exactly what the implicit accumulators gave).
+  rectangle rule at the increment's end: exactly what :mod:`dynslip.physics.loadstep`'s
+  implicit accumulators give).
 - **Jacobian from element and node derivatives.** Per element, the value, gradient and
   Hessian of its energy in its four coordinates (``vmap`` of ``jacfwd`` of ``grad``); per
   node, the penalty's, and the Jacobian of the node's rate in its own position (``vmap`` of
@@ -52,13 +53,13 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
 - **Convergence.** The last correction below ``atol + rtol |x|`` and the residual's max norm
   below ``atol``; or (the *residual floor*, ``floor_factor``) Newton's full correction below
   ``atol + rtol |x|`` for ``floor_count`` iterations running and the residual below
-  ``floor_factor atol``. Traced on the main job when its Newton matrix still left out the free
-  ball's coupling to the rest of the sheet (now exact:
-  :func:`dynslip.physics.newton_matrix.blocks_with_held_friction`): in the z rows of the sheet's
-  edge nodes on the tube and the band, Newton's corrections fell far below the step tolerance
-  while the residual stayed at 2-10 ``atol``, until the increment was cut. A bounded
+  ``floor_factor atol``. For a Newton matrix that is not exact: on the main job with the free
+  ball's coupling to the rest of the sheet left out of it (exact in
+  :func:`dynslip.physics.newton_matrix.blocks_with_held_friction`), in the z rows of the
+  sheet's edge nodes on the tube and the band, Newton's corrections fall far below the step
+  tolerance while the residual stays at 2-10 ``atol``, until the increment is cut. A bounded
   relaxation of the test: the let-go end states move by at most 1.2e-7 rad (docs/speed.md);
-  ``floor_factor = 0`` gives the old test.
+  ``floor_factor = 0`` gives the strict test.
 - **Increment size.** Grown by 1.5 after at most ``grow_below`` iterations, shrunk by 0.7 after
   at least ``shrink_above``, halved on a failure; with ``fail_cap`` the increments that follow a
   failure within a segment are held to at most ``fail_cap`` times the failed size, a bound
@@ -77,11 +78,9 @@ Hessian blocks) in :mod:`dynslip.physics.terms`; the increment's data and residu
 :mod:`dynslip.physics.increment`; its Newton matrix (and the free held bodies' system) in
 :mod:`dynslip.physics.newton_matrix`; here the increment's loop and the segment's.
 
-Longer than 400 lines: the increment's Newton loop (predictor, one residual call site,
-backtracking, the residual floor) and the segment's loop with its
-increment controller are one algorithm, documented here as one. The cut worth making, not yet
-made: the increment controller (:meth:`MotionNewton.next_size`, :func:`increment_cap`) to a
-module of its own.
+The increment's Newton loop (predictor, one residual call site, backtracking, the residual
+floor) and the segment's loop with its increment controller are one algorithm, documented here
+as one.
 """
 
 from __future__ import annotations
@@ -242,7 +241,7 @@ class MotionNewton(eqx.Module):
         # The loop's first pass evaluates the residual at the predictor (its correction is 0,
         # its trial accepted whatever the residual), and each pass ends with the next
         # correction, so the residual has one call site: each is compiled anew (about 10% of
-        # the world's step). ``it`` counts the corrections, as before.
+        # the world's step). ``it`` counts the corrections (the predictor's pass is not one).
         def body(c):
             q, zb, r_q, r_z, it, _, _, small, state, dq, dz, first = c
             f0 = jnp.where(first, jnp.inf, size(r_q, r_z))

@@ -268,8 +268,8 @@ def StopRule(
     rate: float = 0.0,
     hold: float = 0.0,
     angle: float = 0.0,
-) -> AbstractStop:  # noqa: N802 - the old class's name
-    """The stop rule of a ``kind`` (the schema's ``until``), from the old flat constructor:
+) -> AbstractStop:  # noqa: N802 - named as the stop classes it builds
+    """The stop rule of a ``kind`` (the schema's ``until``), from flat parameters:
     the fields the kind does not use are ignored. ``"duration"`` (after ``duration``),
     ``"clamp_force_below"`` (``force``, G h0 R), ``"theta_max_below"`` (``angle``, rad),
     ``"ball_speed_above"`` (``rate``, R/s) or ``"rest"`` (``rate``, R/s, for ``hold`` s);

@@ -215,7 +215,7 @@ class SheetModel(eqx.Module):
     last node at the clamp. ``zb`` is the ball centre height.
 
     ``ball`` is the moving body (an :class:`~dynslip.physics.bodies.base.AbstractBody` in its
-    reference placement, displaced by ``zb``; the unit sphere by default: today's results);
+    reference placement, displaced by ``zb``; the unit sphere by default, in closed form);
     ``bodies`` the held obstacles (a tuple, at their reference placements): a bare body
     (frictionless) or a :class:`~dynslip.physics.bodies.held.Held` carrying its own friction
     law. A node feels every body it penetrates with the same penalty; the run's friction law

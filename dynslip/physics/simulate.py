@@ -1,7 +1,7 @@
 r"""The diffrax driver of the whole-sheet forming model.
 
-State vector (flat, float64; :class:`Layout` names the slices so that later issues can
-append, e.g. a per-node slip distance):
+State vector (flat, float64; :class:`Layout` names the slices, and holds those after the
+accumulators: the friction laws' per-node state and the free held bodies' heights):
 
 - ``rho[1:N-1]`` and ``z[0:N-1]`` of the free nodes (the pole's $\rho_0 = 0$; node
   $N-1$ is moved by the clamp);
@@ -75,9 +75,8 @@ CACHE_SIZE = 8
 #: main job's 8.8 -> 7.0 s of XLA, the let-go path's 6.5-7.2 -> 3.8-4.5 s) and runs up to about
 #: 15% slower at 400 and 800 nodes (the same at 50-200, within the noise), so a small mesh's
 #: run, which its compile dominates, takes them and a large one keeps XLA's defaults
-#: (docs/speed.md, "fifth session"). By the mesh alone, so a run and a batch of the same mesh
-#: compile alike and their iterates agree. A jaxlib that does not know an option compiles with
-#: its defaults.
+#: (docs/speed.md). By the mesh alone, so a run and a batch of the same mesh compile alike and
+#: their iterates agree. A jaxlib that does not know an option compiles with its defaults.
 COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
 FAST_COMPILE_NODES = 200
 #: ... and for a larger mesh: XLA's own default, asked for because the package turns the fusion

@@ -1,7 +1,7 @@
-"""The state map of one held body (issue 21 item 6): each node's contact and slip state relative
-to the body (free, stuck, slipping toward decreasing or increasing s, touching a frictionless
-body; :mod:`dynslip.physics.bodies.observe`) against time and material radius, beside the
-contact's extent in the body's surface coordinate s. ``dynslip fronts TRAJ --body NAME``."""
+"""The state map of one held body: each node's contact and slip state relative to the body
+(free, stuck, slipping toward decreasing or increasing s, touching a frictionless body;
+:mod:`dynslip.physics.bodies.observe`) against time and material radius, beside the contact's
+extent in the body's surface coordinate s. ``dynslip fronts TRAJ --body NAME``."""
 
 from __future__ import annotations
 

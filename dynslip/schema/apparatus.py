@@ -2,7 +2,7 @@
 bottle, each a set of held bodies with the sheet's Coulomb friction on it (docs/bodies.md).
 Physical units in the file (mm).
 
-Moved out of :mod:`dynslip.schema.forming` unchanged; ``forming`` re-exports both.
+:mod:`dynslip.schema.forming` re-exports both.
 """
 
 from __future__ import annotations

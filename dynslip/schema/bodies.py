@@ -1,5 +1,5 @@
-"""Schema of the rigid bodies of a forming scenario (issue 21): ``physics.bodies``, the held
-obstacles, and ``physics.ball``, the moving body's kind (docs/bodies.md).
+"""Schema of the rigid bodies of a forming scenario: ``physics.bodies``, the held obstacles, and
+``physics.ball``, the moving body's kind (docs/bodies.md).
 
 Lengths in the file are in mm; the core divides them by ``physics.ball_radius_mm`` (R, the
 length unit of the core: for a ball that is not a sphere, R is only the unit). Heights are
@@ -245,9 +245,9 @@ class BodySpec(_Shape):
 
 
 class BallSpec(Strict):
-    """The ball's kind (the moving body): a sphere of ``ball_radius_mm`` by default (today's
-    ball), or a disc (a coin). The length unit R stays ``ball_radius_mm``: for a disc R is only
-    the length unit (set it to the coin's radius). Its centre is the ball's height; the trapped
+    """The ball's kind (the moving body): a sphere of ``ball_radius_mm`` by default, or a
+    disc (a coin). The length unit R stays ``ball_radius_mm``: for a disc R is only the length
+    unit (set it to the coin's radius). Its centre is the ball's height; the trapped
     criterion and the mesh check follow its kind (docs/bodies.md)."""
 
     kind: Literal["sphere", "disc"] = F("sphere", description="sphere (radius_mm, default "
@@ -298,8 +298,9 @@ class BallSpec(Strict):
 
 
 def ball_core(ball: BallSpec | None, r: float):
-    """The core ball body (units of R): the unit :class:`Sphere` for the default (so every
-    floating-point operation is today's), else the sphere or disc of the spec."""
+    """The core ball body (units of R): the unit :class:`Sphere` for the default (the closed
+    forms of :mod:`dynslip.physics.sheet`, operation for operation), else the sphere or disc
+    of the spec."""
     from dynslip.physics.bodies import Sphere
 
     if ball is None or (ball.kind == "sphere" and ball.radius(r) == r):

@@ -4,11 +4,11 @@ Physical units in the file (mm, mm/s, s, N, MPa, um, g); the runner converts the
 nondimensional core (lengths by the ball radius R, forces by G h0 R, time in s).
 Heights are measured from the ball centre, upward. See docs/forming.md.
 
-Longer than 400 lines: one validated model per section of the forming scenario (physics,
-numerics, the scenario), each field with its bounds, unit and description, and the protocol
-the validated stages build. The stages are in :mod:`dynslip.schema.stages`, the tube and the
-bottle in :mod:`dynslip.schema.apparatus` (both re-exported here), the core protocol the stages
-build in :mod:`dynslip.schema.protocol` (:func:`build_protocol`, re-exported here).
+One validated model per section of the forming scenario (physics, numerics, the scenario), each
+field with its bounds, unit and description, and the protocol the validated stages build. The
+stages are in :mod:`dynslip.schema.stages`, the tube and the bottle in
+:mod:`dynslip.schema.apparatus` (both re-exported here), the core protocol the stages build in
+:mod:`dynslip.schema.protocol` (:func:`build_protocol`, re-exported here).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ __all__ = ["build_protocol", "clamp_enters_ball", "stop_rule"]
 
 def clamp_enters_ball(prot, ball) -> bool:
     """Whether the keyframed clamp path comes into the ball: within the unit distance of the
-    centre for the unit ball (today's check), else at a distance at most 0 from the ball's body
+    centre for the unit ball (closed form), else at a distance at most 0 from the ball's body
     along the straight segments between keyframes (sampled every 1e-3 of a segment)."""
     from dynslip.physics.bodies import Sphere
 

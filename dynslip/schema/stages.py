@@ -2,8 +2,8 @@
 motion, what holds the ball, the bodies moved by the stages, and when the stage ends), and the
 default method 2 path. Physical units in the file (mm, mm/s, s, N); docs/forming.md.
 
-Moved out of :mod:`dynslip.schema.forming` unchanged (issue 23's rooms: each section of the
-scenario in its own module); ``forming`` re-exports :class:`StageSpec`.
+Each section of the scenario has its own module; :mod:`dynslip.schema.forming` re-exports
+:class:`StageSpec`.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Reading the YAML of scenario and sweep files, and of ``--set`` values (issue 13).
+"""Reading the YAML of scenario and sweep files, and of ``--set`` values.
 
 - Files are read as UTF-8 text; a binary or non-UTF-8 file is bad input (one line).
 - A key given twice in one mapping is an error (PyYAML keeps the last one silently).

@@ -1,8 +1,8 @@
-"""Rigid axisymmetric bodies by meridian profile (issue 21), one kind a module: the signed
-distance, normal, tangent and surface coordinate of each (:mod:`.base`), the start-of-run
-checks (:mod:`.overlap`), the trapped criteria (:mod:`.trap`) and the penalty contact with
-every body (:mod:`.contact`) and the mesh check against any body (:mod:`.chords`).
-Lengths by the ball radius R."""
+"""Rigid axisymmetric bodies by meridian profile, one kind a module: the signed distance,
+normal, tangent and surface coordinate of each (:mod:`.base`), the start-of-run checks
+(:mod:`.overlap`), the trapped criteria (:mod:`.trap`) and the penalty contact with every body
+(:mod:`.contact`) and the mesh check against any body (:mod:`.chords`). Lengths by the ball
+radius R."""
 
 from dynslip.physics.bodies.base import (
     AbstractBody,

@@ -29,9 +29,9 @@ Its profile, from the top of the axis down the outside with the glass on the rig
 10. a convex fillet (``base_fillet_mm``) into
 11. the flat base, back to the axis.
 
-The fillets are tangent to both lines they join (they round the corners of the three bodies
-the bottle was before, which met at sharp edges and shared a face); a fillet too large for
-its lines is refused (:func:`check_bottle_fillets`, in mm).
+The fillets are tangent to both lines they join (the bottle is one body whose profile has no
+sharp edge between its neck, shoulder, cylinder and base); a fillet too large for its lines is
+refused (:func:`check_bottle_fillets`, in mm).
 
 The tube's wall hangs from its rim: the rim (the wall's end) at height $z_{\rm rim}$ (the
 clamp's height), the wall up to $z_{\rm rim} + H$. The tube is an open cylinder: its height is

@@ -16,7 +16,7 @@ jitted function is part of its signature, compiled for once, and not differentia
 **Signs.** ``distance`` is the signed distance from x to the body's surface, negative inside
 the solid; ``normal`` its gradient, the outward unit normal at the closest point; the tangent
 points toward increasing arc length ``s`` along the profile, and ``normal`` is the tangent
-turned counter-clockwise (:mod:`.segments`). The sheet's penetration of today's unit ball,
+turned counter-clockwise (:mod:`.segments`). The sheet's penetration of the unit ball,
 ``1 - |x - x_b|`` (:mod:`dynslip.physics.sheet`), is ``-distance``.
 
 The distance in the meridian plane is the distance in space: for $\rho \ge 0$ the nearest

@@ -58,7 +58,6 @@ __all__ = [
     "deepest_chord_in",
     "deepest_chords_in",
     "deepest_relative_chord_in",
-    "prepare",
     "relative_chord_depths",
 ]
 
@@ -183,16 +182,6 @@ def _per_frame(body: AbstractBody, rho, z, zpos):
     x = np.ascontiguousarray(x.reshape((-1, n, 2)))
     out = [_frame(body, xf, zf) for xf, zf in zip(x, zp, strict=True)]
     return tuple(np.stack([o[j] for o in out]).reshape(lead + (n - 1,)) for j in range(3))
-
-
-def prepare(bodies, nodes: int) -> None:
-    """Compile the chord search of each body of ``bodies`` for a mesh of ``nodes`` nodes (what
-    the first check of a run's frame would compile; :meth:`MemberRun.prepare
-    <dynslip.physics.member.MemberRun.prepare>` does it while the step compiles)."""
-    m = nodes - 1
-    a = np.zeros((m, 2))
-    for body in bodies:
-        np.asarray(_chord_fn(body)(a, a + 1.0, np.zeros(m))[0])
 
 
 def chord_depths(body: AbstractBody, rho, z, zpos) -> np.ndarray:

@@ -1,4 +1,4 @@
-r"""Contact of the sheet's nodes with every body: today's $C^2$ penalty of
+r"""Contact of the sheet's nodes with every body: the $C^2$ penalty of
 :mod:`dynslip.physics.sheet` applied to each body's signed distance.
 
 Node $i$ at $x_i$ penetrates body $k$ (displaced by $z_k$) by $\delta_{ik} = -d_k(x_i - z_k
@@ -13,7 +13,7 @@ $p$ :func:`~dynslip.physics.sheet.penalty_pressure`, exactly zero at a positive 
 body's outward normal. A node feels every body it penetrates; contact is detected by pressure,
 never by a gap. The force on body $k$ along the axis is $-\sum_i A_i p_{ik} n_{k,z}$, the
 derivative of the energy with respect to $z_k$. For the unit ball,
-$\delta = 1 - |x - x_b|$ and $n = (\sin\theta, \cos\theta)$: today's
+$\delta = 1 - |x - x_b|$ and $n = (\sin\theta, \cos\theta)$: exactly
 :meth:`~dynslip.physics.sheet.SheetModel.penetration` and ``frame``.
 
 Example::

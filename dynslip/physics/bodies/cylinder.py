@@ -1,8 +1,8 @@
 r"""A cylinder on the axis from ``z_bottom`` to ``z_top`` of ``radius``, solid or, with
 ``inner_radius`` $> 0$, a tube wall $r_i \le \rho \le r_o$ (open at both ends); its corners
 sharp (``edge_radius`` 0) or rounded to ``edge_radius``. A tube wall with
-``edge_radius = (radius - inner_radius)/2`` has fully rounded ends (a half torus: the rim of
-the tube of issue 22). Units of R.
+``edge_radius = (radius - inner_radius)/2`` has fully rounded ends (a half torus: the
+tube's rim, :mod:`dynslip.physics.bodies.apparatus`). Units of R.
 
 Profile: the top face from the axis (or the inner wall's top) outward, down the outer wall,
 the bottom face inward, and for a tube up the inner wall (a closed ring).

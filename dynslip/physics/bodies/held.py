@@ -1,4 +1,4 @@
-r"""Friction on the held bodies (issue 21 item 3): each held body carries its own law.
+r"""Friction on the held bodies: each held body carries its own law.
 
 A held body is an entry of :attr:`dynslip.physics.sheet.SheetModel.bodies`: a bare
 :class:`~.base.AbstractBody` (frictionless, the default) or a :class:`Held` pairing the body
@@ -40,12 +40,9 @@ $[(A_0 - B)/\eta_b, (A_0 + B)/\eta_b]$, $B = \sum \mu N|t_z|$. Solved by safegua
 (:func:`free_ball_velocity`), differentiated by the implicit function theorem (one Newton step
 from the stopped root).
 
-Longer than 400 lines: the held entry and its placement, the friction frame built on them
-(slip, force, the slopes the Newton matrix reads, dissipation, the slip distances' memory) and
-the ball's velocity that is the root of the frame's axial force are one mechanism, documented
-here as one. The cut worth making, not yet made: the root search (:func:`free_ball_velocity`)
-to a module of its own (its callers: :mod:`dynslip.physics.field` and
-:mod:`dynslip.physics.increment`).
+The held entry and its placement, the friction frame built on them (slip, force, the slopes
+the Newton matrix reads, dissipation, the slip distances' memory) and the ball's velocity that
+is the root of the frame's axial force are one mechanism, documented here as one.
 
 Example::
 

@@ -1,4 +1,4 @@
-r"""Observables per held body (issue 21 item 6): what a saved frame records of each entry of
+r"""Observables per held body: what a saved frame records of each entry of
 :attr:`dynslip.physics.sheet.SheetModel.bodies` (in order), besides the ball's own fields.
 
 Per body $k$ and node $i$, from the frame's positions, driving forces $F$ and ball velocity

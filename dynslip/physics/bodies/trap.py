@@ -3,12 +3,12 @@ body's surface coordinate $s$ (arc length along the profile from its start, unit
 
 A criterion gives a threshold $s^*$; the pocket traps when the contact reaches past it,
 $s_{max} > s^*$ (with the other conditions of a trap, slip stopped and the support's reaction
-gone, checked by the caller as today). :meth:`AbstractTrapCriterion.margin` is
+gone, checked by the caller). :meth:`AbstractTrapCriterion.margin` is
 $s_{max} - s^*$, positive when trapped.
 
-- :class:`PastEquator`, the ball's (today's ``theta_max > pi/2``, physics.md Section 4):
+- :class:`PastEquator`, the ball's (``theta_max > pi/2``, physics.md Section 4):
   $s^* = a\pi/2$ for a sphere of radius $a$, so for the unit ball $s = \theta$ and the
-  criterion is today's exactly.
+  criterion is ``theta_max > pi/2`` exactly.
 - :class:`PastEdgeMidHeight`, the coin's: the contact runs over the rounded corner and past
   the middle of the vertical edge, onto the half that faces the underside.
 - :class:`PastWidest`, any body's: past the middle of the profile's widest part (largest
