@@ -184,6 +184,37 @@ def study_release(only: str | None) -> None:
         print(key, "done", flush=True)
 
 
+def span_geometry(folder: Path) -> dict | None:
+    """The pocket's making, read off a run's trajectory: at the deepest push (the sheet's edge
+    lowest relative to the ball) the lip (theta_max, rbar_max), the free span's angle from the
+    axis where it leaves the lip (degrees; 0: hanging straight down) and the neck (the free
+    span's smallest radius below the ball, R); at the end, theta_max and rbar_max."""
+    import numpy as np
+    import xarray as xr
+
+    runs = [folder, *sorted(folder.parent.glob(folder.name + ".incomplete-*"))[-1:]]
+    f = next((r / "trajectory.nc" for r in runs if (r / "trajectory.nc").is_file()), None)
+    if f is None:
+        return None
+    with xr.open_dataset(f) as ds:
+        depth = ds["ball_z"].values - ds["z"].values[:, -1]
+        i = int(np.argmax(depth))
+        rho, z, zb = ds["rho"].values[i], ds["z"].values[i], float(ds["ball_z"].values[i])
+        state = ds["state"].values[i]
+        on = np.flatnonzero(state > 0)
+        out = {"deepest_theta_max": float(ds["theta_max"].values[i]),
+               "deepest_rbar_max": float(ds["rbar_max"].values[i])}
+        if on.size:
+            k = int(on[-1])
+            d = np.array([rho[k + 1] - rho[k], z[k + 1] - z[k]])
+            out["span_angle_deg"] = float(np.degrees(np.arctan2(abs(d[0]), -d[1])))
+            below = (np.arange(rho.size) > k) & (z < zb)
+            out["neck_rho"] = float(rho[below].min()) if below.any() else None
+        out["end_theta_max"] = float(ds["theta_max"].values[-1])
+        out["end_rbar_max"] = float(ds["rbar_max"].values[-1])
+    return out
+
+
 def _crit_pm(w: dict) -> str:
     """The critical mu_s at each N with its half bracket, ``150: 1.39 +- 0.02; 200: ...``."""
     crit = w.get("critical_mu") or {}
@@ -242,15 +273,18 @@ def table() -> None:
               f"{_f(m['largest_stretch'])} ({_f(m['largest_stretch_i1_uniaxial'])}) | "
               f"`{row['window']['command']}` |")
     print()
-    print("| push | material | trapped | theta_max | rbar_max | largest stretch (I1-uniaxial) | "
-          "command |")
+    print("| push | material | trapped | bottom: lip theta_max / rbar_max, span from the axis, "
+          "neck | end: theta_max / rbar_max | largest stretch (I1-uniaxial) | command |")
     print("|---|---|---|---|---|---|---|")
     for key, m in data.get("depth", {}).items():
         d, mat = key.split(" | ")
         trapped = {True: "yes", False: "no", None: "unknown"}[m["trapped"]]
-        print(f"| {d} | {mat} | {trapped} | {_f(m['theta_max'])} | {_f(m['rbar_max'])} | "
-              f"{_f(m['largest_stretch'])} ({_f(m['largest_stretch_i1_uniaxial'])}) | "
-              f"`{m['command']}` |")
+        g = span_geometry(OUT / _slug("d", int(d.split()[0]), mat)) or {}
+        bottom = (f"{_f(g.get('deepest_theta_max'))} / {_f(g.get('deepest_rbar_max'))}, "
+                  f"{_f(g.get('span_angle_deg'), '.0f')} deg, {_f(g.get('neck_rho'))} R")
+        print(f"| {d} | {mat} | {trapped} | {bottom} | {_f(m['theta_max'])} / "
+              f"{_f(m['rbar_max'])} | {_f(m['largest_stretch'])} "
+              f"({_f(m['largest_stretch_i1_uniaxial'])}) | `{m['command']}` |")
 
 
 def main(argv=None) -> int:

@@ -49,7 +49,7 @@ def test_band_scenario_builds_the_tube_and_the_grip():
     wall = tube.body
     r = 20.0
     np.testing.assert_allclose(wall.radius, 50.8 / r)
-    np.testing.assert_allclose(wall.edge_radius, 1.5 / r)
+    np.testing.assert_allclose(wall.edge_radius, 3.0 / r)  # the 6 mm wall, fully rounded
     np.testing.assert_allclose(wall.z_bottom, (20.0 + 0.4 + 0.2) / r)  # 0.2 mm above the sheet
     np.testing.assert_allclose(float(model.band_grip), 1.0)  # 0.1 N/mm over G h0 = 0.1 N/mm
     assert [s.clamp_mode for s in protocol.stages].count(CLAMP_BAND) == 5
