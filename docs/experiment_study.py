@@ -231,8 +231,9 @@ def _crit_pm(w: dict) -> str:
         crit = {str(w.get("resolution_check", {}).get("nodes", "")): crit}
     if not crit:
         return "none in [0.4, 2.0]"
+    items = sorted(crit.items(), key=lambda kv: int(kv[0]) if kv[0].isdigit() else 0)
     return "; ".join(f"{n}: {c['value']:.2f} +- {c['err']:.2f}" if c else f"{n}: none"
-                     for n, c in crit.items())
+                     for n, c in items)
 
 
 def _ordered(rows: dict) -> list:
@@ -266,7 +267,8 @@ def _crit(w: dict) -> str:
     crit = w.get("critical_mu") or {}
     if "value" in crit:  # one mesh size
         crit = {str(w.get("resolution_check", {}).get("nodes", "")): crit}
-    out = [f"{n}: {c['value']:.3f}" if c else f"{n}: none" for n, c in crit.items()]
+    items = sorted(crit.items(), key=lambda kv: int(kv[0]) if kv[0].isdigit() else 0)
+    out = [f"{n}: {c['value']:.3f}" if c else f"{n}: none" for n, c in items]
     ex = w.get("extrapolation") or {}
     if ex.get("extrapolable"):
         out.append(f"extrapolated {ex['value']:.3f} +- {ex['err']:.2g}")
