@@ -272,3 +272,33 @@ def test_a_sheet_pushed_onto_the_bottles_shoulder_stays_put_and_its_energy_close
     print(f"energy residual / work: {coarse:.3e} (5 drag times), {fine:.3e} (1)")
     # first order: 5 times smaller increments, about 5 times smaller residual (measured 4.9)
     assert coarse < 0.02 and 3.0 < coarse / fine < 7.0
+
+
+def test_the_sheet_letting_go_of_the_tube_is_a_named_event():
+    """Over a band stage the sheet's edge sliding past the tube's rim (below its lowest point,
+    where the band's wall ends) is the event 'sheet let go', at the first frame it happens,
+    with the tube where the stages moved it; an edge above the rim is none."""
+    from dynslip.analysis.summary import let_go_events
+    from dynslip.schema.base import load
+    from helpers import synthetic_trajectory
+
+    p = load(ROOT / "scenarios" / "method2.yaml").physics
+    names = [name for name, *_ in p.named_bodies()]
+    nt, nr = 6, 12
+    stage = np.array([0, 1, 1, 1, 2, 2])  # fold, push_down (band), hold (band)
+    ds = synthetic_trajectory(np.zeros((nt, nr), np.int8), stage=stage,
+                              stage_names=tuple(s.name for s in p.stages))
+    tube = np.array([0.0, -1.0, -2.0, -3.0, -3.0, -3.0])  # the tube moved down (R)
+    body_z = np.zeros((nt, len(names)))
+    body_z[:, names.index("tube wall")] = tube
+    rim = p.tube_rim_z + tube
+    edge = rim + 0.25  # on the outer wall, above the rim
+    z = ds["z"].values.copy()
+    z[:, -1] = edge
+    ds = ds.assign(z=(("time", "rbar"), z), body_z=(("time", "body"), body_z))
+    assert let_go_events(p, ds) == []
+    z[3:, -1] = rim[3:] - 0.01  # slid past the rim from frame 3
+    events = let_go_events(p, ds.assign(z=(("time", "rbar"), z)))
+    assert len(events) == 1 and events[0]["name"] == "sheet let go"
+    assert events[0]["time_s"] == float(ds["time"].values[3]) and events[0]["stage"] == "push_down"
+    assert events[0]["rim_z_mm"] == pytest.approx(rim[3] * p.ball_radius_mm)
