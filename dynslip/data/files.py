@@ -135,6 +135,11 @@ def signals_deferred():
     try:
         yield
     finally:
+        # a signal the kernel handed to another thread (JAX's) reaches its Python handler only
+        # when the main thread next checks: signal.signal() checks, so setting ``hold`` again
+        # lets such a pending one be caught here rather than run after ``caught`` is read
+        for s in previous:
+            signal.signal(s, hold)
         for s, handler in previous.items():
             signal.signal(s, handler)
         if caught:
