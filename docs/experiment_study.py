@@ -130,21 +130,12 @@ def run_run(scenario: str, sets: list[str], name: str) -> dict:
 def run_window(scenario: str, nodes: str, sets: list[str], name: str, window=None) -> dict:
     """One ``dynslip window --nodes``: the critical mu_s per N."""
     folder = OUT / name
-    window = window or WINDOW
-    cmd = ["dynslip", "window", scenario, "--nodes", nodes, *window, "--out", str(folder),
-           "--force", *_sets(sets)]
-    if not (folder / "window.json").is_file():
-        _run(cmd, OUT / f"{name}.log")
-    w = json.loads((folder / "window.json").read_text()) if (folder / "window.json").is_file() \
-        else {}
-    per_n = {}
-    for n, c in (w.get("critical_mu_per_nodes") or w.get("per_nodes") or {}).items():
-        per_n[str(n)] = c
-    if not per_n and "critical_mu" in w:
-        per_n[nodes.split(",")[-1]] = w["critical_mu"]
-    return {"command": " ".join(["dynslip", "window", scenario, "--nodes", nodes, *window,
-                                 *_sets(sets)]),
-            "window": w, "commit": _commit()}
+    cmd = ["dynslip", "window", scenario, "--nodes", nodes, *(window or WINDOW), *_sets(sets)]
+    found = folder / "window.json"
+    if not found.is_file():
+        _run([*cmd, "--out", str(folder), "--force"], OUT / f"{name}.log")
+    w = json.loads(found.read_text()) if found.is_file() else {}
+    return {"command": " ".join(cmd), "window": w, "commit": _commit()}
 
 
 def study_jm(only: str | None) -> None:
@@ -224,18 +215,6 @@ def span_geometry(folder: Path) -> dict | None:
     return out
 
 
-def _crit_pm(w: dict) -> str:
-    """The critical mu_s at each N with its half bracket, ``150: 1.39 +- 0.02; 200: ...``."""
-    crit = w.get("critical_mu") or {}
-    if "value" in crit:
-        crit = {str(w.get("resolution_check", {}).get("nodes", "")): crit}
-    if not crit:
-        return "none in [0.4, 2.0]"
-    items = sorted(crit.items(), key=lambda kv: int(kv[0]) if kv[0].isdigit() else 0)
-    return "; ".join(f"{n}: {c['value']:.2f} +- {c['err']:.2f}" if c else f"{n}: none"
-                     for n, c in items)
-
-
 def _ordered(rows: dict) -> list:
     """The study's rows in the order of :data:`PATHS` and :data:`MATERIALS` (the depth's by
     push), whatever order the JSON file keeps."""
@@ -255,19 +234,23 @@ def answer_table() -> None:
         path, mat = key.split(" | ")
         m = row["measured"]
         trapped = {True: "**yes**", False: "no", None: "unknown"}[m["trapped"]]
-        print(f"| {path} | {mat} | {_crit_pm(row['window']['window'])} | {trapped} |")
+        print(f"| {path} | {mat} | {_crit(row['window']['window'], brackets=True)} | {trapped} |")
     commits = sorted({r["window"]["commit"] for r in data.get("jm", {}).values()})
     print(f"\nMeasured at {', '.join(commits)} by `python docs/experiment_study.py jm` "
           "(each row's command: docs/experiment.md).")
 
 
-def _crit(w: dict) -> str:
+def _crit(w: dict, brackets: bool = False) -> str:
     """The critical mu_s per N of a window.json (``--nodes``: ``critical_mu`` maps N to
-    ``{value, err}``), and its extrapolation where the window search made one, as text."""
+    ``{value, err}``), as text: to 3 decimals with the extrapolation where the search made
+    one, or (``brackets``) to 2 with each half bracket, ``150: 1.39 +- 0.01; 200: ...``."""
     crit = w.get("critical_mu") or {}
     if "value" in crit:  # one mesh size
         crit = {str(w.get("resolution_check", {}).get("nodes", "")): crit}
     items = sorted(crit.items(), key=lambda kv: int(kv[0]) if kv[0].isdigit() else 0)
+    if brackets:
+        return "; ".join(f"{n}: {c['value']:.2f} +- {c['err']:.2f}" if c else f"{n}: none"
+                         for n, c in items) or "none in [0.4, 2.0]"
     out = [f"{n}: {c['value']:.3f}" if c else f"{n}: none" for n, c in items]
     ex = w.get("extrapolation") or {}
     if ex.get("extrapolable"):

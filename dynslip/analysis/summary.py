@@ -79,6 +79,7 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     lip = (math.sin(theta_max) / rbar_max) if np.isfinite(theta_max) and rbar_max > 0 else None
     path_lt = float(np.nanmax(ds["lambda_theta"].values))
     path_lp = float(np.nanmax(ds["lambda_phi"].values))
+    path_i1 = uniaxial_equivalent(ds)
     st = result.stats
     summary = {
         "status": "failed" if failed else "ok",
@@ -110,9 +111,9 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "path_max_lambda_theta": path_lt,
             "path_max_lambda_phi": path_lp,
             "path_max": max(path_lt, path_lp),
-            "path_max_i1_uniaxial": uniaxial_equivalent(ds),
+            "path_max_i1_uniaxial": path_i1,
             "latex_damage_stretch": LATEX_DAMAGE_STRETCH,
-            "past_damage": bool(max(path_lt, path_lp, uniaxial_equivalent(ds))
+            "past_damage": bool(max(path_lt, path_lp, path_i1)
                                 > LATEX_DAMAGE_STRETCH),
             "means": ("the largest principal stretch on the path (meridional and hoop), and the "
                       "uniaxial stretch with the same I1 as the path's largest I1 "

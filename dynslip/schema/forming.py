@@ -463,8 +463,9 @@ class FormingNumerics(Strict):
                                              "R) at the end")
     energy_bound: float = F(0.05, gt=0, le=1.0,
                             description="trapped is unknown (exit 3) where the energy balance's "
-                                        "largest residual exceeds this fraction of the work "
-                                        "(every body's counted), in (0, 1]")
+                                        "largest residual exceeds this fraction of the energy "
+                                        "that flowed (the work of every body, or the stored "
+                                        "energy released), in (0, 1]")
     runaway_mm: float = F(1000.0, unit="mm", gt=0, le=1e6,
                           description="trapped is unknown (exit 3) where the ball or a free body "
                                       "ends farther than this from where it started (ran away), "
