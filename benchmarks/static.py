@@ -43,7 +43,7 @@ def _timed(fn):
 
 def run(cli: bool = True) -> dict:
     import dynslip  # noqa: F401
-    from dynslip.physics import sphere as S
+    from dynslip.physics import static as S
     from dynslip.physics.materials import make_material
 
     r = S.grid(N, RMAX)

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from dynslip.physics import cylinder as C
+from dynslip.physics.static import plane_strain as C
 
 
 def test_capstan_relation_from_the_fully_mobilised_ode():

@@ -17,7 +17,7 @@ import pytest
 from conftest import assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
 from dynslip.errors import ComputationError, InputError
-from dynslip.physics import sphere
+from dynslip.physics import static
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
@@ -153,7 +153,7 @@ def test_end_state_cross_checks_with_the_static_formulas(base):
     k = int(np.flatnonzero(contact)[-1])
     theta = np.asarray(f["theta"])[: k + 1]
     h = float(MODEL.mesh.dr[0])
-    g = sphere.fields(MAT, jnp.asarray(theta), h)
+    g = static.fields(MAT, jnp.asarray(theta), h)
     fm, fn = np.asarray(g.fm), np.asarray(g.fn)
     inner = slice(0, k)  # the lift-off node carries the penalty's edge: excluded
     ratio = np.abs(fm[inner]) / (0.8 * fn[inner])

@@ -6,7 +6,7 @@ import pytest
 
 from dynslip.errors import MaterialRangeError
 from dynslip.physics.materials import Gent, Hookean, MooneyRivlin, NeoHookean, check_range, tensions
-from dynslip.physics.sphere import check_static_range
+from dynslip.physics.static import check_static_range
 
 MODELS = [Hookean(), NeoHookean(), MooneyRivlin(c1=0.3, c2=0.2), Gent(jm=50.0), Gent(jm=5.0)]
 

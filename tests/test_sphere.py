@@ -7,7 +7,7 @@ import pytest
 
 from dynslip.analysis.paper import PAPER_MU
 from dynslip.errors import ComputationError
-from dynslip.physics import sphere as S
+from dynslip.physics import static as S
 from dynslip.physics.materials import Gent, Hookean, NeoHookean
 
 RMAX, TMAX, N = 0.9, 1.8, 100

@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import sphere as S
+from dynslip.physics import static as S
 from dynslip.physics.materials import Gent, Hookean, NeoHookean
 from dynslip.schema.static import Selection, StaticScenario
 

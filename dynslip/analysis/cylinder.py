@@ -1,7 +1,7 @@
-r"""The 2D check of the paper's Section 5 (:mod:`dynslip.physics.cylinder`): random admissible
-tension profiles on a cylinder at each lift-off angle $\theta_{max}$, their vertical force
-$F_v$ against the closed form $T(\theta_{max})\sin\theta_{max}$ and the capstan bounds
-$T_0 e^{\mp\mu\theta}$, and the conclusion (no invagination in 2D when every $F_v > 0$).
+r"""The 2D check of the paper's Section 5 (:mod:`dynslip.physics.static.plane_strain`):
+random admissible tension profiles on a cylinder at each lift-off angle $\theta_{max}$, their
+vertical force $F_v$ against the closed form $T(\theta_{max})\sin\theta_{max}$ and the capstan
+bounds $T_0 e^{\mp\mu\theta}$, and the conclusion (no invagination in 2D when every $F_v > 0$).
 Tensions by $T_0$, forces per unit length by $T_0$.
 """
 
@@ -16,7 +16,7 @@ def cylinder_study(mu: float, angles, n_profiles: int, n_nodes: int, seed: int) 
     import jax
     import jax.numpy as jnp
 
-    from dynslip.physics import cylinder as C
+    from dynslip.physics.static import plane_strain as C
 
     key = jax.random.PRNGKey(seed)
     fv = np.zeros((len(angles), n_profiles))

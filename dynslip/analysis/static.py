@@ -1,6 +1,6 @@
 """The static computation of one material (paper Section 3): the selected fully mobilised
-member (the boundary-value problem, :mod:`dynslip.physics.sphere.family`), the paper's march
-and $\\mu$ search from the stated initial shape (:mod:`dynslip.physics.sphere.search`), the
+member (the boundary-value problem, :mod:`dynslip.physics.static.family`), the paper's march
+and $\\mu$ search from the stated initial shape (:mod:`dynslip.physics.static.search`), the
 fields, checks and extrema of the result, and its summary.
 
 A search that finds no root returns what it computed with ``status = "failed"`` and an
@@ -33,7 +33,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
     failed search the dict has ``status = "failed"`` and ``error`` (nothing is raised here)."""
     import jax.numpy as jnp
 
-    from dynslip.physics import sphere as S
+    from dynslip.physics import static as S
 
     n = num.n_nodes
     rbar = S.grid(n, rbar_max)
@@ -117,7 +117,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
 def _add_fields(out, material, theta, h, mu, num):
     import jax.numpy as jnp
 
-    from dynslip.physics import sphere as S
+    from dynslip.physics import static as S
 
     f = S.fields(material, jnp.asarray(theta), h)
     fm, fn = np.asarray(f.fm), np.asarray(f.fn)
@@ -218,7 +218,7 @@ def family(materials: dict, values, theta_max, rbar_max, guess, rtol, switch_by,
 
     Returns (``{"mu", "pole_stretch", "switch_rbar", "switch_theta"}`` arrays (model, member),
     NaN where a member did not converge; the selected members)."""
-    from dynslip.physics import sphere as S
+    from dynslip.physics import static as S
 
     cols = {
         k: np.full((len(materials), len(values)), np.nan)

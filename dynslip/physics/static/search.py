@@ -3,7 +3,7 @@ $\mu$, each $F_v(\mu)$ the vertical force (eq. (eq_Fz)) on the end state of a ma
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
 densities by $G h_0/R$, forces by $G h_0 R$ (the paper's contact-region model, Section 3;
-the package docstring of :mod:`dynslip.physics.sphere` states the whole model).
+the package docstring of :mod:`dynslip.physics.static` states the whole model).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.errors import ComputationError
-from dynslip.physics.sphere.grid import _vertical_force_jit
-from dynslip.physics.sphere.march import MarchResult, march, stable_dt
+from dynslip.physics.static.grid import _vertical_force_jit
+from dynslip.physics.static.march import MarchResult, march, stable_dt
 
 
 class SearchResult(NamedTuple):

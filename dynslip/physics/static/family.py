@@ -3,7 +3,7 @@ Section 2).
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
 densities by $G h_0/R$, forces by $G h_0 R$ (the paper's contact-region model, Section 3;
-the package docstring of :mod:`dynslip.physics.sphere` states the whole model).
+the package docstring of :mod:`dynslip.physics.static` states the whole model).
 
 $F_m = +\mu F_N$ from the pole to the switch point, $F_m = -\mu F_N$ beyond: an ODE in
 $\bar r$ solved by shooting with unknowns (pole stretch, $\mu$, switch radius) and end

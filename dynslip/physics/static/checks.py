@@ -3,7 +3,7 @@ friction, sign changes and inflections, and the equilibrium of an end state.
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
 densities by $G h_0/R$, forces by $G h_0 R$ (the paper's contact-region model, Section 3;
-the package docstring of :mod:`dynslip.physics.sphere` states the whole model).
+the package docstring of :mod:`dynslip.physics.static` states the whole model).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import numpy as np
 
 from dynslip.errors import MaterialRangeError
 from dynslip.physics.materials import AbstractMaterial
-from dynslip.physics.sphere.grid import fields, vertical_force, vertical_force_identity
-from dynslip.physics.sphere.march import velocity
+from dynslip.physics.static.grid import fields, vertical_force, vertical_force_identity
+from dynslip.physics.static.march import velocity
 
 
 def check_static_range(material: AbstractMaterial, lt, lp, where: str = "") -> None:

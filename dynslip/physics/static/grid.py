@@ -3,7 +3,7 @@ Section 2): stretches, tensions and forces from a shape $\theta(\bar r_i)$ on th
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
 densities by $G h_0/R$, forces by $G h_0 R$ (the package docstring of
-:mod:`dynslip.physics.sphere` states the whole model).
+:mod:`dynslip.physics.static` states the whole model).
 
 On ``N`` equally spaced nodes $\bar r_i = i h$, $h = \bar r_{max}/(N-1)$:
 

@@ -1,7 +1,12 @@
-r"""The paper's contact-region model of a membrane on a rigid sphere (paper Section 3):
-one module per concept (:mod:`.grid` the grid formulas, :mod:`.march` the march to rest,
-:mod:`.search` the search on $\mu$, :mod:`.family` the fully mobilised family,
-:mod:`.checks` the checks), re-exported here.
+r"""The paper's static model: the contact region of a membrane on a rigid sphere (paper
+Section 3), one module per concept (:mod:`.grid` the grid formulas, :mod:`.march` the march
+to rest, :mod:`.search` the search on $\mu$, :mod:`.family` the fully mobilised family,
+:mod:`.checks` the checks), re-exported here; and its 2D case, a membrane on a rigid
+cylinder (paper Section 5), in :mod:`.plane_strain`, not re-exported (its names are those of
+the 2D formulas: ``vertical_force`` there is the 2D boundary term).
+
+The rigid bodies of the forming model (``sphere``, ``cylinder``, ...) are in
+:mod:`dynslip.physics.bodies`.
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
 densities by $G h_0/R$, forces by $G h_0 R$. A material point at undeformed radius
@@ -25,20 +30,20 @@ Solvers:
   $\theta(\bar r_s) = \theta_s$ that parameterises the family.
 """
 from dynslip.physics.materials import tensions
-from dynslip.physics.sphere.checks import (
+from dynslip.physics.static.checks import (
     check_equilibrium,
     check_static_range,
     inflection_index,
     saturation_fraction,
     sign_change_index,
 )
-from dynslip.physics.sphere.family import (
+from dynslip.physics.static.family import (
     Member,
     sample_member,
     solve_family,
     solve_member,
 )
-from dynslip.physics.sphere.grid import (
+from dynslip.physics.static.grid import (
     GridFields,
     fields,
     grid,
@@ -46,7 +51,7 @@ from dynslip.physics.sphere.grid import (
     vertical_force,
     vertical_force_identity,
 )
-from dynslip.physics.sphere.march import (
+from dynslip.physics.static.march import (
     MarchResult,
     march,
     march_diffrax,
@@ -56,7 +61,7 @@ from dynslip.physics.sphere.march import (
     velocity,
     velocity_jacobian,
 )
-from dynslip.physics.sphere.search import (
+from dynslip.physics.static.search import (
     SearchResult,
     search_mu,
 )

@@ -3,7 +3,7 @@ $\dot\theta_i = S(F_{m,i}, \mu F_{N,i})$, $S(f, c) = \mathrm{sign}(f)\max(|f| - 
 
 Nondimensional: lengths by the ball radius $R$, tensions by $G h_0$, areal force
 densities by $G h_0/R$, forces by $G h_0 R$ (the paper's contact-region model, Section 3;
-the package docstring of :mod:`dynslip.physics.sphere` states the whole model).
+the package docstring of :mod:`dynslip.physics.static` states the whole model).
 
 Three integrators of the same march: :func:`march_explicit` (a jitted forward-Euler
 ``lax.while_loop``), :func:`march_implicit` (backward Euler with growing steps, each solved
@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 from dynslip.physics.friction import soft_threshold  # eps = 0: the paper's march rule S(f, c)
 from dynslip.physics.materials import AbstractMaterial, tensions
-from dynslip.physics.sphere.grid import fields
+from dynslip.physics.static.grid import fields
 
 
 def velocity(material: AbstractMaterial, theta, h, mu):
