@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import ComputationError, InputError
 
 __all__ = ["RunResult", "load", "run", "sweep", "window", "InputError", "ComputationError"]
@@ -76,7 +77,7 @@ def _read(scn, folder: Path, out: Path | None) -> RunResult:
     if (folder / "summary.json").is_file():
         summary = json.loads((folder / "summary.json").read_text())
     dataset = None
-    for name in ("trajectory.nc", "result.nc"):
+    for name in (TRAJECTORY_FILE, "result.nc"):
         if (folder / name).is_file():
             dataset = xr.load_dataset(folder / name, engine="netcdf4")
             break

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from dynslip.analysis.compare import compare, end_state, trapped_text
 from dynslip.data.files import write_json
-from dynslip.data.trajectory import open_trajectory
+from dynslip.data.trajectory import TRAJECTORY_FILE, open_trajectory
 from dynslip.errors import InputError
 from dynslip.plot.compare import plot_compare
 
@@ -22,7 +22,7 @@ __all__ = ["run_compare"]
 
 def _traj_path(p: Path) -> Path:
     p = Path(p)
-    return p / "trajectory.nc" if p.is_dir() else p
+    return p / TRAJECTORY_FILE if p.is_dir() else p
 
 
 def _summary(p: Path) -> dict | None:

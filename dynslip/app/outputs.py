@@ -9,6 +9,7 @@ import json
 from pathlib import Path
 
 from dynslip.data import files as io
+from dynslip.data.trajectory import TRAJECTORY_FILE
 
 __all__ = ["Outputs", "IN_MEMORY"]
 
@@ -53,4 +54,4 @@ class Outputs:
     def dataset(self):
         """The run's dataset: ``trajectory.nc`` of a forming run, else ``result.nc`` (None if
         the run made none)."""
-        return self.datasets.get("trajectory.nc", self.datasets.get("result.nc"))
+        return self.datasets.get(TRAJECTORY_FILE, self.datasets.get("result.nc"))

@@ -50,13 +50,15 @@ def _resolve(path: str, base: Path | None) -> Path:
 
 
 def _start_dataset(sc, console, run) -> tuple:
-    from dynslip.data.trajectory import open_trajectory
+    from dynslip.data.trajectory import TRAJECTORY_FILE, open_trajectory
 
     src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))
     if src.suffix == ".nc":
         return open_trajectory(src), src
     if src.suffix not in (".yaml", ".yml"):
-        raise InputError(f"start_from: {str(src)!r}: expected a trajectory.nc or a scenario .yaml")
+        raise InputError(
+            f"start_from: {str(src)!r}: expected a {TRAJECTORY_FILE} or a scenario .yaml"
+        )
     from dynslip.data.folders import StagedRun
     from dynslip.schema import base as scn
 
@@ -71,7 +73,7 @@ def _start_dataset(sc, console, run) -> tuple:
             f"forms"
         )
     out = Path("outputs") / src.stem
-    traj = out / "trajectory.nc"
+    traj = out / TRAJECTORY_FILE
     if traj.is_file():
         try:
             ds = open_trajectory(traj)

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from dynslip.app.members import Member
+from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import PARTIAL_KEPT, ComputationError, InputError
 from dynslip.schema.paths import get_path
 
@@ -263,10 +264,10 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     if result.failed:
-        where = out / "trajectory.nc" if out is not None else "<not kept: keep_runs is off>"
+        where = out / TRAJECTORY_FILE if out is not None else "<not kept: keep_runs is off>"
         if result.frames and out is not None:
             ds = to_dataset(sc, result.frames, rbar, result.e0, False, names)
-            io.write_netcdf(ds, out / "trajectory.nc")
+            io.write_netcdf(ds, out / TRAJECTORY_FILE)
             io.write_json(out / "summary.json", summarize(sc, ds, result))
         raise ComputationError(f"{result.failed}{PARTIAL_KEPT}{where}")
     return finish(sc, model, result, Outputs(out), names)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import InputError
 
 
@@ -57,7 +58,7 @@ def cmd_run(args) -> int:
              header=f"[bold]dynslip run[/bold] {args.scenario} (kind: {scn.kind}) -> {out}/")
     console.print(f"done in {time.perf_counter() - t0:.1f} s; results in {out}/")
     if getattr(args, "animate", False):
-        traj = out / "trajectory.nc"
+        traj = out / TRAJECTORY_FILE
         if traj.exists():
             from dynslip.app.drawn import drawn_bodies_at
             from dynslip.plot.animate import animate

@@ -34,13 +34,14 @@ from pathlib import Path
 
 from dynslip._version import FORMAT_VERSION, __version__
 from dynslip.data.files import write_json, write_text
+from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import InputError
 
 INCOMPLETE = "INCOMPLETE"
 #: the marker file written with the results into every result folder
 RESULT_MARKER = ".dynslip-result"
 #: netCDF files of earlier results, recognised by their provenance attributes
-RESULT_DATASETS = ("trajectory.nc", "result.nc", "sweep.nc")
+RESULT_DATASETS = (TRAJECTORY_FILE, "result.nc", "sweep.nc")
 
 
 class Terminated(KeyboardInterrupt):

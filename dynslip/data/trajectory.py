@@ -23,6 +23,9 @@ from dynslip.errors import InputError
 if TYPE_CHECKING:  # imported where used: a run imports xarray while its step compiles
     import xarray as xr
 
+TRAJECTORY_FILE = "trajectory.nc"
+"""The file name of a forming run's dataset in its run folder."""
+
 FREE, STUCK, SLIP_POLE, SLIP_EQUATOR = 0, 1, 2, 3
 """The ``state`` flags of the contract."""
 STATE_MEANINGS = ("free", "stuck", "slipping_toward_pole", "slipping_toward_equator")
@@ -258,7 +261,7 @@ def open_trajectory(path) -> xr.Dataset:
     path = Path(path)
     if not path.is_file():
         raise InputError(
-            f"trajectory: {str(path)!r} does not exist (expected a trajectory.nc file)"
+            f"trajectory: {str(path)!r} does not exist (expected a {TRAJECTORY_FILE} file)"
         )
     import xarray as xr
 
@@ -268,7 +271,7 @@ def open_trajectory(path) -> xr.Dataset:
     except (OSError, ValueError, RuntimeError, KeyError, TypeError) as exc:  # not netCDF
         raise InputError(
             f"trajectory: {str(path)!r} is not a netCDF file ({type(exc).__name__}); "
-            "expected a trajectory.nc written by dynslip run"
+            f"expected a {TRAJECTORY_FILE} written by dynslip run"
         ) from None
     validate_trajectory(ds, source=str(path))
     return ds
