@@ -72,6 +72,8 @@ the reference (``numerics.solver: kvaerno5``).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import diffrax
 import equinox as eqx
 import jax
@@ -88,6 +90,7 @@ from dynslip.physics.upstream import ImplicitEuler, reject_failed
 
 __all__ = [
     "LoadStepEuler",
+    "IncrementLoop",
     "IncrementState",
     "load_step_solver",
     "increments",
@@ -267,6 +270,22 @@ class FullStateLoadStep(eqx.Module):
         return eqx.tree_at(lambda o: o.rate, out, zero_rate(layout.n))
 
 
+class IncrementLoop(NamedTuple):
+    """The carry of :func:`increments`: the time ``t`` and state ``y`` reached, the solver's
+    state (:class:`IncrementState`), the next increment's size ``dt``, whether the last
+    increment failed (``was_cut``), and the counts (``accepted``, ``rejected``, Newton
+    ``iterations``)."""
+
+    t: jax.Array
+    y: jax.Array
+    state: IncrementState
+    dt: jax.Array
+    was_cut: jax.Array
+    accepted: jax.Array
+    rejected: jax.Array
+    iterations: jax.Array
+
+
 def increments(
     term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=None
 ) -> SegmentOutput:
@@ -277,53 +296,57 @@ def increments(
     dt_min = MIN_FRACTION * (t1 - t0)
     zero = jnp.array(0, dtype=jnp.int32)
 
-    def cond(c):
-        t, _, _, dt, _, nacc, nrej, _ = c
-        return (t < t1) & (nacc + nrej < max_steps) & (dt >= dt_min)
+    def cond(c: IncrementLoop):
+        return (c.t < t1) & (c.accepted + c.rejected < max_steps) & (c.dt >= dt_min)
 
-    def body(c):
-        t, y, state, dt, was_cut, nacc, nrej, nit = c
-        left = t1 - t
-        last = (
-            left <= 1.25 * dt
-        )  # stretch the increment to the save time rather than leave a sliver
-        h = jnp.where(last, left, dt)
-        t_next = jnp.where(last, t1, t + h)
-        y1, y_err, _, new_state, result = solver.step(term, t, t_next, y, args, state, False)
+    def body(c: IncrementLoop) -> IncrementLoop:
+        left = t1 - c.t
+        # stretch the increment to the save time rather than leave a sliver
+        last = left <= 1.25 * c.dt
+        h = jnp.where(last, left, c.dt)
+        t_next = jnp.where(last, t1, c.t + h)
+        y1, y_err, _, new_state, result = solver.step(term, c.t, t_next, c.y, args, c.state,
+                                                      False)
         if after is not None:
             y1 = after(t_next, y1)
         iters = new_state.iterations
         ok = diffrax.is_okay(result) & jnp.all(jnp.isfinite(y_err)) & jnp.all(jnp.isfinite(y1))
         factor = jnp.where(iters <= GROW_BELOW, GROW, jnp.where(iters >= SHRINK_ABOVE, SHRINK, 1.0))
-        factor = jnp.where(
-            was_cut, jnp.minimum(factor, 1.0), factor
-        )  # no growth right after a cut-back
+        # no growth right after a cut-back
+        factor = jnp.where(c.was_cut, jnp.minimum(factor, 1.0), factor)
         # an increment clipped to the save time does not shrink the next one
-        dt_ok = jnp.minimum(jnp.maximum(dt, h) * factor, cap)
+        dt_ok = jnp.minimum(jnp.maximum(c.dt, h) * factor, cap)
         dt_new = jnp.where(ok, dt_ok, CUT * h)
-        state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, state)
-        return (
-            jnp.where(ok, t_next, t),
-            jnp.where(ok, y1, y),
-            state,
-            dt_new,
-            ~ok,
-            nacc + ok,
-            nrej + (~ok),
-            nit + iters,
+        state = jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), new_state, c.state)
+        return IncrementLoop(
+            t=jnp.where(ok, t_next, c.t),
+            y=jnp.where(ok, y1, c.y),
+            state=state,
+            dt=dt_new,
+            was_cut=~ok,
+            accepted=c.accepted + ok,
+            rejected=c.rejected + (~ok),
+            iterations=c.iterations + iters,
         )
 
-    init = (
-        t0,
-        y0,
-        solver.init(term, t0, t1, y0, args),
-        jnp.minimum(dt0, cap),
-        jnp.array(False),
-        zero,
-        zero,
-        zero,
+    init = IncrementLoop(
+        t=t0,
+        y=y0,
+        state=solver.init(term, t0, t1, y0, args),
+        dt=jnp.minimum(dt0, cap),
+        was_cut=jnp.array(False),
+        accepted=zero,
+        rejected=zero,
+        iterations=zero,
     )
-    t, y, state, _, _, nacc, nrej, nit = jax.lax.while_loop(cond, body, init)
-    ok = (t >= t1) & jnp.all(jnp.isfinite(y))
-    # the fields in order: y, ok, steps, accepted, rejected, newton_iterations, rate
-    return SegmentOutput(y, ok, nacc + nrej, nacc, nrej, nit, state.rate)
+    end = jax.lax.while_loop(cond, body, init)
+    ok = (end.t >= t1) & jnp.all(jnp.isfinite(end.y))
+    return SegmentOutput(
+        y=end.y,
+        ok=ok,
+        steps=end.accepted + end.rejected,
+        accepted=end.accepted,
+        rejected=end.rejected,
+        newton_iterations=end.iterations,
+        rate=end.state.rate,
+    )

@@ -85,6 +85,8 @@ as one.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -102,7 +104,18 @@ from dynslip.physics.newton_matrix import free_system, newton_blocks
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.terms import forces, held_projections
 
-__all__ = ["MotionNewton", "SegmentOutput", "increment_cap", "zero_rate"]
+__all__ = [
+    "EndState",
+    "Forces",
+    "IncrementResult",
+    "MotionNewton",
+    "NewtonIterate",
+    "Rate",
+    "SegmentCarry",
+    "SegmentOutput",
+    "increment_cap",
+    "zero_rate",
+]
 
 GROW = 1.5
 CUT = 0.5
@@ -119,15 +132,113 @@ def increment_cap(args, max_increment, max_increment_free):
     return args.drag * jnp.where(free, max_increment_free, max_increment)
 
 
-class SegmentOutput(eqx.Module):
-    """What a segment solve returns (both solvers): the end state, whether it reached the
-    segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
-    (0 for the time-stepped solvers), the predictor's rate, and, where the solver has them
-    (Newton's last evaluation; else None), ``forces``: the energy gradient, the held bodies'
-    load and their projections of the nodes at the end state, ``(g, load, projections)`` as
+class Rate(NamedTuple):
+    """A change of the unknowns per unit time (or, as an increment's ``change``, the change
+    itself): ``q`` (n, 2) of the nodes relative to the ball, ``zb`` () of the ball. The last
+    accepted increment's is the next increment's predictor."""
+
+    q: jax.Array
+    zb: jax.Array
+
+
+class Forces(NamedTuple):
+    """The energy gradient ``g`` (n, 2), the held bodies' load on the clamped edge ``load`` and
+    their ``projections`` of the nodes (None without held bodies) at one state, as
     :func:`dynslip.physics.terms.forces` and :func:`~dynslip.physics.terms.held_projections`
-    give them (``projections`` None without held bodies), and ``ball_velocity``, the ball's
-    there: the frame takes them
+    give them: read by :func:`dynslip.physics.field.evaluate` and the frame."""
+
+    g: jax.Array
+    load: jax.Array
+    projections: object = None
+
+
+class EndState(NamedTuple):
+    """What the increment's end reads from the residual's evaluation at an iterate
+    (:func:`dynslip.physics.increment.residual_and_state`'s third output, in its order): the
+    energy gradient, the ball's velocity, the slip distances after the return map (None
+    without a memory law), the held load and the held bodies' projections."""
+
+    g: jax.Array
+    ball_velocity: jax.Array
+    delta: jax.Array | None
+    load: jax.Array
+    projections: object
+
+
+class Trial(NamedTuple):
+    """The backtracking loop's carry: the step length ``alpha`` along the Newton correction,
+    the residual (``r_q``, ``r_z``) and end state at the trial point, and the trials taken."""
+
+    alpha: jax.Array
+    r_q: jax.Array
+    r_z: jax.Array
+    state: EndState | None
+    trials: jax.Array
+
+
+class NewtonIterate(NamedTuple):
+    """The increment's Newton loop carry: the iterate (``q``, ``zb``), its residual (``r_q``,
+    ``r_z``) and end state (None with free bodies: evaluated after the loop), the corrections
+    taken (``iterations``), whether it converged (``done``) or went non-finite (``bad``), the
+    residual floor's count of small full corrections running (``small``), the next
+    correction (``dq``, ``dz``), and ``first``: the predictor's pass is still to come."""
+
+    q: jax.Array
+    zb: jax.Array
+    r_q: jax.Array
+    r_z: jax.Array
+    iterations: jax.Array
+    done: jax.Array
+    bad: jax.Array
+    small: jax.Array
+    state: EndState | None
+    dq: jax.Array
+    dz: jax.Array
+    first: jax.Array
+
+
+class IncrementResult(NamedTuple):
+    """One increment (:meth:`MotionNewton.increment`): the end state ``y``, whether Newton
+    converged (``ok``), its corrections (``iterations``), the change of the unknowns
+    (``change``: ``q1 - q0``, ``zb1 - zb0``), the :class:`Forces` at ``y`` and the ball's
+    velocity the increment took."""
+
+    y: jax.Array
+    ok: jax.Array
+    iterations: jax.Array
+    change: Rate
+    forces: Forces
+    ball_velocity: jax.Array
+
+
+class SegmentCarry(NamedTuple):
+    """The segment's loop carry (:meth:`MotionNewton.segment`): the time ``t`` and state ``y``
+    reached, the predictor's ``rate``, the next increment's size ``dt``, whether the last
+    increment failed (``was_cut``), the counts (``accepted``, ``rejected``, Newton
+    ``iterations``), the failure memory's bound ``h_fail`` (inf: no failure yet), the last
+    converged increment's :class:`Forces` and ball velocity, and ``fresh``: no increment
+    taken yet (a zero-length segment takes one)."""
+
+    t: jax.Array
+    y: jax.Array
+    rate: Rate
+    dt: jax.Array
+    was_cut: jax.Array
+    accepted: jax.Array
+    rejected: jax.Array
+    iterations: jax.Array
+    h_fail: jax.Array
+    forces: Forces
+    ball_velocity: jax.Array
+    fresh: jax.Array
+
+
+class SegmentOutput(eqx.Module):
+    """What a segment solve returns (every solver): the end state, whether it reached the
+    segment's end, the steps (accepted + rejected), accepted, rejected, Newton iterations
+    (0 for the time-stepped solvers), the predictor's :class:`Rate`, and, where the solver has
+    them (Newton's last evaluation; else None), the :class:`Forces` at the end state and
+    ``ball_velocity``, the ball's there: the frame takes them
     (:func:`dynslip.physics.frames.frame_record`)."""
 
     y: jax.Array
@@ -136,10 +247,8 @@ class SegmentOutput(eqx.Module):
     accepted: jax.Array
     rejected: jax.Array
     newton_iterations: jax.Array
-    rate: (
-        tuple  # the last accepted increment per unit time on (q, zb): the next segment's predictor
-    )
-    forces: tuple | None = None
+    rate: Rate  # the last accepted increment per unit time on (q, zb): the next predictor
+    forces: Forces | None = None
     ball_velocity: jax.Array | None = None
 
 
@@ -179,13 +288,32 @@ class MotionNewton(eqx.Module):
     fail_relax: float = eqx.field(static=True, default=FAIL_RELAX)
     weight: float = eqx.field(static=True, default=0.0)
 
-    def increment(self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol):
+    @classmethod
+    def from_settings(cls, s) -> MotionNewton:
+        """The solver of the driver's numerics ``s`` (a
+        :class:`dynslip.physics.solvers.Settings`): its Newton iteration limit, backtracking,
+        weight, increment bounds, step limit and healing rate; the linear solver ``s``
+        names where it is ``"thomas"`` or ``"cyclic"``, else (the schema's ``"structured"``,
+        the default) by the mesh's size. The increment controller and the residual floor keep
+        their defaults."""
+        return cls(
+            max_iter=s.newton_max_iter,
+            backtrack=s.newton_backtrack,
+            linear=s.linear_solver if s.linear_solver in ("thomas", "cyclic") else "auto",
+            max_increment=s.max_increment,
+            max_increment_free=s.max_increment_free,
+            heal_rate=s.heal_rate,
+            max_steps=s.max_steps,
+            weight=s.newton_weight,
+        )
+
+    def increment(
+        self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol
+    ) -> IncrementResult:
         """One increment from ``y0`` at ``t0`` to ``t1``, Newton started from ``y0 + (t1 - t0)
-        rate``
-        (``rate`` on the unknowns ``(q, zb)``): ``(y1, ok, iterations, (q1 - q0, zb1 - zb0),
-        ((g, load, projections), vb))``: the energy gradient, the held load and the held bodies'
-        projections at ``y1`` (:class:`SegmentOutput`'s ``forces``) and the ball's velocity the
-        increment took. With
+        rate`` (``rate``: a :class:`Rate`, or any pair on the unknowns ``(q, zb)``): an
+        :class:`IncrementResult` (its forces: the energy gradient, the held load and the held
+        bodies' projections at ``y1``; its ball velocity: the one the increment took). With
         ``t1 == t0`` Newton stays at ``y0`` (a zero-length increment: the forces at the start,
         :meth:`segment`)."""
         friction = args.friction
@@ -198,8 +326,8 @@ class MotionNewton(eqx.Module):
         hdelta0 = layout.held_internal(y0)
         inc = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
                         held_delta0=hdelta0)
-        rq, rz = rate
-        q = q0 + h * rq
+        rate = Rate(*rate)
+        q = q0 + h * rate.q
         nf = layout.n_free
         # the weighted form of the ball's friction law (``weight``; not with free bodies, whose
         # residual is built apart)
@@ -208,7 +336,7 @@ class MotionNewton(eqx.Module):
         if nf:
             # free bodies: the border is (zb, z_1 .. z_K), placed into the model by res/blocks
             res0, blocks0, placed = free_system(model, friction, inc, layout.free(y0))
-            zb = jnp.concatenate([jnp.reshape(zb0 + h * rz, (1,)), layout.free(y0)])
+            zb = jnp.concatenate([jnp.reshape(zb0 + h * rate.zb, (1,)), layout.free(y0)])
 
             def res(q, zb):
                 # the end state is evaluated after the loop (``state`` None)
@@ -217,7 +345,7 @@ class MotionNewton(eqx.Module):
             def blocks(q, zb, state):
                 return blocks0(q, zb)
         else:
-            zb = zb0 + h * rz
+            zb = zb0 + h * rate.zb
 
             # the increment with the law's weight
             data = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
@@ -225,88 +353,94 @@ class MotionNewton(eqx.Module):
 
             def res(q, zb):
                 # the residual and the state the increment's end reads (:func:`residual_and_state`)
-                return residual_and_state(model, friction, data, q, zb)
+                r_q, r_z, state = residual_and_state(model, friction, data, q, zb)
+                return r_q, r_z, EndState(*state)
 
             def blocks(q, zb, state):
                 # the ball's velocity at (q, zb) from the residual's evaluation there
-                return newton_blocks(model, friction, data, q, zb, vb=state[1])
+                return newton_blocks(model, friction, data, q, zb, vb=state.ball_velocity)
 
         def size(rq, rz):
             return jnp.maximum(jnp.max(jnp.abs(rq)), jnp.max(jnp.abs(rz)))
 
-        def cond(c):
-            it, done, bad = c[4], c[5], c[6]
-            return (~done) & (~bad) & (it < self.max_iter)
+        def cond(c: NewtonIterate):
+            return (~c.done) & (~c.bad) & (c.iterations < self.max_iter)
 
         # The loop's first pass evaluates the residual at the predictor (its correction is 0,
         # its trial accepted whatever the residual), and each pass ends with the next
         # correction, so the residual has one call site: each is compiled anew (about 10% of
-        # the world's step). ``it`` counts the corrections (the predictor's pass is not one).
-        def body(c):
-            q, zb, r_q, r_z, it, _, _, small, state, dq, dz, first = c
-            f0 = jnp.where(first, jnp.inf, size(r_q, r_z))
+        # the world's step). ``iterations`` counts the corrections (the predictor's pass is not
+        # one).
+        def body(c: NewtonIterate) -> NewtonIterate:
+            f0 = jnp.where(c.first, jnp.inf, size(c.r_q, c.r_z))
 
             # the full step, then up to ``backtrack`` halvings while the residual rises: one
             # loop whose first pass is the full step, so the residual is traced once here (each
             # call site of it is compiled anew: 2 s of the world's compile per copy)
-            def bt_cond(b):
-                _alpha, tq, tz, _, k = b
-                f1 = size(tq, tz)
-                return (k == 0) | (~((f1 <= f0) | (f1 <= atol)) & (k <= self.backtrack))
+            def bt_cond(b: Trial):
+                f1 = size(b.r_q, b.r_z)
+                return (b.trials == 0) | (
+                    ~((f1 <= f0) | (f1 <= atol)) & (b.trials <= self.backtrack)
+                )
 
-            def bt_body(b):
-                alpha, _, _, _, k = b
-                alpha = jnp.where(k == 0, 1.0, 0.5 * alpha)
-                tq, tz, tstate = res(q - alpha * dq, zb - alpha * dz)
-                return alpha, tq, tz, tstate, k + 1
+            def bt_body(b: Trial) -> Trial:
+                alpha = jnp.where(b.trials == 0, 1.0, 0.5 * b.alpha)
+                r_q, r_z, state = res(c.q - alpha * c.dq, c.zb - alpha * c.dz)
+                return Trial(alpha, r_q, r_z, state, b.trials + 1)
 
-            unset = (jnp.full_like(r_q, jnp.inf), jnp.full_like(r_z, jnp.inf), state)
-            alpha, tq, tz, state, _ = jax.lax.while_loop(
-                bt_cond, bt_body, (jnp.array(1.0), *unset, jnp.array(0))
-            )
-            qn, zbn = q - alpha * dq, zb - alpha * dz
+            unset = Trial(jnp.array(1.0), jnp.full_like(c.r_q, jnp.inf),
+                          jnp.full_like(c.r_z, jnp.inf), c.state, jnp.array(0))
+            trial = jax.lax.while_loop(bt_cond, bt_body, unset)
+            alpha, tq, tz = trial.alpha, trial.r_q, trial.r_z
+            qn, zbn = c.q - alpha * c.dq, c.zb - alpha * c.dz
             step = jnp.maximum(
-                jnp.max(jnp.abs(alpha * dq) / (atol + rtol * jnp.abs(qn))),
-                jnp.max(jnp.abs(alpha * dz) / (atol + rtol * jnp.abs(zbn))),
+                jnp.max(jnp.abs(alpha * c.dq) / (atol + rtol * jnp.abs(qn))),
+                jnp.max(jnp.abs(alpha * c.dz) / (atol + rtol * jnp.abs(zbn))),
             )
-            done = ~first & (step < 1.0) & (size(tq, tz) <= atol)
+            done = ~c.first & (step < 1.0) & (size(tq, tz) <= atol)
+            small = c.small
             if self.floor_factor:
                 # the residual floor: Newton's full correction (not the damped one) below the
                 # step tolerance ``floor_count`` times running, the residual within the floor
                 full = jnp.maximum(
-                    jnp.max(jnp.abs(dq) / (atol + rtol * jnp.abs(qn))),
-                    jnp.max(jnp.abs(dz) / (atol + rtol * jnp.abs(zbn))),
+                    jnp.max(jnp.abs(c.dq) / (atol + rtol * jnp.abs(qn))),
+                    jnp.max(jnp.abs(c.dz) / (atol + rtol * jnp.abs(zbn))),
                 )
-                small = jnp.where(~first & (full < 1.0), small + 1, 0)
+                small = jnp.where(~c.first & (full < 1.0), small + 1, 0)
                 done = done | (
                     (small >= self.floor_count) & (size(tq, tz) <= self.floor_factor * atol)
                 )
             bad = ~(
                 jnp.all(jnp.isfinite(qn)) & jnp.all(jnp.isfinite(zbn)) & jnp.isfinite(size(tq, tz))
             )
-            it = it + jnp.where(first, 0, 1)
+            it = c.iterations + jnp.where(c.first, 0, 1)
             # the next correction, where another pass follows
             go = (~done) & (~bad) & (it < self.max_iter)
             dq, dz = jax.lax.cond(
                 go,
-                lambda: bordered_solve(*blocks(qn, zbn, state), tq, tz, self.linear),
-                lambda: (jnp.zeros_like(dq), jnp.zeros_like(dz)),
+                lambda: bordered_solve(*blocks(qn, zbn, trial.state), tq, tz, self.linear),
+                lambda: (jnp.zeros_like(c.dq), jnp.zeros_like(c.dz)),
             )
-            return qn, zbn, tq, tz, it, done, bad, small, state, dq, dz, jnp.array(False)
+            return NewtonIterate(q=qn, zb=zbn, r_q=tq, r_z=tz, iterations=it, done=done,
+                                 bad=bad, small=small, state=trial.state, dq=dq, dz=dz,
+                                 first=jnp.array(False))
 
         # the loop's carry before the first pass: the residual and state are placeholders that
         # the first pass replaces (shapes as ``res`` returns them)
         state = None
         if not nf:
-            state = (jnp.zeros_like(q), jnp.zeros_like(zb0),
-                     None if delta0 is None else jnp.zeros_like(delta0), jnp.zeros_like(zb0),
-                     _unset_projections(model, n, 0.0))
-        init = (
-            q, zb, jnp.zeros_like(q), jnp.zeros_like(zb), jnp.array(0, jnp.int32),
-            jnp.array(False), jnp.array(False), jnp.array(0, jnp.int32), state,
-            jnp.zeros_like(q), jnp.zeros_like(zb), jnp.array(True),
+            state = EndState(g=jnp.zeros_like(q), ball_velocity=jnp.zeros_like(zb0),
+                             delta=None if delta0 is None else jnp.zeros_like(delta0),
+                             load=jnp.zeros_like(zb0),
+                             projections=_unset_projections(model, n, 0.0))
+        init = NewtonIterate(
+            q=q, zb=zb, r_q=jnp.zeros_like(q), r_z=jnp.zeros_like(zb),
+            iterations=jnp.array(0, jnp.int32), done=jnp.array(False), bad=jnp.array(False),
+            small=jnp.array(0, jnp.int32), state=state, dq=jnp.zeros_like(q),
+            dz=jnp.zeros_like(zb), first=jnp.array(True),
         )
-        q, zb, _, _, it, done, bad, _, state, _, _, _ = jax.lax.while_loop(cond, body, init)
+        last = jax.lax.while_loop(cond, body, init)
+        q, zb = last.q, last.zb
         zk = None
         if nf:
             zb, zk = zb[0], zb[1:]
@@ -316,7 +450,9 @@ class MotionNewton(eqx.Module):
             _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load, ps)
         else:
             # the converged state's gradient and rates, from the residual's last evaluation
-            g, vb1, delta1, load, ps = state
+            g, vb1, delta1 = last.state.g, last.state.ball_velocity, last.state.delta
+            load, ps = last.state.load, last.state.projections
+        f1 = Forces(g, load, ps)
         hdelta1 = None
         if hdelta0 is not None:
             # the held bodies' return map: delta1 = delta0 + h |S(G, mu(delta0) N)|/(eta A) in
@@ -330,11 +466,12 @@ class MotionNewton(eqx.Module):
         y_rates = layout.pack(q[:, 0], q[:, 1] + zb, zb, acc0, delta0, zk, hdelta0)
         # (the energy gradient and the held load from the same evaluation: no third and fourth
         # pass through the bodies' projections)
-        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1, forces=(g, load, ps))
+        dy, _ = evaluate(model, layout, t1, y_rates, args, vb=vb1, forces=f1)
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
-        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=(g, load, ps))
-        ok = done & ~bad & jnp.all(jnp.isfinite(y1))
-        return y1, ok, it, (q - q0, zb - zb0), ((g, load, ps), vb1)
+        y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=f1)
+        ok = last.done & ~last.bad & jnp.all(jnp.isfinite(y1))
+        return IncrementResult(y=y1, ok=ok, iterations=last.iterations,
+                               change=Rate(q - q0, zb - zb0), forces=f1, ball_velocity=vb1)
 
     def next_size(self, dt, h, iters, ok, was_cut, h_fail, cap):
         """The increment controller: the size to try after an increment of ``h`` (``dt`` the
@@ -358,7 +495,8 @@ class MotionNewton(eqx.Module):
         self, model, layout: Layout, y0, t0, t1, dt0, args, rtol, atol, rate=None
     ) -> SegmentOutput:
         """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;
-        ``rate`` (on ``(q, zb)``, zero when None: a stage's start) predicts the first increment.
+        ``rate`` (a :class:`Rate` or any pair on ``(q, zb)``; zero when None: a stage's start)
+        predicts the first increment.
         The output's ``forces`` are the last accepted increment's at its end. A zero-length
         segment (``t1 == t0``: a run's initial frame) takes one zero-length increment, which
         leaves ``y0``, the rate, the increment's size and the counts as they are and gives the
@@ -368,63 +506,69 @@ class MotionNewton(eqx.Module):
         dt_min = MIN_FRACTION * (t1 - t0)
         zero = jnp.array(0, dtype=jnp.int32)
         n = layout.n
-        rate0 = zero_rate(n) if rate is None else rate
+        rate0 = zero_rate(n) if rate is None else Rate(*rate)
 
-        def cond(c):
-            t, _, _, dt, _, nacc, nrej, _, _, _, fresh = c
-            return ((t < t1) | fresh) & (nacc + nrej < self.max_steps) & (dt >= dt_min)
-
-        def body(c):
-            t, y, rate, dt, was_cut, nacc, nrej, nit, h_fail, f, _ = c
-            left = t1 - t
-            last = left <= 1.25 * dt
-            h = jnp.where(last, left, dt)
-            t_next = jnp.where(last, t1, t + h)
-            y1, ok, iters, (dq, dz), f1 = self.increment(
-                model, layout, t, t_next, y, args, rate, rtol, atol
+        def cond(c: SegmentCarry):
+            return (
+                ((c.t < t1) | c.fresh)
+                & (c.accepted + c.rejected < self.max_steps)
+                & (c.dt >= dt_min)
             )
+
+        def body(c: SegmentCarry) -> SegmentCarry:
+            left = t1 - c.t
+            last = left <= 1.25 * c.dt
+            h = jnp.where(last, left, c.dt)
+            t_next = jnp.where(last, t1, c.t + h)
+            r = self.increment(model, layout, c.t, t_next, c.y, args, c.rate, rtol, atol)
             moved = h > 0  # not the zero-length increment of a zero-length segment
-            took = ok & moved
-            dt_new, h_fail_new = self.next_size(dt, h, iters, ok, was_cut, h_fail, cap)
+            took = r.ok & moved
+            dt_new, h_fail_new = self.next_size(
+                c.dt, h, r.iterations, r.ok, c.was_cut, c.h_fail, cap
+            )
             hs = jnp.where(moved, h, 1.0)
-            new_rate = (dq / hs, dz / hs)
+            new_rate = Rate(r.change.q / hs, r.change.zb / hs)
             keep = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
                 lambda a, b: jnp.where(took, a, b), new, old)
-            return (
-                jnp.where(ok, t_next, t),
-                keep(y1, y),
-                keep(new_rate, rate),
-                jnp.where(moved, dt_new, dt),
-                jnp.where(moved, ~ok, was_cut),
-                nacc + took,
-                nrej + (~ok),
-                nit + jnp.where(moved, iters, 0),
-                jnp.where(moved, h_fail_new, h_fail),
-                jax.tree_util.tree_map(lambda a, b: jnp.where(ok, a, b), f1, f),
-                jnp.array(False),
+            return SegmentCarry(
+                t=jnp.where(r.ok, t_next, c.t),
+                y=keep(r.y, c.y),
+                rate=keep(new_rate, c.rate),
+                dt=jnp.where(moved, dt_new, c.dt),
+                was_cut=jnp.where(moved, ~r.ok, c.was_cut),
+                accepted=c.accepted + took,
+                rejected=c.rejected + (~r.ok),
+                iterations=c.iterations + jnp.where(moved, r.iterations, 0),
+                h_fail=jnp.where(moved, h_fail_new, c.h_fail),
+                forces=jax.tree_util.tree_map(lambda a, b: jnp.where(r.ok, a, b), r.forces,
+                                              c.forces),
+                ball_velocity=jnp.where(r.ok, r.ball_velocity, c.ball_velocity),
+                fresh=jnp.array(False),
             )
 
         # the forces and velocity before any increment: not finite, so a frame can never read
         # them as values (a segment that ends without an accepted increment has failed, and is
         # not recorded)
-        unset = ((jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan),
-                  _unset_projections(model, n, jnp.nan)), jnp.full((), jnp.nan))
-        init = (
-            t0, y0, rate0, jnp.minimum(dt0, cap), jnp.array(False), zero, zero, zero,
-            jnp.array(jnp.inf), unset, jnp.array(True),
+        unset = Forces(jnp.full((n, 2), jnp.nan), jnp.full((), jnp.nan),
+                       _unset_projections(model, n, jnp.nan))
+        vb_unset = jnp.full((), jnp.nan)
+        init = SegmentCarry(
+            t=t0, y=y0, rate=rate0, dt=jnp.minimum(dt0, cap), was_cut=jnp.array(False),
+            accepted=zero, rejected=zero, iterations=zero, h_fail=jnp.array(jnp.inf),
+            forces=unset, ball_velocity=vb_unset, fresh=jnp.array(True),
         )
-        t, y, rate, _, _, nacc, nrej, nit, _, f, _ = jax.lax.while_loop(cond, body, init)
-        ok = (t >= t1) & jnp.all(jnp.isfinite(y))
+        end = jax.lax.while_loop(cond, body, init)
+        ok = (end.t >= t1) & jnp.all(jnp.isfinite(end.y))
         return SegmentOutput(
-            y=y,
+            y=end.y,
             ok=ok,
-            steps=nacc + nrej,
-            accepted=nacc,
-            rejected=nrej,
-            newton_iterations=nit,
-            rate=rate,
-            forces=f[0],
-            ball_velocity=f[1],
+            steps=end.accepted + end.rejected,
+            accepted=end.accepted,
+            rejected=end.rejected,
+            newton_iterations=end.iterations,
+            rate=end.rate,
+            forces=end.forces,
+            ball_velocity=end.ball_velocity,
         )
 
 
@@ -438,6 +582,6 @@ def _unset_projections(model, n: int, fill):
     return jax.tree_util.tree_map(lambda a: jnp.full(a.shape, fill, a.dtype), shapes)
 
 
-def zero_rate(n: int):
+def zero_rate(n: int) -> Rate:
     """The predictor's rate at a stage's start: zero on ``(q, zb)``."""
-    return (jnp.zeros((n, 2)), jnp.zeros(()))
+    return Rate(jnp.zeros((n, 2)), jnp.zeros(()))

@@ -41,6 +41,7 @@ from __future__ import annotations
 import functools
 import time as _time
 from collections import OrderedDict
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -49,6 +50,7 @@ import numpy as np
 from dynslip.physics.field import _f
 from dynslip.physics.frames import frame_record
 from dynslip.physics.member import MemberRun, Result
+from dynslip.physics.newton import SegmentOutput
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
 
@@ -56,6 +58,7 @@ __all__ = [
     "COMPILER_OPTIONS",
     "FAST_COMPILE_NODES",
     "LARGE_COMPILER_OPTIONS",
+    "StepOutput",
     "compile_step",
     "drive",
     "segment_step",
@@ -120,10 +123,18 @@ def _compiled(key, compile_fn, stats_list):
     return compiled
 
 
+class StepOutput(NamedTuple):
+    """What the compiled segment step returns: the solver's ``segment`` output and the
+    ``frame`` of its end state (:func:`frame_record`)."""
+
+    segment: SegmentOutput
+    frame: dict
+
+
 @functools.lru_cache(maxsize=CACHE_SIZE)
 def segment_step(solver, batched: bool = False):
     """Jitted ``step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold)
-    -> (SegmentOutput, frame)``: one save segment of ``solver`` and the frame of its end state
+    -> StepOutput``: one save segment of ``solver`` and the frame of its end state
     (:func:`frame_record` at ``t1``), in one program, so a segment costs one call and one
     transfer. ``batched``: vmapped over a leading member axis of every input but the layout
     (a model's float constants, such as Gent's J_m, broadcast). Kept for the :data:`CACHE_SIZE`
@@ -131,8 +142,8 @@ def segment_step(solver, batched: bool = False):
 
     def step(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate, contact_threshold):
         out = solver.segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate)
-        return out, frame_record(model, layout, t1, out.y, args, contact_threshold,
-                                 forces=out.forces, vb=out.ball_velocity)
+        return StepOutput(out, frame_record(model, layout, t1, out.y, args, contact_threshold,
+                                            forces=out.forces, vb=out.ball_velocity))
 
     if batched:
         a = eqx.if_array(0)
@@ -205,24 +216,21 @@ def drive(runs: list[MemberRun]) -> list[Result]:
             [runs[b].stats for b in active],
         )
         r0 = _time.perf_counter()
-        out, frames = jax.device_get(compiled(*inputs))
+        got = jax.device_get(compiled(*inputs))
         # the tick's time, shared by its active members
         run_s = (_time.perf_counter() - r0) / len(active)
-        lockstep = int(np.max(out.steps))  # the tick's cost: the batch's largest increment count
+        # the tick's cost: the batch's largest increment count
+        lockstep = int(np.max(got.segment.steps))
         for b in active:
             r = runs[b]
-            ob, fb = (
-                (out, frames)
-                if not batched
-                else jax.tree_util.tree_map(lambda o, b=b: o[b], (out, frames))
-            )
+            own = got if not batched else jax.tree_util.tree_map(lambda o, b=b: o[b], got)
             if not r.frames:
-                r.record(fb)
+                r.record(own.frame)
                 continue
             if batched:
                 r.stats["lockstep_steps"] = r.stats.get("lockstep_steps", 0) + lockstep
-            if r.advance(segs[b], ob, run_s):
-                r.record(fb)
+            if r.advance(segs[b], own.segment, run_s):
+                r.record(own.frame)
     return [r.result() for r in runs]
 
 

@@ -15,7 +15,6 @@ need.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -24,7 +23,7 @@ from dynslip.physics.field import Layout, heal, sheet_structure, vector_field
 from dynslip.physics.linalg import BorderedBlockTridiagonal
 from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
 
-__all__ = ["SOLVERS", "Settings", "TimeStepping", "solver_for"]
+__all__ = ["DIFFRAX_METHODS", "SOLVERS", "Settings", "TimeStepping", "solver_for"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,6 +75,21 @@ class TimeStepping(eqx.Module):
     icoeff: float = eqx.field(static=True, default=0.3)
     heal_rate: float = eqx.field(static=True, default=0.0)
 
+    @classmethod
+    def from_settings(cls, s: Settings) -> TimeStepping:
+        """The diffrax solver of ``s.solver`` (:data:`DIFFRAX_METHODS`) with the step limit,
+        linear solver, PID coefficients and healing rate of ``s``."""
+        import diffrax
+
+        return cls(
+            method=getattr(diffrax, DIFFRAX_METHODS[s.solver]),
+            max_steps=s.max_steps,
+            linear_solver=s.linear_solver,
+            pcoeff=s.pcoeff,
+            icoeff=s.icoeff,
+            heal_rate=s.heal_rate,
+        )
+
     def _diffrax_solver(self, layout: Layout):
         import diffrax
 
@@ -123,58 +137,38 @@ class TimeStepping(eqx.Module):
         )
 
 
-def _from_settings(cls, settings: Settings, **given):
-    """``cls`` (a solver object) with each of its fields that :class:`Settings` has by the same
-    name taken from ``settings``, and the ``given`` ones."""
-    take = {f.name for f in dataclasses.fields(cls)} - set(given)
-    return cls(**{k: getattr(settings, k) for k in take if hasattr(settings, k)}, **given)
+#: The diffrax solver class of each of the schema's ``numerics.solver`` names that
+#: :class:`TimeStepping` runs.
+DIFFRAX_METHODS = {
+    "kvaerno5": "Kvaerno5",
+    "kvaerno4": "Kvaerno4",
+    "kvaerno3": "Kvaerno3",
+    "implicit_euler": "ImplicitEuler",
+}
 
-
-def _motion_newton(s: Settings) -> MotionNewton:
-    # the schema's "structured" (the default): the block solver by the mesh's size
-    linear = s.linear_solver if s.linear_solver in ("thomas", "cyclic") else "auto"
-    return _from_settings(
-        MotionNewton, s, max_iter=s.newton_max_iter, backtrack=s.newton_backtrack, linear=linear,
-        weight=s.newton_weight,
-    )
-
-
-def _time_stepping(method: str) -> Callable[[Settings], TimeStepping]:
-    """The builder of :class:`TimeStepping` with diffrax's solver class ``method`` (by name)."""
-    def make(s: Settings) -> TimeStepping:
-        import diffrax
-
-        return _from_settings(TimeStepping, s, method=getattr(diffrax, method))
-
-    return make
-
-
-#: The segment solvers by the schema's ``numerics.solver`` name: each builds its solver object
-#: from the :class:`Settings`. Every object has ``segment(model, layout, y0, t0, t1, dt0, args,
-#: rtol, atol, rate) -> SegmentOutput``.
-SOLVERS: dict[str, Callable[[Settings], eqx.Module]] = {
-    "load_step": _motion_newton,
-    "kvaerno5": _time_stepping("Kvaerno5"),
-    "kvaerno4": _time_stepping("Kvaerno4"),
-    "kvaerno3": _time_stepping("Kvaerno3"),
-    "implicit_euler": _time_stepping("ImplicitEuler"),
+#: The segment solver classes by the schema's ``numerics.solver`` name: each builds its solver
+#: object from the :class:`Settings` (``from_settings``). Every object has ``segment(model,
+#: layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``.
+SOLVERS: dict[str, type[MotionNewton] | type[TimeStepping]] = {
+    "load_step": MotionNewton,
+    **{name: TimeStepping for name in DIFFRAX_METHODS},
 }
 
 
 def solver_for(settings: Settings):
     """The segment solver object of ``settings.solver``: the object itself, or the one
-    :data:`SOLVERS` builds for its name (``load_step``, the default,
+    class :data:`SOLVERS` names builds from ``settings`` (``load_step``, the default,
     :class:`dynslip.physics.newton.MotionNewton`; a diffrax solver, :class:`TimeStepping`)."""
     if not isinstance(settings.solver, str):
         return settings.solver
     try:
-        make = SOLVERS[settings.solver]
+        cls = SOLVERS[settings.solver]
     except KeyError:
         raise ValueError(
             f"Settings.solver = {settings.solver!r}: allowed: {', '.join(SOLVERS)} or a solver "
             "object"
         ) from None
-    return make(settings)
+    return cls.from_settings(settings)
 
 
 def _counts_newton(solver) -> bool:
