@@ -285,7 +285,7 @@ def test_a_change_to_the_physics_or_the_plotting_makes_its_tables_and_figures_st
         path = tmp_path / rel
         path.write_text(path.read_text() + "\n# edited\n")
 
-    edit("dynslip/cli/parser.py")
+    edit("dynslip/cli/__init__.py")
     assert not RES.stale() and not FIG.stale_figures(img)
     edit("dynslip/plot/style.py")
     assert not RES.stale() and set(FIG.stale_figures(img)) == set(FIG.FIGURES)
