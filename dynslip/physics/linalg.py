@@ -22,7 +22,7 @@ in $n$, against $O(n^2)$ evaluations and $O(n^3)$ factorisation for a dense LU.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
@@ -103,12 +103,46 @@ def _matvec(operator: lx.AbstractLinearOperator):
     return mv
 
 
-def extract_blocks(mv, mvT, s: Structure):
+class Blocks(NamedTuple):
+    """A bordered block-tridiagonal matrix $\\begin{pmatrix}A & B\\\\ C & D\\end{pmatrix}$:
+    ``lower[i] = A[i, i-1]``, ``diag[i] = A[i, i]``, ``upper[i] = A[i, i+1]`` (n, b, b), the
+    border's columns ``B`` (n b, m), rows ``C`` (m, n b) and corner ``D`` (m, m)."""
+
+    lower: jax.Array
+    diag: jax.Array
+    upper: jax.Array
+    B: jax.Array
+    C: jax.Array
+    D: jax.Array
+
+
+class Factorisation(NamedTuple):
+    """:func:`factorise`'s output: the off-diagonal blocks, the block Thomas pivots' inverses
+    ``invs``, $A^{-1}B$ (``ainv_b``), the border's rows ``C`` and the Schur complement's
+    inverse."""
+
+    lower: jax.Array
+    upper: jax.Array
+    invs: jax.Array
+    ainv_b: jax.Array
+    C: jax.Array
+    schur_inv: jax.Array
+
+
+class SolverState(NamedTuple):
+    """:class:`BorderedBlockTridiagonal`'s state: the factorisation, the blocks it was made of
+    (the transpose's) and the operator's packed input and output structures."""
+
+    factorisation: Factorisation
+    blocks: Blocks
+    packed: Any
+
+
+def extract_blocks(mv, mvT, s: Structure) -> Blocks:
     """The blocks of a bordered block-tridiagonal matrix from products with it.
 
-    ``mv(v) = J v`` and ``mvT(w) = J^T w`` on flat vectors. Returns ``(lower, diag,
-    upper, B, C, D)`` with ``diag[i] = A[i, i]``, ``lower[i] = A[i, i-1]`` (zero for
-    i = 0), ``upper[i] = A[i, i+1]`` (zero for i = n-1), each of shape (n, b, b).
+    ``mv(v) = J v`` and ``mvT(w) = J^T w`` on flat vectors. Returns the :class:`Blocks`,
+    ``lower[0]`` and ``upper[n-1]`` zero.
     """
     n, b, m = s.n, s.b, s.m
     nb = n * b
@@ -145,7 +179,7 @@ def extract_blocks(mv, mvT, s: Structure):
     eye_m = jnp.concatenate([jnp.zeros((m, nb)), jnp.eye(m)], axis=1)
     right = jax.vmap(mv)(eye_m).T  # (nb + m, m): columns of [B; D]
     bottom = jax.vmap(mvT)(eye_m)  # (m, nb + m): rows of [C D]
-    return lower, diag, upper, right[:nb], bottom[:, :nb], right[nb:]
+    return Blocks(lower, diag, upper, right[:nb], bottom[:, :nb], right[nb:])
 
 
 def small_matmul(a, b):
@@ -218,7 +252,7 @@ def _solve_tridiag(lower, upper, invs, f):
     return jnp.concatenate([xs, x_last[None]])
 
 
-def factorise(lower, diag, upper, B, C, D, s: Structure):
+def factorise(lower, diag, upper, B, C, D, s: Structure) -> Factorisation:
     """Factorise the bordered block-tridiagonal matrix (block Thomas + Schur complement)."""
     invs = _factor_tridiag(lower, diag, upper)
     if s.m:
@@ -228,19 +262,18 @@ def factorise(lower, diag, upper, B, C, D, s: Structure):
     else:
         ainv_b = jnp.zeros((s.n, s.b, 0))
         schur_inv = jnp.zeros((0, 0))
-    return (lower, upper, invs, ainv_b, C, schur_inv)
+    return Factorisation(lower, upper, invs, ainv_b, C, schur_inv)
 
 
-def solve_factorised(fac, rhs, s: Structure):
+def solve_factorised(fac: Factorisation, rhs, s: Structure):
     """Solve with the output of :func:`factorise`; ``rhs`` is flat (n b + m,)."""
-    lower, upper, invs, ainv_b, C, schur_inv = fac
     nb = s.n * s.b
     f, g = rhs[:nb], rhs[nb:]
-    ainv_f = _solve_tridiag(lower, upper, invs, f.reshape(s.n, s.b, 1)).reshape(nb)
+    ainv_f = _solve_tridiag(fac.lower, fac.upper, fac.invs, f.reshape(s.n, s.b, 1)).reshape(nb)
     if not s.m:
         return ainv_f
-    y = schur_inv @ (g - C @ ainv_f)
-    x = ainv_f - ainv_b.reshape(nb, s.m) @ y
+    y = fac.schur_inv @ (g - fac.C @ ainv_f)
+    x = ainv_f - fac.ainv_b.reshape(nb, s.m) @ y
     return jnp.concatenate([x, y])
 
 
@@ -279,26 +312,27 @@ class BorderedBlockTridiagonal(lx.AbstractLinearSolver):
         mv = _matvec(operator)
         mvT = _matvec(operator.transpose())
         blocks = extract_blocks(mv, mvT, self.structure)
-        return (factorise(*blocks, self.structure), blocks, pack_structures(operator))
+        return SolverState(factorise(*blocks, self.structure), blocks,
+                           pack_structures(operator))
 
-    def compute(self, state, vector, options):
+    def compute(self, state: SolverState, vector, options):
         del options
-        fac, _, packed = state
         s = self.structure
-        sol = s.from_blocked(solve_factorised(fac, s.to_blocked(ravel_vector(vector, packed)), s))
-        return unravel_solution(sol, packed), lx.RESULTS.successful, {}
+        sol = s.from_blocked(solve_factorised(
+            state.factorisation, s.to_blocked(ravel_vector(vector, state.packed)), s))
+        return unravel_solution(sol, state.packed), lx.RESULTS.successful, {}
 
-    def transpose(self, state, options):
-        _, (lower, diag, upper, B, C, D), packed = state
+    def transpose(self, state: SolverState, options):
+        b = state.blocks
         sw = lambda a: jnp.swapaxes(a, -1, -2)  # noqa: E731
         # (A^T)[i, i-1] = A[i-1, i]^T = upper[i-1]^T ; (A^T)[i, i+1] = lower[i+1]^T
-        lower_t = jnp.concatenate([jnp.zeros_like(upper[:1]), sw(upper[:-1])])
-        upper_t = jnp.concatenate([sw(lower[1:]), jnp.zeros_like(lower[:1])])
-        blocks_t = (lower_t, sw(diag), upper_t, C.T, B.T, D.T)
-        return (
+        lower_t = jnp.concatenate([jnp.zeros_like(b.upper[:1]), sw(b.upper[:-1])])
+        upper_t = jnp.concatenate([sw(b.lower[1:]), jnp.zeros_like(b.lower[:1])])
+        blocks_t = Blocks(lower_t, sw(b.diag), upper_t, b.C.T, b.B.T, b.D.T)
+        return SolverState(
             factorise(*blocks_t, self.structure),
             blocks_t,
-            transpose_packed_structures(packed),
+            transpose_packed_structures(state.packed),
         ), {}
 
     def conj(self, state, options):
