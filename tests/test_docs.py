@@ -201,29 +201,46 @@ def test_results_markers_and_manifest_agree():
 
 
 def test_every_results_command_parses():
-    """Each command of the manifest, as given and with its small-mesh arguments, parses with
-    the command line's parser; its scenario files exist; its rows come from a function."""
+    """Each command of the manifest is a ``dynslip`` command that parses with the command
+    line's parser, as given and with its small-mesh arguments, or a script of docs/ or
+    benchmarks/ that exists; its scenario files exist; its rows come from a function."""
     parser = build_parser()
     for name, entry in RES.TABLES.items():
         assert entry.commands and callable(entry.rows), name
-        for cmd in entry.commands:
-            assert cmd.startswith("dynslip "), (name, cmd)
-            parser.parse_args(shlex.split(cmd)[1:])
-            parser.parse_args(shlex.split(cmd)[1:] + shlex.split(entry.small))
+        small_env, small = RES.split_command(entry.small)
+        for cmd in (*entry.commands, *(entry.small_commands or ())):
+            env, words = RES.split_command(cmd)
+            assert all(re.fullmatch(r"[A-Z_][A-Z0-9_]*", k) for k in {**env, **small_env}), name
+            if words[0] == "python":
+                assert words[1].startswith(("docs/", "benchmarks/")), (name, cmd)
+                assert (ROOT / words[1]).is_file(), (name, cmd)
+                continue
+            assert words[0] == "dynslip", (name, cmd)
+            words = [re.sub(r"\{run:\d+\}", "RUN", w) for w in words]  # an earlier run's folder
+            parser.parse_args(words[1:])
+            parser.parse_args(words[1:] + RES.accepted(words[1], small))
         for scenario in entry.scenarios():
             assert (ROOT / scenario).is_file(), (name, scenario)
         assert re.fullmatch(r"[0-9a-f]{12}", entry.key()), name
 
 
+@pytest.fixture(scope="module")
+def runs_dir(tmp_path_factory):
+    """One folder for every table's small runs: a command two tables share runs once."""
+    return tmp_path_factory.mktemp("results_runs")
+
+
 @pytest.mark.parametrize(
     "name",
-    [pytest.param(n, marks=[pytest.mark.slow] if t.slow else []) for n, t in RES.TABLES.items()],
+    [pytest.param(n, marks=[pytest.mark.slow] if t.slow and not t.small_quick else [])
+     for n, t in RES.TABLES.items()],
 )
-def test_results_small_variant_runs(name, tmp_path):
-    """The table's commands at a small mesh (its ``small`` arguments) run and give a row of
-    the table's width for each row of its file (the static selection rule: about 15 s)."""
+def test_results_small_variant_runs(name, runs_dir):
+    """The table's commands at a small mesh (its ``small`` arguments, or its small commands)
+    run and give a row of the table's width for each row of its file. The quick suite runs
+    the tables marked ``small_quick`` (about a minute together); the others are slow."""
     entry = RES.TABLES[name]
-    rows = RES.measure(name, tmp_path, small=True)
+    rows = RES.measure(name, runs_dir, small=True)
     text = (ROOT / entry.doc).read_text()
     span = RES.block(text, name)
     shown = [t for t in RES.doc_tables(ROOT / entry.doc) if t.marker == name]
@@ -273,6 +290,7 @@ def test_a_change_to_the_physics_or_the_plotting_makes_its_tables_and_figures_st
     nothing."""
     for part in ("dynslip", "docs", "scenarios"):
         shutil.copytree(ROOT / part, tmp_path / part, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copyfile(ROOT / "README.md", tmp_path / "README.md")
     monkeypatch.setattr(RES, "ROOT", tmp_path)
     img = tmp_path / "docs" / "img"
     for name in RES.TABLES:
