@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from dynslip.physics.batch import simulate_batch
-from dynslip.physics.friction import make_friction
+from dynslip.physics.friction import SlipWeakening
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import (
     BALL_FORCE,
@@ -27,7 +27,6 @@ from dynslip.physics.protocols import (
     Protocol,
     Rest,
     Stage,
-    StopRule,
     ThetaMaxBelow,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
@@ -49,7 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def kwargs(mu_s, mu_k, settings=SETTINGS):
     return dict(
-        friction=make_friction("slip_weakening", mu_s=mu_s, mu_k=mu_k, d_c=0.02, eps=1e-3),
+        friction=SlipWeakening(mu_s=mu_s, mu_k=mu_k, d_c=0.02, eps=1e-3),
         eps=1e-3,
         drag=0.1,
         ball_drag=0.1 * 4 * math.pi,
@@ -66,7 +65,7 @@ def protocol(first_stop, push=4.0):
         (
             Stage("push_down", Duration(duration=push), clamp_vz=-0.5),
             Stage("check", first_stop),
-            Stage("let_go", StopRule("duration", duration=2.0), clamp_mode=CLAMP_FORCE),
+            Stage("let_go", Duration(duration=2.0), clamp_mode=CLAMP_FORCE),
             Stage(
                 "release",
                 Duration(duration=2.0),
@@ -139,7 +138,7 @@ SHORT = {  # the let-go path of scenarios/method2_let_go.yaml, shortened (20 nod
     "physics.stages.hold.duration_s": 4.0,
     "physics.stages.let_go.duration_s": 6.0,
     "physics.stages.release.duration_s": 6.0,
-    "physics.stages.rest.rest_hold_s": 4.0,
+    "physics.stages.rest.until.hold_s": 4.0,
     "physics.stages.rest.duration_s": 40.0,
 }
 MEMBERS = [

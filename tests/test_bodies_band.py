@@ -23,7 +23,7 @@ from dynslip.physics.bodies import Cylinder
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material, relaxed_tensions
-from dynslip.physics.protocols import CLAMP_BAND, Protocol, Stage, StopRule
+from dynslip.physics.protocols import CLAMP_BAND, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
@@ -48,8 +48,8 @@ THRESHOLD = GRIP * 2 * math.pi * (R0 + A)
 
 def _run(solver="load_step"):
     stages = (
-        Stage("fold", StopRule("duration", duration=Z_BAND / 0.2), clamp_vz=0.2),
-        Stage("push", StopRule("duration", duration=PUSH_S), clamp_mode=CLAMP_BAND, ball_vz=BALL_V),
+        Stage("fold", Duration(duration=Z_BAND / 0.2), clamp_vz=0.2),
+        Stage("push", Duration(duration=PUSH_S), clamp_mode=CLAMP_BAND, ball_vz=BALL_V),
     )
     protocol = Protocol(stages, clamp_rho0=R0 + A, clamp_z0=0.0, ball_z0=-1.05)
     res = simulate(

@@ -27,7 +27,7 @@ from dynslip.physics.bodies.apparatus import bottle
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import Protocol, Stage, StopRule
+from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
@@ -104,8 +104,8 @@ RING_AT = Cylinder(**{**RING, "z_bottom": RING["z_bottom"] + ZB, "z_top": RING["
 
 def _run(model, z_sheet, ball_z0, depth, speed=0.2, hold=4.0):
     stages = (
-        Stage("push", StopRule("duration", duration=(z_sheet - depth) / speed), clamp_vz=-speed),
-        Stage("hold", StopRule("duration", duration=hold)),
+        Stage("push", Duration(duration=(z_sheet - depth) / speed), clamp_vz=-speed),
+        Stage("hold", Duration(duration=hold)),
     )
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
     res = simulate(

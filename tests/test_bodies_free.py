@@ -25,7 +25,7 @@ from dynslip.physics.field import free_body_rates
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.member import stage_args
-from dynslip.physics.protocols import Protocol, Stage, StopRule
+from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
@@ -51,7 +51,7 @@ MODEL_FRICTION = SheetModel(
 
 def _rise(model, settings=None):
     # the post settles exponentially (time constant about 1.4 s): 24 s leave 1e-7 of F
-    stages = (Stage("rise", StopRule("duration", duration=24.0)),)
+    stages = (Stage("rise", Duration(duration=24.0)),)
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
     res = simulate(
         model, protocol, friction=FRICTION, eps=EPS, drag=TAU, ball_drag=ETA,
@@ -118,7 +118,7 @@ def test_power_balance_with_a_frictional_free_body_is_exact(run_friction):
     from dynslip.physics.bodies.held import place_free
     from dynslip.physics.field import N_ACC_MOVED, Layout, evaluate, place_free_moving
 
-    stage = Stage("rise", StopRule("duration", duration=24.0))
+    stage = Stage("rise", Duration(duration=24.0))
     args = stage_args(stage, 0.0, 6.0, 0.0, (0.0, 0.0), FRICTION, EPS, TAU, ETA, 0.0)
     lay = Layout(N, 0, N_ACC_MOVED, 1)
 
@@ -194,7 +194,7 @@ def test_newton_matrix_with_a_free_body_equals_jacfwd(model):
     jax.jacfwd of the increment's residual, at a state where the post presses the sheet; with
     the post's friction too (its velocity, the increment's, enters the nodes' slip relative to
     it and its own row)."""
-    stage = Stage("rise", StopRule("duration", duration=1.0))
+    stage = Stage("rise", Duration(duration=1.0))
     args = stage_args(stage, 0.0, 6.0, 0.0, (0.0, 0.0), FRICTION, EPS, TAU, ETA, 0.0)
     mesh = model.mesh
     rho = PRE * mesh.rbar

@@ -28,9 +28,9 @@ from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
     CLAMP_POSITION,
+    Duration,
     Protocol,
     Stage,
-    StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import simulate
@@ -67,8 +67,8 @@ SPEED = 0.2
 
 def _run(model, solver="load_step", hold=4.0):
     stages = (
-        Stage("push", StopRule("duration", duration=1.5 / SPEED), clamp_vz=-SPEED),
-        Stage("hold", StopRule("duration", duration=hold)),
+        Stage("push", Duration(duration=1.5 / SPEED), clamp_vz=-SPEED),
+        Stage("hold", Duration(duration=hold)),
     )
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
     res = simulate(
@@ -210,7 +210,7 @@ def _small_state():
 def _args(ball_mode):
     stage = Stage(
         "s",
-        StopRule("duration", duration=5.0),
+        Duration(duration=5.0),
         clamp_vz=-0.2,
         ball_mode=ball_mode,
         clamp_mode=CLAMP_POSITION,

@@ -24,9 +24,9 @@ from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
     CLAMP_POSITION,
+    Duration,
     Protocol,
     Stage,
-    StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.simulate import simulate
@@ -51,8 +51,8 @@ WORLD_MODEL = SheetModel(make_mesh(N, RIM / PRE), MAT, PEN, bodies=WORLD)
 
 def _run(model, z_sheet, ball_z0, depth, solver="load_step", speed=0.2, hold=4.0, mu=0.5):
     stages = (
-        Stage("push", StopRule("duration", duration=(z_sheet - depth) / speed), clamp_vz=-speed),
-        Stage("hold", StopRule("duration", duration=hold)),
+        Stage("push", Duration(duration=(z_sheet - depth) / speed), clamp_vz=-speed),
+        Stage("hold", Duration(duration=hold)),
     )
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
     res = simulate(
@@ -193,7 +193,7 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
     assert np.any(np.asarray(SMALL.bodies[0].distance(x)) < 0)  # some nodes press on the torus
     stage = Stage(
         "s",
-        StopRule("duration", duration=5.0),
+        Duration(duration=5.0),
         clamp_vz=-0.2,
         ball_mode=ball_mode,
         clamp_mode=CLAMP_POSITION,

@@ -22,7 +22,7 @@ from dynslip.physics.bodies import Cylinder
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import Protocol, Stage, StopRule
+from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
@@ -51,9 +51,9 @@ def _run(stage_moved: bool):
     )
     body = {"body_vz": (v,)} if stage_moved else {}
     stages = (
-        Stage("push", StopRule("duration", duration=1.0 / SPEED), clamp_vz=-SPEED + v,
+        Stage("push", Duration(duration=1.0 / SPEED), clamp_vz=-SPEED + v,
               ball_vz=v, **body),
-        Stage("hold", StopRule("duration", duration=3.0), clamp_vz=v, ball_vz=v, **body),
+        Stage("hold", Duration(duration=3.0), clamp_vz=v, ball_vz=v, **body),
     )
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
     res = simulate(

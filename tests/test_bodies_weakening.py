@@ -24,7 +24,7 @@ from dynslip.physics.bodies.held import Held, held_frame, n_memory
 from dynslip.physics.field import N_ACC, Layout, heal
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, Protocol, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
@@ -68,8 +68,8 @@ WEAK = _model(_weakening(MU_POST, MU_K), _coulomb(MU_RING))
 
 def _run(model, heal_rate=0.0, solver="load_step"):
     stages = (
-        Stage("push", StopRule("duration", duration=0.5 / 0.2), clamp_vz=-0.2),
-        Stage("hold", StopRule("duration", duration=2.0)),
+        Stage("push", Duration(duration=0.5 / 0.2), clamp_vz=-0.2),
+        Stage("hold", Duration(duration=2.0)),
     )
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
     res = simulate(

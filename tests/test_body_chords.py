@@ -165,7 +165,7 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
     that stage, at that frame, with the same counts (the check comes before the stop rule)."""
     from dynslip.physics.friction import Coulomb
     from dynslip.physics.materials import make_material
-    from dynslip.physics.protocols import Protocol, Stage, StopRule
+    from dynslip.physics.protocols import Duration, Protocol, Stage
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
     from dynslip.physics.simulate import simulate
     from dynslip.physics.solvers import Settings
@@ -173,7 +173,7 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
     limit, tau, eps = 1e-3, 0.1, 1e-3
     model = SheetModel(make_mesh(24, 2.54 / 1.05), make_material("gent", jm=50.0),
                        Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)), bodies=(POST,))
-    stages = (Stage("push", StopRule("duration", duration=6.0), clamp_vz=-0.2),)
+    stages = (Stage("push", Duration(duration=6.0), clamp_vz=-0.2),)
     protocol = Protocol(stages, clamp_rho0=2.54, clamp_z0=0.0, ball_z0=6.0)
     def run(protocol=protocol):
         return simulate(
@@ -198,8 +198,8 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
     assert len(res.stage_end) == 1
 
     # the failed frame made the last of a stage that another follows: the run fails in this one
-    hold = Stage("hold", StopRule("duration", duration=1.0), clamp_vz=0.0)
-    two = Protocol((dataclasses.replace(stages[0], stop=StopRule("duration", duration=f.t)), hold),
+    hold = Stage("hold", Duration(duration=1.0), clamp_vz=0.0)
+    two = Protocol((dataclasses.replace(stages[0], stop=Duration(duration=f.t)), hold),
                    clamp_rho0=2.54, clamp_z0=0.0, ball_z0=6.0)
     cut = run(two)
     assert str(cut.failure) == str(f) and cut.stage_end == res.stage_end

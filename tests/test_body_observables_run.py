@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dynslip.physics.bodies.observe import SLIP_BACK, SLIP_ON, STUCK
-from dynslip.physics.protocols import Protocol, Stage, StopRule
+from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
 from test_bodies_friction import (
@@ -61,9 +61,9 @@ def test_held_at_the_friction_limit_the_sheet_creeps_and_reads_slipping(frames):
 def eased():
     """Pulled as in ``frames``, then the clamp moved back up by 0.03 R, then held."""
     stages = (
-        Stage("push", StopRule("duration", duration=1.5 / SPEED), clamp_vz=-SPEED),
-        Stage("ease", StopRule("duration", duration=0.03 / SPEED), clamp_vz=SPEED),
-        Stage("hold", StopRule("duration", duration=2.0)),
+        Stage("push", Duration(duration=1.5 / SPEED), clamp_vz=-SPEED),
+        Stage("ease", Duration(duration=0.03 / SPEED), clamp_vz=SPEED),
+        Stage("hold", Duration(duration=2.0)),
     )
     res = simulate(FRICTIONAL, Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0),
                    friction=_coulomb(0.5), eps=EPS, drag=TAU, ball_drag=TAU * 4 * math.pi,

@@ -281,10 +281,10 @@ def _from_pocket(path, pocket, stages=None):
 #: release_pull.yaml's rule
 TEAR_OUT_STAGES = [
     {"name": "preload", "ball": "pull", "ball_force_N": -0.6, "duration_s": 30.0},
-    {"name": "settle", "ball": "pull", "ball_force_N": -0.6, "until": "rest",
-     "rest_rate_mm_s": 0.01, "rest_hold_s": 5.0, "duration_s": 200.0},
-    {"name": "pull", "ball": "pull", "ball_force_N": -6.0, "until": "ball_speed_above",
-     "ball_speed_mm_s": 3.0, "duration_s": 270.0},
+    {"name": "settle", "ball": "pull", "ball_force_N": -0.6, "until":
+     {"rule": "rest", "rate_mm_s": 0.01, "hold_s": 5.0}, "duration_s": 200.0},
+    {"name": "pull", "ball": "pull", "ball_force_N": -6.0, "until":
+     {"rule": "ball_speed_above", "speed_mm_s": 3.0}, "duration_s": 270.0},
 ]  # fmt: skip
 RELEASE_SPEED_MM_S = 0.1
 

@@ -20,7 +20,7 @@ from dynslip.errors import ComputationError, InputError
 from dynslip.physics import static
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Protocol, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
@@ -37,8 +37,8 @@ MODEL = SheetModel(make_mesh(NODES, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), j
 def push_protocol(speed=0.2, depth=-1.5, hold=2.0, factor=1.0, ball_z0=0.0):
     """Push the rim from just above the ball to ``depth`` at ``speed`` (R/s), then hold."""
     stages = (
-        Stage("push_down", StopRule("duration", duration=(Z0 - depth) / speed), clamp_vz=-speed),
-        Stage("hold", StopRule("duration", duration=hold)),
+        Stage("push_down", Duration(duration=(Z0 - depth) / speed), clamp_vz=-speed),
+        Stage("hold", Duration(duration=hold)),
     )
     return Protocol(stages, clamp_rho0=RIM, clamp_z0=Z0, ball_z0=ball_z0).scaled(factor)
 
@@ -188,7 +188,7 @@ def test_flat_sheet_without_load_and_uniform_stretch_without_ball_stay_put():
     from dynslip.physics.materials import relaxed_tensions
 
     prot = Protocol(
-        (Stage("rest", StopRule("duration", duration=4.0)),),
+        (Stage("rest", Duration(duration=4.0)),),
         clamp_rho0=RIM,
         clamp_z0=Z0,
         ball_z0=-50.0,
@@ -212,11 +212,11 @@ def test_frictionless_sheet_slides_off():
     """mu = 0: the pushed sheet cannot hold a pocket; letting the clamp go, the sheet leaves
     the ball (no contact past the equator)."""
     stages = (
-        Stage("push_down", StopRule("duration", duration=(Z0 + 1.5) / 0.2), clamp_vz=-0.2),
-        Stage("let_go", StopRule("duration", duration=3.0), clamp_mode=CLAMP_FORCE),
+        Stage("push_down", Duration(duration=(Z0 + 1.5) / 0.2), clamp_vz=-0.2),
+        Stage("let_go", Duration(duration=3.0), clamp_mode=CLAMP_FORCE),
         Stage(
             "release",
-            StopRule("duration", duration=3.0),
+            Duration(duration=3.0),
             clamp_mode=CLAMP_FORCE,
             clamp_force_start=(0.0, 0.0),
             ball_mode=BALL_FORCE,
@@ -285,8 +285,7 @@ def _scenario(**physics):
                     {
                         "name": "a",
                         "duration_s": 5,
-                        "until": "clamp_force_below",
-                        "force_threshold_N": 0.1,
+                        "until": {"rule": "clamp_force_below", "force_N": 0.1},
                     }
                 ]
             },
@@ -298,9 +297,7 @@ def _scenario(**physics):
                     {
                         "name": "a",
                         "duration_s": 5,
-                        "until": "rest",
-                        "rest_rate_mm_s": 0.1,
-                        "rest_hold_s": 9,
+                        "until": {"rule": "rest", "rate_mm_s": 0.1, "hold_s": 9},
                     }
                 ]
             },
@@ -312,8 +309,7 @@ def _scenario(**physics):
                     {
                         "name": "a",
                         "duration_s": 5,
-                        "until": "clamp_force_below",
-                        "force_threshold_N": 0,
+                        "until": {"rule": "clamp_force_below", "force_N": 0},
                         "clamp_velocity_mm_s": 1,
                     }
                 ]

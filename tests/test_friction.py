@@ -25,49 +25,53 @@ def test_soft_threshold_reverse_mode_finite_at_zero_threshold():
 
 def test_the_schema_builds_the_physics_from_the_one_registry_of_each_kind():
     """Friction laws, materials and stop rules are built by the schema from one registry each
-    (physics.friction.FRICTION_LAWS, physics.materials.MATERIALS, physics.protocols.STOPS), and
-    the name-based factories kept for schema-less callers build the same objects."""
+    (schema.friction.FRICTION_SPECS, physics.materials.MATERIALS, schema.stages.STOP_SPECS):
+    each friction spec builds its law with the file's lengths over R and pressures over the
+    pressure scale."""
     import equinox as eqx
 
-    from dynslip.physics.friction import FRICTION_LAWS, make_friction
+    from dynslip.physics import protocols as P
+    from dynslip.physics.friction import Coulomb, PressureDependent, SlipWeakening
     from dynslip.physics.materials import MATERIALS, make_material
-    from dynslip.physics.protocols import STOPS
-    from dynslip.schema.forming import FrictionSpec, StageSpec
+    from dynslip.schema.forming import StageSpec
+    from dynslip.schema.friction import FRICTION_SPECS
     from dynslip.schema.materials import MaterialSpec
-    from dynslip.schema.protocol import stop_rule
+    from dynslip.schema.stages import STOP_SPECS
 
     r, eps, p_scale = 20.0, 1e-3, 5.0
-    for law in FRICTION_LAWS:
-        spec = FrictionSpec(law=law)
-        built = spec.core(r, eps, pressure_scale_kPa=p_scale)
-        assert type(built) is FRICTION_LAWS[law]
-        same = make_friction(law, mu=spec.mu, mu_s=spec.mu_s, mu_k=spec.mu_k, d_c=spec.d_c_mm / r,
-                             eps=eps, mu_ref=spec.mu_ref, p_ref=spec.p_ref_kPa / p_scale,
-                             a=spec.exponent, mu_max=spec.mu_max)
-        assert eqx.tree_equal(built, same)
+    f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+    expected = {
+        "none": None,
+        "coulomb": Coulomb(mu=f(1.15), eps=f(eps)),
+        "slip_weakening": SlipWeakening(mu_s=f(0.99), mu_k=f(0.82), d_c=f(0.4 / r), eps=f(eps)),
+        "pressure": PressureDependent(mu_ref=f(0.99), p_ref=f(1.06 / p_scale), a=f(1 / 3),
+                                      mu_max=f(2.18), blend=f(0.05), eps=f(eps)),
+    }
+    assert set(FRICTION_SPECS.specs) >= set(expected)
+    for law, want in expected.items():
+        built = FRICTION_SPECS.specs[law]().build(r, eps, pressure_scale_kPa=p_scale)
+        assert type(built) is type(want) and eqx.tree_equal(built, want), law
     for model in MATERIALS:
         spec = MaterialSpec(model=model, jm=40.0, c1=0.3)
         built = spec.core()
         assert type(built) is MATERIALS[model]
         assert eqx.tree_equal(built, make_material(model, jm=40.0, c1=0.3, c2=0.2))
-    stages = {"duration": {},
-              "clamp_force_below": {"force_threshold_N": 0.02, "clamp_velocity_mm_s": 1.0},
-              "rest": {"rest_rate_mm_s": 0.002, "rest_hold_s": 2.0},
-              "theta_max_below": {"theta_stop_rad": 1.0},
-              "ball_speed_above": {"ball_speed_mm_s": 0.1},
-              "ball_reaction_below": {"force_threshold_N": 0.02, "ball": "hold",
-                                      "ball_velocity_mm_s": -1.0}}
-    assert set(stages) == set(STOPS)
-    for until, kw in stages.items():
-        stop = stop_rule(StageSpec(name="s", until=until, duration_s=5.0, **kw), 5.0, r, 2.0)
-        assert type(stop) is STOPS[until] and stop.duration == 5.0
-    built = stop_rule(StageSpec(name="s", until="rest", duration_s=5.0, **stages["rest"]), 5.0,
-                       r, 2.0)
-    # thresholds made nondimensional: speeds by R (mm), forces by the force scale (N)
-    assert built.rate == pytest.approx(0.002 / r) and built.hold == 2.0
-    clamp = stop_rule(StageSpec(name="s", until="clamp_force_below", duration_s=5.0,
-                                 **stages["clamp_force_below"]), 5.0, r, 2.0)
-    assert clamp.force == pytest.approx(0.02 / 2.0)
-    reaction = stop_rule(StageSpec(name="s", until="ball_reaction_below", duration_s=5.0,
-                                    **stages["ball_reaction_below"]), 5.0, r, 2.0)
-    assert reaction.force == pytest.approx(0.02 / 2.0)
+    # each rule's spec builds its core rule, thresholds made nondimensional: speeds by R (mm),
+    # forces by the force scale (N), angles and times as given
+    stages = {"duration": ({}, {}, P.Duration, {}),
+              "clamp_force_below": ({"force_N": 0.02}, {"clamp_velocity_mm_s": 1.0},
+                                    P.ClampForceBelow, {"force": 0.02 / 2.0}),
+              "rest": ({"rate_mm_s": 0.002, "hold_s": 2.0}, {}, P.Rest,
+                       {"rate": 0.002 / r, "hold": 2.0}),
+              "theta_max_below": ({"angle_rad": 1.0}, {}, P.ThetaMaxBelow, {"angle": 1.0}),
+              "ball_speed_above": ({"speed_mm_s": 0.1}, {}, P.BallSpeedAbove, {"rate": 0.1 / r}),
+              "ball_reaction_below": ({"force_N": 0.02}, {"ball": "hold",
+                                                          "ball_velocity_mm_s": -1.0},
+                                      P.BallReactionBelow, {"force": 0.02 / 2.0})}
+    assert set(stages) <= set(STOP_SPECS.specs)
+    for rule, (params, kw, cls, scaled) in stages.items():
+        spec = StageSpec(name="s", until={"rule": rule, **params}, duration_s=5.0, **kw)
+        stop = spec.until.build(5.0, r, 2.0)
+        assert type(stop) is cls and stop.duration == 5.0
+        for name, value in scaled.items():
+            assert getattr(stop, name) == pytest.approx(value, rel=1e-15), (rule, name)

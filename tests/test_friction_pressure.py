@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from dynslip.cli import main
-from dynslip.physics.friction import CAP_BLEND, Coulomb, PressureDependent, make_friction
+from dynslip.physics.friction import CAP_BLEND, Coulomb, PressureDependent
 from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,7 +32,7 @@ MU_REF, MU_MAX = 0.99, 2.18
 
 
 def law(a, mu_max=MU_MAX, eps=0.0):
-    return make_friction("pressure", mu_ref=MU_REF, p_ref=P_REF, a=a, mu_max=mu_max, eps=eps)
+    return PressureDependent(mu_ref=MU_REF, p_ref=P_REF, a=a, mu_max=mu_max, eps=eps)
 
 
 def test_exponent_zero_is_coulomb_exactly():
@@ -170,11 +170,11 @@ def test_the_law_reproduces_the_capstan_strip_test_it_is_referred_to():
     of p_ref to 0.01 kPa); the schema's default is the derived capstan pressure."""
     from scipy.integrate import solve_ivp
 
-    from dynslip.schema.friction import CAPSTAN_TEST, FrictionSpec, capstan_reference_pressure_kPa
+    from dynslip.schema.friction import CAPSTAN_TEST, PressureSpec, capstan_reference_pressure_kPa
 
-    spec = FrictionSpec(law="pressure")
+    spec = PressureSpec()
     assert spec.p_ref_kPa == pytest.approx(capstan_reference_pressure_kPa(spec.exponent), abs=5e-3)
-    fr = spec.core(20.0, 0.0, pressure_scale_kPa=1.0)  # pressures in kPa
+    fr = spec.build(20.0, 0.0, pressure_scale_kPa=1.0)  # pressures in kPa
     r_m, w_m = CAPSTAN_TEST["ball_radius_mm"] * 1e-3, CAPSTAN_TEST["strip_width_mm"] * 1e-3
     t_hold = CAPSTAN_TEST["hold_mass_g"] * 1e-3 * 9.81
     mu = eqx.filter_jit(lambda p: fr.mu(p))
@@ -198,7 +198,7 @@ def test_the_schema_makes_pressures_nondimensional_with_the_materials_scale():
     assert float(fr.p_ref) == pytest.approx(1.06 / gh0_r_kPa, rel=1e-12)
     assert float(fr.a) == pytest.approx(1 / 3) and float(fr.mu_max) == 2.18
     with pytest.raises(ValueError, match="pressure scale"):
-        sc.physics.friction.core(20.0, 0.0)
+        sc.physics.friction.build(20.0, 0.0)
 
 
 # --------------------------------------------------------------------------- bad input

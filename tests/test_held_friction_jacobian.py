@@ -24,7 +24,7 @@ from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
 from dynslip.physics.member import stage_args
-from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Duration, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.terms import forces, held_projections
 from helpers import check_newton_matrix
@@ -131,7 +131,7 @@ def test_held_node_terms_equal_jacfwd(push):
 
 def _supported(args):
     # the ball pressed onto its support (the support's penalty's width is 1e-3)
-    stage = Stage("s", StopRule("duration", duration=5.0), clamp_vz=-0.2, ball_mode=BALL_FORCE,
+    stage = Stage("s", Duration(duration=5.0), clamp_vz=-0.2, ball_mode=BALL_FORCE,
                   clamp_mode=CLAMP_POSITION, ball_force_end=0.0, support=True)
     return stage_args(stage, 0.0, 0.0, 0.3, (0.1, -0.2), args.friction, 1e-3, 0.1, 0.4, 0.05,
                        support_z=ZB + 4e-4, support_k=1e3)

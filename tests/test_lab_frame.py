@@ -110,8 +110,8 @@ AWAY = {
         "friction": {"law": "coulomb", "mu": 1.0},
         "stages": [
             {"name": "away", "ball": "hold", "ball_velocity_mm_s": -1.0, "duration_s": 2.0},
-            {"name": "settle", "ball": "hold", "ball_velocity_mm_s": -1.0, "until": "rest",
-             "rest_rate_mm_s": 0.002, "rest_hold_s": 0.5, "duration_s": 1.0},
+            {"name": "settle", "ball": "hold", "ball_velocity_mm_s": -1.0, "until":
+             {"rule": "rest", "rate_mm_s": 0.002, "hold_s": 0.5}, "duration_s": 1.0},
         ],
     },
     "numerics": {"nodes": 20, "save_interval_s": 0.5},

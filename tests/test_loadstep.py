@@ -18,7 +18,7 @@ import optimistix as optx
 import pytest
 
 from dynslip.physics.frames import initial_state
-from dynslip.physics.friction import Coulomb, make_friction
+from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.layout import Layout
 from dynslip.physics.loadstep import DampedNewton, FullStateLoadStep, LoadStepEuler, increments
 from dynslip.physics.member import stage_args
@@ -268,7 +268,7 @@ def test_one_node_ramp_under_load_stepping():
     """K = 10, V = 0.01, N = 1, eta = 0.1: exactly stuck until K V t = mu_s N (no motion at all:
     the increment's trial force is inside the cone), peak at mu_s N, sliding at mu_k N + eta V
     past d_c; unloading re-sticks it, the slip distance is reset, reloading needs mu_s N again."""
-    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    fr = SlipWeakening(mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
     stiff, normal, eta, v, seg = 10.0, 1.0, 0.1, 0.01, 0.05
     y = jnp.zeros(2)
     t, xd = 0.0, 0.0
@@ -317,7 +317,7 @@ def test_settling_node_heals_inside_the_increments():
     past d_c, stop the drive for 1 s, reload, with no reset between segments. With the reset
     in every increment (slip rate at most 1e-3 R/s) the settled node's slip distance is 0
     and reloading needs mu_s N again; without it the node stays weakened and slides at mu_k."""
-    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    fr = SlipWeakening(mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
     stiff, normal, eta, v, seg = 10.0, 1.0, 0.1, 0.01, 0.05
     out = {}
     for heal_rate in (None, 1e-3):

@@ -108,8 +108,8 @@ def test_help_has_no_backticks_and_version_names_the_commit(capsys):
 def _stage_run(met_last: bool):
     """A scenario-like object with a rest stage and the driver's stage ends."""
     stages = [
-        types.SimpleNamespace(name="push", until="clamp_at_target"),
-        types.SimpleNamespace(name="rest", until="rest"),
+        types.SimpleNamespace(name="push", until=types.SimpleNamespace(rule="duration")),
+        types.SimpleNamespace(name="rest", until=types.SimpleNamespace(rule="rest")),
     ]
     p = types.SimpleNamespace(stages=stages)
     result = types.SimpleNamespace(

@@ -15,7 +15,7 @@ from dynslip.physics import newton as nw
 from dynslip.physics import newton_matrix as nm
 from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout, vector_field
-from dynslip.physics.friction import make_friction
+from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.linalg import bordered_solve, cyclic_reduction
 from dynslip.physics.loadstep import load_step_solver
 from dynslip.physics.materials import make_material
@@ -25,8 +25,8 @@ from dynslip.physics.protocols import (
     BALL_HOLD,
     CLAMP_FORCE,
     CLAMP_POSITION,
+    Duration,
     Stage,
-    StopRule,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from helpers import dense_blocks, dense_tridiagonal
@@ -35,7 +35,7 @@ N = 9
 MODEL = SheetModel(
     make_mesh(N, 2.4), make_material("gent", jm=50.0), Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
 )
-WEAK = make_friction("slip_weakening", mu_s=1.5, mu_k=1.2, d_c=0.02, eps=1e-3)
+WEAK = SlipWeakening(mu_s=1.5, mu_k=1.2, d_c=0.02, eps=1e-3)
 MODES = [(BALL_HOLD, CLAMP_POSITION), (BALL_FORCE, CLAMP_POSITION), (BALL_FORCE, CLAMP_FORCE)]
 
 
@@ -54,7 +54,7 @@ def _state(layout, seed=0):
 def _args(friction, ball_mode, clamp_mode):
     stage = Stage(
         "s",
-        StopRule("duration", duration=5.0),
+        Duration(duration=5.0),
         clamp_vz=-0.2,
         ball_mode=ball_mode,
         clamp_mode=clamp_mode,
@@ -149,7 +149,7 @@ def test_motion_newton_increment_is_the_full_state_increment(modes):
     """With a memoryless law both solve the same implicit Euler equations in different
     variables (positions relative to the ball; accumulators by the rectangle rule at x1):
     the increments agree to Newton's tolerance, accumulators included."""
-    coulomb = make_friction("coulomb", mu=1.2, eps=1e-3)
+    coulomb = Coulomb(mu=1.2, eps=1e-3)
     layout = Layout(N, 0)
     y0 = _state(layout, seed=2)
     args = _args(coulomb, *modes)
@@ -172,7 +172,7 @@ def test_motion_newton_increment_is_the_full_state_increment(modes):
 def test_slip_update_adds_the_increments_slip_and_sticks_below_the_threshold():
     """One node: delta1 = delta0 + dt |S(F_t, mu(delta0) N)|/(eta A); nothing added while
     |F_t| <= mu(delta0) N - eps or out of contact."""
-    fr = make_friction("slip_weakening", mu_s=1.5, mu_k=1.0, d_c=0.02, eps=0.0)
+    fr = SlipWeakening(mu_s=1.5, mu_k=1.0, d_c=0.02, eps=0.0)
     d0, c = jnp.asarray(0.01), jnp.asarray(2.0)
     mu0 = float(fr.coefficient(d0))
     _, d1 = ni.slip_update(fr, jnp.asarray(2.0), jnp.asarray(1.0), 0.0, d0, c)
@@ -197,7 +197,7 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
     from test_forming import PRE, Z0, push_protocol
 
     def run(solver):
-        fr = make_friction("slip_weakening", mu_s=1.0, mu_k=0.8, d_c=0.02, eps=1e-3)
+        fr = SlipWeakening(mu_s=1.0, mu_k=0.8, d_c=0.02, eps=1e-3)
         return simulate(
             SHEET,
             push_protocol(),
@@ -224,7 +224,7 @@ def test_node_force_jacobian_equals_jacfwd(law):
     """The closed form of d u_i / d g_i (the normal part, and the slip law's slope on the
     tangent) is jacfwd of the node's rate in its force: at the pole, on stuck and slipping
     nodes."""
-    friction = WEAK if law == "slip_weakening" else make_friction("coulomb", mu=0.3, eps=1e-3)
+    friction = WEAK if law == "slip_weakening" else Coulomb(mu=0.3, eps=1e-3)
     layout = Layout(N, friction.n_internal())
     y0 = _state(layout)
     inc = _increment(layout, y0, _args(friction, BALL_HOLD, CLAMP_POSITION), 0.5)

@@ -26,8 +26,8 @@ def test_analysis_paper_is_the_reference():
 
 
 @pytest.mark.parametrize(("module", "cls", "field", "quoted"), [
-    ("forming", "FrictionSpec", "mu_s", f"(paper: {ref.MEASURED_MU_S:g})"),
-    ("forming", "FrictionSpec", "mu_k", f"(paper: {ref.MEASURED_MU_K:g})"),
+    ("friction", "SlipWeakeningSpec", "mu_s", f"(paper: {ref.MEASURED_MU_S:g})"),
+    ("friction", "SlipWeakeningSpec", "mu_k", f"(paper: {ref.MEASURED_MU_K:g})"),
     ("static", "CylinderPhysics", "mu", f"(paper: static {ref.MEASURED_MU_S:g})"),
     ("static", "Figure4Physics", "jm", f"(paper: {ref.PAPER_JM:g})"),
     ("static", "StaticNumerics", "n_nodes", f"(paper: {ref.PAPER_N_NODES})"),

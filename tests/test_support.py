@@ -16,7 +16,7 @@ import pytest
 
 from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import Coulomb
-from dynslip.physics.protocols import BALL_FORCE, Protocol, Stage, StopRule
+from dynslip.physics.protocols import BALL_FORCE, Duration, Protocol, Stage
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
 from test_forming import MODEL, PRE, RIM, Z0, residual
@@ -67,7 +67,7 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
     stages = (
         Stage(
             "push_down",
-            StopRule("duration", duration=(Z0 - depth) / speed),
+            Duration(duration=(Z0 - depth) / speed),
             clamp_vz=-speed,
             ball_mode=BALL_FORCE,
             ball_force_start=0.0,
@@ -76,7 +76,7 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
         ),
         Stage(
             "hold",
-            StopRule("duration", duration=2.0),
+            Duration(duration=2.0),
             ball_mode=BALL_FORCE,
             ball_force_start=0.0,
             ball_force_end=0.0,
@@ -84,7 +84,7 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
         ),
         Stage(
             "lift",
-            StopRule("duration", duration=4.0),
+            Duration(duration=4.0),
             ball_mode=BALL_FORCE,
             ball_force_start=0.0,
             ball_force_end=pull_up,
@@ -166,8 +166,7 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N)
                 {
                     "name": "pull",
                     "ball": "pull",
-                    "until": "ball_speed_above",
-                    "ball_speed_mm_s": 0.1,
+                    "until": {"rule": "ball_speed_above", "speed_mm_s": 0.1},
                     "ball_force_N": -2.0,
                     "duration_s": 20.0,
                 },

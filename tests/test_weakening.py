@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics.friction import Coulomb, SlipWeakening, make_friction
+from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
 from test_forming import MAT, MODEL, PRE, Z0, push_protocol, residual
@@ -82,7 +82,7 @@ def test_one_node_ramp_sticks_at_mu_s_slides_at_mu_k_and_resticks():
     """Spring-driven node (K = 10, V = 0.01, N = 1, eta = 0.1; K > (mu_s - mu_k) N / d_c, so
     weakening is stable): stuck until K V t = mu_s N; slides at mu_k N + eta V once past d_c;
     unloading re-sticks it (slip distance reset); reloading needs mu_s N again."""
-    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    fr = SlipWeakening(mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
     v, eta = 0.01, 0.1
     t, x, delta, force, slip = _ramp(fr, [(20.0, v), (2.0, -v), (18.0, v)])
     first = t <= 20.0 + 1e-9
@@ -123,7 +123,7 @@ def test_settling_node_heals_and_needs_mu_s_again(heal_rate):
     (heal_rate = 0) its slip distance is never reset and reloading slides at once at mu_k;
     with healing (slip rate at most heal_rate) it resets, stays put, and reloading needs
     mu_s N again."""
-    fr = make_friction("slip_weakening", mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
+    fr = SlipWeakening(mu_s=MU_S, mu_k=MU_K, d_c=D_C, eps=1e-4)
     v = 0.01
     legs = [(20.0, v), (1.0, 0.0), (4.0, v)]
     out = {}
@@ -160,7 +160,7 @@ def test_slip_force_against_its_closed_form():
     f = np.linspace(-2.0, 2.0, 401)
     normal = np.full(f.size, 1.3)
     for mu_s, mu_k in ((MU_S, MU_K), (0.9, 0.9)):
-        sw = make_friction("slip_weakening", mu_s=mu_s, mu_k=mu_k, d_c=D_C, eps=eps)
+        sw = SlipWeakening(mu_s=mu_s, mu_k=mu_k, d_c=D_C, eps=eps)
         for delta in (0.0, 0.5 * D_C, 3 * D_C):
             mu = mu_k + (mu_s - mu_k) * max(0.0, 1.0 - delta / D_C)
             c = mu * 1.3
@@ -173,7 +173,7 @@ def test_slip_force_against_its_closed_form():
             np.testing.assert_allclose(got, np.sign(f) * mag, rtol=1e-13, atol=1e-15)
             assert np.count_nonzero(got == 0.0) > 0 and np.count_nonzero(got) > 0
     co = Coulomb(mu=jnp.asarray(0.9), eps=jnp.asarray(eps))
-    sw = make_friction("slip_weakening", mu_s=0.9, mu_k=0.9, d_c=D_C, eps=eps)
+    sw = SlipWeakening(mu_s=0.9, mu_k=0.9, d_c=D_C, eps=eps)
     np.testing.assert_allclose(
         np.asarray(sw.slip_force(jnp.asarray(f), jnp.asarray(normal), jnp.full(f.size, 0.5))),
         np.asarray(co.slip_force(jnp.asarray(f), jnp.asarray(normal))),

@@ -69,7 +69,7 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
         (
             i
             for i, st in enumerate(stages)
-            if st.get("ball") == "pull" and st.get("until") == "ball_speed_above"
+            if st.get("ball") == "pull" and st["until"]["rule"] == "ball_speed_above"
         ),
         None,
     )
@@ -80,7 +80,7 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     t = ds["time"].values
     speed_mm_s = np.abs(np.gradient(ds["ball_z"].values, t)) * r_mm if t.size > 1 else np.zeros(1)
     in_stage = ds["stage"].values == idx
-    threshold = float(stages[idx]["ball_speed_mm_s"])
+    threshold = float(stages[idx]["until"]["speed_mm_s"])
     slow = np.flatnonzero(in_stage & (speed_mm_s < threshold))
     # torn out: a saved frame past the threshold, or the stage's stop rule ended it early (the rule
     # sees

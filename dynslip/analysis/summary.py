@@ -383,4 +383,4 @@ def outcome_words(s: dict) -> str:
 
 
 def _stage_until(p, name):
-    return next(s.until for s in p.stages if s.name == name)
+    return next(s.until.rule for s in p.stages if s.name == name)

@@ -27,18 +27,6 @@ __all__ = ["run_forming", "resolve_start", "build_core", "finish", "to_dataset",
 FLUSH_FRAMES = 25
 
 
-def _held_law(mu, eps):
-    """A held body's core friction law from :meth:`held_specs`' ``mu``: None (frictionless), a
-    Coulomb coefficient, or a dict ``{mu_s, mu_k, d_c}`` (slip weakening, d_c in R)."""
-    from dynslip.physics.friction import Coulomb, SlipWeakening
-
-    if mu is None:
-        return None
-    if isinstance(mu, dict):
-        return SlipWeakening(**{k: jnp.asarray(v, dtype=float) for k, v in mu.items()}, eps=eps)
-    return Coulomb(mu=jnp.asarray(mu), eps=eps)
-
-
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario: the core knows no pydantic."""
     from dynslip.physics.bodies.held import Held
@@ -53,7 +41,8 @@ def build_core(sc):
     material = m.core()
     r_edge = p.rim_radius_mm / r / p.pre_stretch
     mesh = make_mesh(nu.nodes, r_edge, nu.mesh_grading, nu.edge_grading)
-    eps = jnp.asarray(nu.friction_smoothing)
+    # pressures in kPa per unit of G h0 / R (a pressure-dependent law's scale)
+    kpa = 1e3 * p.force_scale_N / r**2
     moved = set(p.moved_names())
     # a free body: its applied force in G h0 R, its drag as the ball's (eta_b of its multiple)
     free = {
@@ -63,9 +52,9 @@ def build_core(sc):
         for b in p.bodies if b.motion == "free"
     }
     bodies = tuple(
-        Held(body, _held_law(mu, eps),
+        Held(body, law.build(r, nu.friction_smoothing, kpa),
              moves_with_ball=with_ball, stage=name in moved, **free.get(name, {}))
-        for name, body, with_ball, mu in p.held_specs()
+        for name, body, with_ball, law in p.held_specs()
     )
     g_h0 = p.force_scale_N / r  # N/mm
     model = SheetModel(
@@ -98,7 +87,7 @@ def build_core(sc):
         body_names=tuple(name for name, *_ in p.named_bodies()),
     )
     kwargs = dict(
-        friction=p.friction.core(r, nu.friction_smoothing, 1e3 * p.force_scale_N / r**2),
+        friction=p.friction.build(r, nu.friction_smoothing, kpa),
         eps=nu.friction_smoothing,
         drag=nu.drag_time_s,
         ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
@@ -117,7 +106,7 @@ def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=No
     data."""
     p = sc.physics
     f = p.friction
-    weakening = f.law == "slip_weakening"
+    mu_s, mu_k, d_c_mm = f.static_kinetic()
     return trajectory.frames_to_dataset(
         frames,
         rbar,
@@ -135,9 +124,9 @@ def to_dataset(sc, frames, rbar, e0, complete: bool, stage_names, extra_attrs=No
         friction={
             "mu": f.nominal_mu,
             "friction_law": f.law,
-            "mu_s": f.mu_s if weakening else f.mu,
-            "mu_k": f.mu_k if weakening else f.mu,
-            "d_c": f.d_c_mm / p.ball_radius_mm if weakening else 0.0,
+            "mu_s": mu_s,
+            "mu_k": mu_k,
+            "d_c": d_c_mm / p.ball_radius_mm,
         },
         friction_smoothing=sc.numerics.friction_smoothing,
         extra_attrs=extra_attrs,

@@ -62,7 +62,6 @@ import jax.numpy as jnp
 
 __all__ = [
     "AbstractFriction",
-    "FRICTION_LAWS",
     "Coulomb",
     "SlipWeakening",
     "PressureDependent",
@@ -70,7 +69,6 @@ __all__ = [
     "capstan_reference_tension",
     "soft_threshold",
     "weighted_form",
-    "make_friction",
     "heals",
 ]
 
@@ -323,38 +321,3 @@ def capstan_reference_tension(t_hold, t_load, a):
     if a == 0:
         return math.sqrt(t_hold * t_load)
     return ((t_load**a - t_hold**a) / (a * lr)) ** (1.0 / a)
-
-
-#: the one registry of friction laws: a law's name (the schema's ``law``) -> its class; the
-#: schema builds them (:meth:`dynslip.schema.friction.FrictionSpec.core`)
-FRICTION_LAWS: dict[str, type[AbstractFriction]] = {"coulomb": Coulomb,
-                                                     "slip_weakening": SlipWeakening,
-                                                     "pressure": PressureDependent}
-
-
-def make_friction(law: str, *, mu=1.0, mu_s=0.99, mu_k=0.82, d_c=0.02, eps=0.0, mu_ref=0.99,
-                  p_ref=0.2, a=1.0 / 3.0, mu_max=2.18) -> AbstractFriction:
-    """A friction law by name (:data:`FRICTION_LAWS`), parameters as jnp scalars, for code that
-    holds no schema (the benchmarks, and tests of the physics alone)."""
-    f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
-    if law == "coulomb":
-        return Coulomb(mu=f(mu), eps=f(eps))
-    if law == "slip_weakening":
-        if not mu_s >= mu_k >= 0:
-            raise ValueError(
-                f"slip_weakening: need mu_s >= mu_k >= 0, got mu_s = {mu_s}, mu_k = {mu_k}"
-            )
-        if not d_c > 0:
-            raise ValueError(f"slip_weakening: need d_c > 0, got {d_c}")
-        return SlipWeakening(mu_s=f(mu_s), mu_k=f(mu_k), d_c=f(d_c), eps=f(eps))
-    if law == "pressure":
-        if not 0 <= a < 1:
-            raise ValueError(f"pressure: need 0 <= a < 1, got a = {a}")
-        if not p_ref > 0:
-            raise ValueError(f"pressure: need p_ref > 0, got {p_ref}")
-        if not mu_max >= mu_ref * math.exp(CAP_BLEND) or mu_ref < 0:
-            raise ValueError(f"pressure: need 0 <= mu_ref and mu_max >= mu_ref e^{CAP_BLEND:g}, "
-                             f"got mu_ref = {mu_ref}, mu_max = {mu_max}")
-        return PressureDependent(mu_ref=f(mu_ref), p_ref=f(p_ref), a=f(a), mu_max=f(mu_max),
-                                 blend=f(CAP_BLEND), eps=f(eps))
-    raise ValueError(f"unknown friction law {law!r}")

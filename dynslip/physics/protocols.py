@@ -38,8 +38,6 @@ __all__ = [
     "ThetaMaxBelow",
     "BallSpeedAbove",
     "Rest",
-    "STOPS",
-    "StopRule",
     "BALL_HOLD",
     "BALL_FORCE",
     "CLAMP_POSITION",
@@ -70,7 +68,8 @@ class AbstractStop(eqx.Module):
     rule: no, and the run reports it rather than hide it).
 
     Final classes: :class:`Duration`, :class:`ClampForceBelow`, :class:`ThetaMaxBelow`,
-    :class:`BallSpeedAbove`, :class:`Rest`. ``kind`` names each (the schema's ``until``).
+    :class:`BallSpeedAbove`, :class:`Rest`, :class:`BallReactionBelow`; the schema's stop-rule
+    specs (:data:`dynslip.schema.stages.STOP_SPECS`) build them. ``kind`` names each.
     """
 
     duration: eqx.AbstractVar[float]
@@ -253,40 +252,6 @@ class BallReactionBelow(AbstractStop):
 
     def scaled(self, factor):
         return BallReactionBelow(force=self.force, duration=self.duration * factor)
-
-
-STOPS: dict[str, type[AbstractStop]] = {
-    c.kind: c
-    for c in (Duration, ClampForceBelow, ThetaMaxBelow, BallSpeedAbove, Rest, BallReactionBelow)
-}
-
-
-def StopRule(
-    kind: str = "duration",
-    duration: float = 1.0,
-    force: float = 0.0,
-    rate: float = 0.0,
-    hold: float = 0.0,
-    angle: float = 0.0,
-) -> AbstractStop:  # noqa: N802 - named as the stop classes it builds
-    """The stop rule of a ``kind`` (the schema's ``until``), from flat parameters:
-    the fields the kind does not use are ignored. ``"duration"`` (after ``duration``),
-    ``"clamp_force_below"`` (``force``, G h0 R), ``"theta_max_below"`` (``angle``, rad),
-    ``"ball_speed_above"`` (``rate``, R/s) or ``"rest"`` (``rate``, R/s, for ``hold`` s);
-    condition rules end at ``duration`` at the latest."""
-    if kind == "duration":
-        return Duration(duration=duration)
-    if kind == "clamp_force_below":
-        return ClampForceBelow(force=force, duration=duration)
-    if kind == "theta_max_below":
-        return ThetaMaxBelow(angle=angle, duration=duration)
-    if kind == "ball_speed_above":
-        return BallSpeedAbove(rate=rate, duration=duration)
-    if kind == "rest":
-        return Rest(rate=rate, hold=hold, duration=duration)
-    if kind == "ball_reaction_below":
-        return BallReactionBelow(force=force, duration=duration)
-    raise ValueError(f"stop rule: unknown kind {kind!r}; allowed: {', '.join(STOPS)}")
 
 
 @dataclasses.dataclass(frozen=True)

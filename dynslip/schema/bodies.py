@@ -23,8 +23,9 @@ from typing import Literal
 from pydantic import model_validator
 
 from dynslip.schema.base import F, Strict
+from dynslip.schema.friction import FrictionLaw, FrictionlessSpec
 
-__all__ = ["BallSpec", "BodySpec", "BodyFrictionSpec", "SegmentSpec", "KIND_SIZES",
+__all__ = ["BallSpec", "BodySpec", "SegmentSpec", "KIND_SIZES",
            "ball_core", "body_core", "check_bodies"]
 
 Point = tuple[float, float]
@@ -87,52 +88,6 @@ class SegmentSpec(Strict):
                         (self.end_mm[0] / r, self.end_mm[1] / r))
         return Arc((self.centre_mm[0] / r, self.centre_mm[1] / r), self.radius_mm / r,
                    math.radians(self.start_deg), math.radians(self.end_deg))
-
-
-class BodyFrictionSpec(Strict):
-    """The friction of the sheet on a held body: none (frictionless, the default), Coulomb with
-    its own mu, or slip weakening with healing (mu falls from mu_s to mu_k over the slip
-    distance d_c_mm relative to the body, reset where the node heals; each body its own;
-    docs/bodies.md)."""
-
-    law: Literal["none", "coulomb", "slip_weakening"] = F(
-        "none", description="none (frictionless), coulomb (mu), or slip_weakening (mu_s, mu_k, "
-        "d_c_mm: mu falls from mu_s to mu_k over the slip distance relative to the body, reset "
-        "where the node heals, numerics.heal_rate_mm_s)")
-    mu: float | None = F(None, ge=0, le=10, description="law: coulomb: the Coulomb coefficient "
-                         "of the sheet on this body, in [0, 10]")
-    mu_s: float | None = F(None, ge=0, le=10, description="law: slip_weakening: the static "
-                           "coefficient, in [0, 10]")
-    mu_k: float | None = F(None, ge=0, le=10, description="law: slip_weakening: the kinetic "
-                           "coefficient, in [0, mu_s]")
-    d_c_mm: float | None = F(None, unit="mm", gt=0, le=1e4, description="law: slip_weakening: "
-                             "the weakening slip distance, in (0, 1e4] mm (divided by "
-                             "ball_radius_mm in the core)")
-
-    @model_validator(mode="after")
-    def _params_with_law(self):
-        need = {"none": (), "coulomb": ("mu",), "slip_weakening": ("mu_s", "mu_k", "d_c_mm")}
-        for law, fields in need.items():
-            for k in fields:
-                v = getattr(self, k)
-                if law == self.law and v is None:
-                    raise ValueError(f"law: {law} needs {k}")
-                if law != self.law and v is not None:
-                    raise ValueError(f"{k} = {v}: goes with law: {law} (the law is "
-                                     f"{self.law})")
-        if self.law == "slip_weakening" and self.mu_k > self.mu_s:
-            raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction "
-                             f"must not exceed static)")
-        return self
-
-    def core_params(self, r: float):
-        """The law in the core's units (lengths by ``r``, the ball's radius in mm): None
-        (frictionless), mu (Coulomb), or ``{"mu_s", "mu_k", "d_c"}`` (slip weakening)."""
-        if self.law == "coulomb":
-            return self.mu
-        if self.law == "slip_weakening":
-            return {"mu_s": self.mu_s, "mu_k": self.mu_k, "d_c": self.d_c_mm / r}
-        return None
 
 
 class _Shape(Strict):
@@ -231,7 +186,10 @@ class BodySpec(_Shape):
                            description="motion: free: the body's drag as a multiple of the "
                                        "sheet's drag over 4 pi R^2 (as numerics.ball_drag), in "
                                        "(0, 1e6]; default 1")
-    friction: BodyFrictionSpec = BodyFrictionSpec()
+    friction: FrictionLaw = F(FrictionlessSpec(),
+                              description="the sheet's friction on this body, as physics.friction "
+                              "(law: none, the default, coulomb, slip_weakening or pressure; "
+                              "slip distances relative to the body, each body its own)")
 
     @model_validator(mode="after")
     def _sizes(self):

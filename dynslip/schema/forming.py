@@ -21,7 +21,7 @@ from pydantic import PrivateAttr, model_validator
 from dynslip.schema.apparatus import BottleSpec, TubeSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.bodies import BallSpec, BodySpec
-from dynslip.schema.friction import FrictionSpec
+from dynslip.schema.friction import CoulombSpec, FrictionLaw, FrictionSpec
 from dynslip.schema.materials import MaterialSpec
 from dynslip.schema.protocol import build_protocol, clamp_enters_ball
 from dynslip.schema.stages import MAX_STAGES, MAX_TIME_S, StageSpec
@@ -47,7 +47,10 @@ class FormingPhysics(Strict):
                                                                              "= E/3), "
                                   "in (0, 1e6] MPa")
     material: MaterialSpec = MaterialSpec()
-    friction: FrictionSpec = FrictionSpec()
+    friction: FrictionLaw = F(CoulombSpec(),
+                              description="the sheet's friction on the ball: law coulomb (the "
+                              "default; mu), slip_weakening (mu_s, mu_k, d_c_mm) or pressure "
+                              "(mu_ref, p_ref_kPa, exponent, mu_max); not none")
     rim_radius_mm: float = F(50.8, unit="mm", gt=0, le=1e4,
                              description="radius of the held edge (tube rim, or hands), in (0, "
                                          "1e4] mm")
@@ -93,6 +96,12 @@ class FormingPhysics(Strict):
 
     @model_validator(mode="after")
     def _geometry(self):
+        if self.friction.law == "none":
+            from dynslip.schema.friction import FRICTION_SPECS
+
+            laws = ", ".join(law for law in FRICTION_SPECS.specs if law != "none")
+            raise ValueError(f"friction.law = none: the ball's friction needs a law; allowed: "
+                             f"{laws} (coulomb with mu: 0 for a frictionless ball)")
         if not self.stages:
             raise ValueError("stages: empty protocol (need at least one stage)")
         names = [s.name for s in self.stages]
@@ -145,7 +154,7 @@ class FormingPhysics(Strict):
                 z = s.clamp_to_z_mm
             else:
                 z += s.clamp_velocity_mm_s * s.duration_s
-                if s.until != "duration":
+                if s.until.rule != "duration":
                     known = False
         return self
 
@@ -200,21 +209,22 @@ class FormingPhysics(Strict):
                          height_mm=t.height_mm, rim_z=self.tube_rim_z)
 
     def held_specs(self) -> list:
-        """Every held body of the world, ``(name, core body, moves_with_ball, mu)`` (mu None:
-        frictionless; a dict ``{mu_s, mu_k, d_c}`` (d_c in R): slip weakening,
-        :meth:`~dynslip.schema.bodies.BodyFrictionSpec.core_params`): the tube's
-        wall, the bottle's parts and each of ``physics.bodies``, in
-        the order the solver holds them (``build_core`` makes each a ``Held`` entry)."""
+        """Every held body of the world, ``(name, core body, moves_with_ball, friction spec)``
+        (:mod:`dynslip.schema.friction`; the tube's and the bottle's ``mu`` as Coulomb's): the
+        tube's wall, the bottle's parts and each of ``physics.bodies``, in the order the solver
+        holds them (``build_core`` makes each a ``Held`` entry)."""
         from dynslip.schema.bodies import body_core
 
         t, b = self.tube, self.bottle
-        out = [("tube wall", self.tube_body(), False, t.mu)] if t is not None else []
+        out = [("tube wall", self.tube_body(), False, CoulombSpec(mu=t.mu))] if t is not None \
+            else []
         if b is not None:
             parts = self.bottle_parts()
             names = ["bottle"] if len(parts) == 1 else [f"bottle {k}" for k in range(len(parts))]
-            out += [(n, part, False, b.mu) for n, part in zip(names, parts, strict=True)]
-        out += [(s.name, body_core(s, self.ball_radius_mm), s.motion == "with_ball",
-                 s.friction.core_params(self.ball_radius_mm)) for s in self.bodies]
+            out += [(n, part, False, CoulombSpec(mu=b.mu))
+                    for n, part in zip(names, parts, strict=True)]
+        out += [(s.name, body_core(s, self.ball_radius_mm), s.motion == "with_ball", s.friction)
+                for s in self.bodies]
         return out
 
     def free_names(self) -> list:

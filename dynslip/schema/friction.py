@@ -1,18 +1,26 @@
-"""Schema of the sheet's friction law against a body (physics.md Section 4, "Friction";
-docs/forming.md): physical units in the file, the core law built by :meth:`FrictionSpec.core`
-(lengths by the ball radius R)."""
+"""Schema of the sheet's friction law against a body, the ball's (``physics.friction``) and each
+held body's (``physics.bodies[].friction``) alike (physics.md Section 4, "Friction";
+docs/forming.md, docs/bodies.md): physical units in the file, one spec class per ``law``, each
+building its core law (:mod:`dynslip.physics.friction`, lengths by the ball radius R).
+
+A new law is one :class:`~dynslip.physics.friction.AbstractFriction` subclass and one
+:class:`FrictionSpec` subclass with ``law: Literal["name"]`` and a :meth:`FrictionSpec.build`,
+added by ``FRICTION_SPECS.register(TheSpec)`` (tests/test_friction_registry.py does so from
+outside the package)."""
 
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import model_validator
 
 from dynslip.physics.reference import MEASURED_MU_K, MEASURED_MU_S
 from dynslip.schema.base import F, Strict
+from dynslip.schema.registry import Registry
 
-__all__ = ["FrictionSpec", "CAPSTAN_TEST", "capstan_reference_pressure_kPa"]
+__all__ = ["FrictionSpec", "FrictionLaw", "FRICTION_SPECS", "CoulombSpec", "SlipWeakeningSpec",
+           "PressureSpec", "FrictionlessSpec", "CAPSTAN_TEST", "capstan_reference_pressure_kPa"]
 
 #: the paper's capstan strip test (Section 2.1) as this model reads it: 5 mm wide strips over the
 #: 40 mm ball, a mass at each end, hanging vertically (wrap angle pi). The paper gives no masses:
@@ -36,80 +44,160 @@ def capstan_reference_pressure_kPa(exponent: float, test: dict = CAPSTAN_TEST) -
     return t_ref / (test["ball_radius_mm"] * test["strip_width_mm"] * 1e-6) * 1e-3
 
 
+#: the friction laws of the scenario file, by ``law`` (the one registry: each spec builds its core
+#: law); a friction section without ``law`` is Coulomb's, and another law's parameters in it are
+#: ignored (``--set physics.friction.law=coulomb`` on a file that states mu_s), as the material's
+FRICTION_SPECS = Registry("law", default="coulomb", others_ignored=True)
+
+
+def _f(x):
+    import jax.numpy as jnp
+
+    return jnp.asarray(x, dtype=float)
+
+
 class FrictionSpec(Strict):
-    """Friction between sheet and ball: ideal Coulomb, or static/kinetic by slip-distance
-    weakening (physics.md Section 4, "Friction"; docs/forming.md)."""
+    """A friction law of the sheet on a body: ``law`` names it (:data:`FRICTION_SPECS`), the
+    other fields are its parameters."""
 
-    law: Literal["coulomb", "slip_weakening", "pressure"] = F(
-        "coulomb", description="coulomb: ideal Coulomb (mu), overdamped soft threshold; "
-                               "slip_weakening: "
-        "static/kinetic, mu falls from mu_s to mu_k over a slip distance d_c_mm, reset when the "
-        "node sticks; pressure: mu = mu_ref (p / p_ref_kPa)^(-exponent) bounded by mu_max "
-        "(Schallamach), p the node's contact force per reference area")
-    mu: float = F(1.15, ge=0, le=10, description="friction coefficient of law: coulomb")
+    law: str
+
+    def build(self, ball_radius_mm: float, eps, pressure_scale_kPa: float | None = None):
+        """The core law (:class:`~dynslip.physics.friction.AbstractFriction`, None: frictionless):
+        lengths by the ball radius (mm), ``eps`` the force-space smoothing (G h0 / R),
+        ``pressure_scale_kPa`` the scale G h0 / R of pressures in kPa."""
+        raise NotImplementedError
+
+    @property
+    def nominal_mu(self) -> float:
+        """The coefficient a reader compares mu_mobilised_max with."""
+        raise NotImplementedError
+
+    def static_kinetic(self) -> tuple[float, float, float]:
+        """(mu_s, mu_k, d_c_mm) as the trajectory's attributes state them: the nominal mu twice
+        and no weakening distance for a law that does not weaken."""
+        return self.nominal_mu, self.nominal_mu, 0.0
+
+
+#: a friction field of the scenario: one of :data:`FRICTION_SPECS`, chosen by ``law``
+FrictionLaw = Annotated[FrictionSpec, FRICTION_SPECS]
+
+
+@FRICTION_SPECS.add
+class FrictionlessSpec(FrictionSpec):
+    """No friction (a held body's default)."""
+
+    law: Literal["none"] = F("none", description="none: frictionless")
+
+    def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
+        return None
+
+    @property
+    def nominal_mu(self) -> float:
+        return 0.0
+
+
+@FRICTION_SPECS.add
+class CoulombSpec(FrictionSpec):
+    """Ideal Coulomb friction, mu constant, overdamped soft threshold."""
+
+    law: Literal["coulomb"] = F("coulomb", description="coulomb: ideal Coulomb (mu), overdamped "
+                                                       "soft threshold")
+    mu: float = F(1.15, ge=0, le=10, description="the Coulomb coefficient, in [0, 10]")
+
+    def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
+        from dynslip.physics.friction import Coulomb
+
+        return Coulomb(mu=_f(self.mu), eps=_f(eps))
+
+    @property
+    def nominal_mu(self) -> float:
+        return self.mu
+
+
+@FRICTION_SPECS.add
+class SlipWeakeningSpec(FrictionSpec):
+    """Static/kinetic friction by slip-distance weakening: mu falls from mu_s to mu_k over the
+    slip distance d_c_mm relative to the body, reset where the node heals
+    (numerics.heal_rate_mm_s)."""
+
+    law: Literal["slip_weakening"] = F(
+        "slip_weakening", description="slip_weakening: static/kinetic, mu falls from mu_s to "
+        "mu_k over a slip distance d_c_mm, reset when the node sticks")
     mu_s: float = F(MEASURED_MU_S, ge=0, le=10,
-                    description=f"static coefficient of law: slip_weakening (paper: "
-                                f"{MEASURED_MU_S:g})")
+                    description=f"static coefficient, in [0, 10] (paper: {MEASURED_MU_S:g})")
     mu_k: float = F(MEASURED_MU_K, ge=0, le=10,
-                    description=f"kinetic coefficient of law: slip_weakening (paper: "
-                                f"{MEASURED_MU_K:g}); <= mu_s")
-    d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4, description="weakening slip distance of law: "
-                                                                "slip_weakening, "
-                      "in (0, 1e4] mm; the mesh "
-                      "must be much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
-
-    exponent: float = F(1.0 / 3.0, ge=0, lt=1,
-                        description="exponent a of law: pressure, in [0, 1): 1/3 is Schallamach's "
-                        "(Hertzian asperities), 0 is Coulomb; at 1 the friction force would not "
-                        "rise with the load")
-    mu_ref: float = F(MEASURED_MU_S, ge=0, le=10,
-                      description=f"coefficient of law: pressure at p_ref_kPa (paper's capstan "
-                                  f"test: {MEASURED_MU_S:g})")
-    p_ref_kPa: float = F(1.06, unit="kPa", gt=0,
-                         le=1e6,
-                         description="reference pressure of law: pressure, in (0, 1e6] kPa: the "
-                         "capstan strip test's, T_ref/(R w) with 5 mm strips on the 40 mm ball "
-                         "and masses 2 g and 44.9 g (assumed; docs/experiment.md)")
-    mu_max: float = F(2.18, ge=0, le=10,
-                      description="bound of law: pressure at low pressure (where the power law "
-                      "would exceed it), >= 1.05 mu_ref; default: the top of the literature's "
-                      "static range for latex, 0.86-2.18")
+                    description=f"kinetic coefficient, in [0, mu_s] (paper: {MEASURED_MU_K:g})")
+    d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
+                      description="weakening slip distance, in (0, 1e4] mm; the mesh must be "
+                      "much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
 
     @model_validator(mode="after")
     def _order(self):
-        from dynslip.physics.friction import CAP_BLEND
-
         if self.mu_k > self.mu_s:
             raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction "
                              f"must not exceed static)")
-        if self.law == "pressure" and self.mu_max < self.mu_ref * math.exp(CAP_BLEND):
+        return self
+
+    def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
+        from dynslip.physics.friction import SlipWeakening
+
+        return SlipWeakening(mu_s=_f(self.mu_s), mu_k=_f(self.mu_k),
+                             d_c=_f(self.d_c_mm / ball_radius_mm), eps=_f(eps))
+
+    @property
+    def nominal_mu(self) -> float:
+        return self.mu_s
+
+    def static_kinetic(self) -> tuple[float, float, float]:
+        return self.mu_s, self.mu_k, self.d_c_mm
+
+
+@FRICTION_SPECS.add
+class PressureSpec(FrictionSpec):
+    """Friction falling with the contact pressure (Schallamach): mu = mu_ref (p /
+    p_ref_kPa)^(-exponent) bounded by mu_max, p the node's contact force per reference area."""
+
+    law: Literal["pressure"] = F(
+        "pressure", description="pressure: mu = mu_ref (p / p_ref_kPa)^(-exponent) bounded by "
+        "mu_max (Schallamach), p the node's contact force per reference area")
+    exponent: float = F(1.0 / 3.0, ge=0, lt=1,
+                        description="exponent a, in [0, 1): 1/3 is Schallamach's (Hertzian "
+                        "asperities), 0 is Coulomb; at 1 the friction force would not rise with "
+                        "the load")
+    mu_ref: float = F(MEASURED_MU_S, ge=0, le=10,
+                      description=f"coefficient at p_ref_kPa (paper's capstan test: "
+                                  f"{MEASURED_MU_S:g})")
+    p_ref_kPa: float = F(1.06, unit="kPa", gt=0, le=1e6,
+                         description="reference pressure, in (0, 1e6] kPa: the capstan strip "
+                         "test's, T_ref/(R w) with 5 mm strips on the 40 mm ball and masses 2 g "
+                         "and 44.9 g (assumed; docs/experiment.md)")
+    mu_max: float = F(2.18, ge=0, le=10,
+                      description="bound at low pressure (where the power law would exceed it), "
+                      ">= 1.05 mu_ref; default: the top of the literature's static range for "
+                      "latex, 0.86-2.18")
+
+    @model_validator(mode="after")
+    def _bound(self):
+        from dynslip.physics.friction import CAP_BLEND
+
+        if self.mu_max < self.mu_ref * math.exp(CAP_BLEND):
             raise ValueError(f"mu_max = {self.mu_max} is below mu_ref e^{CAP_BLEND:g} = "
                              f"{self.mu_ref * math.exp(CAP_BLEND):.4g} (the bound must lie above "
                              f"the reference point and the 5% band that rounds it)")
         return self
 
+    def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
+        from dynslip.physics.friction import CAP_BLEND, PressureDependent
+
+        if pressure_scale_kPa is None or not pressure_scale_kPa > 0:
+            raise ValueError("law: pressure needs the pressure scale G h0 / R (kPa) > 0, got "
+                             f"{pressure_scale_kPa}")
+        return PressureDependent(mu_ref=_f(self.mu_ref), p_ref=_f(self.p_ref_kPa /
+                                                                  pressure_scale_kPa),
+                                 a=_f(self.exponent), mu_max=_f(self.mu_max),
+                                 blend=_f(CAP_BLEND), eps=_f(eps))
+
     @property
     def nominal_mu(self) -> float:
-        """The coefficient a reader compares mu_mobilised_max with: mu, mu_s, or mu_ref."""
-        return {"coulomb": self.mu, "slip_weakening": self.mu_s, "pressure": self.mu_ref}[self.law]
-
-    def core(self, ball_radius_mm: float, eps: float, pressure_scale_kPa: float | None = None):
-        """The core friction law (:data:`dynslip.physics.friction.FRICTION_LAWS`): lengths by
-        the ball radius, ``eps`` the force-space smoothing (G h0 / R); ``pressure_scale_kPa`` the
-        scale G h0 / R of pressures in kPa (needed by law: pressure only)."""
-        import jax.numpy as jnp
-
-        from dynslip.physics.friction import CAP_BLEND, FRICTION_LAWS
-
-        f = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
-        if self.law == "pressure":
-            if pressure_scale_kPa is None or not pressure_scale_kPa > 0:
-                raise ValueError("law: pressure needs the pressure scale G h0 / R (kPa) > 0, got "
-                                 f"{pressure_scale_kPa}")
-            params = {"mu_ref": f(self.mu_ref), "p_ref": f(self.p_ref_kPa / pressure_scale_kPa),
-                      "a": f(self.exponent), "mu_max": f(self.mu_max), "blend": f(CAP_BLEND)}
-        else:
-            params = {"coulomb": {"mu": f(self.mu)},
-                      "slip_weakening": {"mu_s": f(self.mu_s), "mu_k": f(self.mu_k),
-                                         "d_c": f(self.d_c_mm / ball_radius_mm)}}[self.law]
-        return FRICTION_LAWS[self.law](**params, eps=f(eps))
+        return self.mu_ref

@@ -1,7 +1,7 @@
 """The core protocol of a forming scenario (:func:`build_protocol`): the validated stages
 (:mod:`dynslip.schema.stages`, physical units) made into the nondimensional
 :class:`dynslip.physics.protocols.Protocol` (lengths by the ball radius, forces by the force
-scale), each stage's stop rule (:func:`stop_rule`), and the check that the keyframed clamp path
+scale), each stage's stop rule built by its spec, and the check that the keyframed clamp path
 stays outside the ball (:func:`clamp_enters_ball`).
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["build_protocol", "clamp_enters_ball", "stop_rule"]
+__all__ = ["build_protocol", "clamp_enters_ball"]
 
 
 def clamp_enters_ball(prot, ball) -> bool:
@@ -29,24 +29,6 @@ def clamp_enters_ball(prot, ball) -> bool:
         if float(np.min(np.asarray(ball.distance(x)))) <= 0.0:
             return True
     return False
-
-
-def stop_rule(s, duration: float, r: float, fs: float):
-    """The stop rule object of stage ``s`` (:data:`dynslip.physics.protocols.STOPS`, the one
-    registry: one final class per ``until``), its thresholds made nondimensional (lengths by
-    ``r`` mm, forces by ``fs`` N); a condition rule ends the stage at ``duration`` s at the
-    latest."""
-    from dynslip.physics.protocols import STOPS
-
-    params = {
-        "duration": lambda: {},
-        "clamp_force_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
-        "ball_reaction_below": lambda: {"force": (s.force_threshold_N or 0.0) / fs},
-        "theta_max_below": lambda: {"angle": s.theta_stop_rad or 0.0},
-        "ball_speed_above": lambda: {"rate": (s.ball_speed_mm_s or 0.0) / r},
-        "rest": lambda: {"rate": (s.rest_rate_mm_s or 0.0) / r, "hold": s.rest_hold_s or 0.0},
-    }
-    return STOPS[s.until](**params[s.until](), duration=duration)
 
 
 def build_protocol(sc):
@@ -79,7 +61,7 @@ def build_protocol(sc):
             lab = p.frame == "lab" and s.clamp in ("move", "band")
             vz = (s.clamp_velocity_mm_s + (s.tube_velocity_mm_s if lab else 0.0)) / r
         z += vz * dur
-        stop = stop_rule(s, dur, r, fs)
+        stop = s.until.build(dur, r, fs)
         ckw = {"clamp_vz": vz}
         moved = p.body_velocities(s)
         if s.clamp == "let_go":

@@ -2,24 +2,169 @@
 motion, what holds the ball, the bodies moved by the stages, and when the stage ends), and the
 default method 2 path. Physical units in the file (mm, mm/s, s, N); docs/forming.md.
 
-Each section of the scenario has its own module; :mod:`dynslip.schema.forming` re-exports
-:class:`StageSpec`.
+A stage's ``until`` is its stop rule: one spec per ``rule`` (:data:`STOP_SPECS`), each with its
+own parameters, its checks against the stage and the core rule it builds
+(:class:`dynslip.physics.protocols.AbstractStop`). A new rule is one ``AbstractStop`` subclass
+and one :class:`StopSpec` subclass with ``rule: Literal["name"]``, added by
+``STOP_SPECS.register(TheSpec)`` (tests/test_stop_registry.py does so from outside the
+package). Each section of the scenario has its own module; :mod:`dynslip.schema.forming`
+re-exports :class:`StageSpec`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import model_validator
 
 from dynslip.schema.base import F, Strict
+from dynslip.schema.registry import Registry
 
-__all__ = ["MAX_STAGES", "MAX_TIME_S", "StageSpec", "default_stages"]
+__all__ = ["MAX_STAGES", "MAX_TIME_S", "STOP_SPECS", "StopSpec", "Until", "DurationSpec",
+           "ClampForceBelowSpec", "BallReactionBelowSpec", "ThetaMaxBelowSpec",
+           "BallSpeedAboveSpec", "RestSpec", "StageSpec", "default_stages"]
 
 #: bounds of the loading path: the longest time of a stage (s), the most stages
 MAX_TIME_S = 1e6
 MAX_STAGES = 100
+
+
+#: the stop rules of the scenario file, by ``rule`` (the one registry: each spec builds its core
+#: rule); ``until: rest`` is ``until: {rule: rest}``
+STOP_SPECS = Registry("rule")
+
+
+class StopSpec(Strict):
+    """When a stage ends: ``rule`` names it (:data:`STOP_SPECS`), the other fields are its
+    parameters (physical units)."""
+
+    rule: str
+
+    def build(self, duration: float, r: float, fs: float):
+        """The core rule (:class:`~dynslip.physics.protocols.AbstractStop`), thresholds made
+        nondimensional (lengths by ``r`` mm, forces by ``fs`` N); a condition rule ends the stage
+        at ``duration`` s at the latest."""
+        raise NotImplementedError
+
+    def check_stage(self, stage: StageSpec) -> None:
+        """Refuse (ValueError, one line) a stage on which this rule can never hold."""
+
+
+#: a stage's ``until``: one of :data:`STOP_SPECS`, chosen by ``rule``
+Until = Annotated[StopSpec, STOP_SPECS]
+
+
+@STOP_SPECS.add
+class DurationSpec(StopSpec):
+    """The stage lasts its duration_s (or its clamp_to_z_mm move)."""
+
+    rule: Literal["duration"] = F("duration", description="duration: the stage's duration_s")
+
+    def build(self, duration, r, fs):
+        from dynslip.physics.protocols import Duration
+
+        return Duration(duration=duration)
+
+
+@STOP_SPECS.add
+class ClampForceBelowSpec(StopSpec):
+    """Ends when the clamp's axial force, net of the sheet's drag, falls below force_N."""
+
+    rule: Literal["clamp_force_below"] = F(
+        "clamp_force_below", description="clamp_force_below: the clamp's axial force (net of "
+        "drag) below force_N")
+    force_N: float = F(..., unit="N", gt=0, le=1e6, description="the threshold, in (0, 1e6] N")
+
+    def build(self, duration, r, fs):
+        from dynslip.physics.protocols import ClampForceBelow
+
+        return ClampForceBelow(force=self.force_N / fs, duration=duration)
+
+    def check_stage(self, stage):
+        if stage.clamp not in ("move", "band"):
+            raise ValueError("until: clamp_force_below needs a clamp that holds the edge "
+                             "(clamp: move or band)")
+        if stage.clamp_velocity_mm_s == 0.0 and stage.ball == "hold" \
+                and stage.ball_velocity_mm_s == 0.0:
+            raise ValueError("until: clamp_force_below with a clamp and ball at rest can never "
+                             "hold (nothing unloads the sheet)")
+
+
+@STOP_SPECS.add
+class BallReactionBelowSpec(StopSpec):
+    """Ends when the hold's force on the ball (+ up, net of drag) falls below force_N: a held
+    ball standing in for one on its support, where the support would stop carrying it."""
+
+    rule: Literal["ball_reaction_below"] = F(
+        "ball_reaction_below", description="ball_reaction_below: the hold's force on the ball "
+        "(net of drag) below force_N")
+    force_N: float = F(..., unit="N", gt=0, le=1e6, description="the threshold, in (0, 1e6] N")
+
+    def build(self, duration, r, fs):
+        from dynslip.physics.protocols import BallReactionBelow
+
+        return BallReactionBelow(force=self.force_N / fs, duration=duration)
+
+    def check_stage(self, stage):
+        if stage.ball != "hold":
+            raise ValueError("until: ball_reaction_below reads a held ball's reaction: it needs "
+                             "ball: hold")
+
+
+@STOP_SPECS.add
+class ThetaMaxBelowSpec(StopSpec):
+    """Ends when the contact edge's polar angle falls below angle_rad, or contact is lost."""
+
+    rule: Literal["theta_max_below"] = F(
+        "theta_max_below", description="theta_max_below: the contact edge's polar angle below "
+        "angle_rad")
+    angle_rad: float = F(..., unit="rad", gt=0, lt=math.pi,
+                         description="the polar angle, in (0, pi) (pi/2: opening radius R)")
+
+    def build(self, duration, r, fs):
+        from dynslip.physics.protocols import ThetaMaxBelow
+
+        return ThetaMaxBelow(angle=self.angle_rad, duration=duration)
+
+
+@STOP_SPECS.add
+class BallSpeedAboveSpec(StopSpec):
+    """Ends when the ball's speed exceeds speed_mm_s: a pull has torn the ball out."""
+
+    rule: Literal["ball_speed_above"] = F(
+        "ball_speed_above", description="ball_speed_above: the ball's speed above speed_mm_s")
+    speed_mm_s: float = F(..., unit="mm/s", gt=0, le=1e3,
+                          description="the ball-speed threshold, in (0, 1e3] mm/s")
+
+    def build(self, duration, r, fs):
+        from dynslip.physics.protocols import BallSpeedAbove
+
+        return BallSpeedAbove(rate=self.speed_mm_s / r, duration=duration)
+
+
+@STOP_SPECS.add
+class RestSpec(StopSpec):
+    """Ends when the largest slip speed and the ball's speed have stayed below rate_mm_s for
+    hold_s."""
+
+    rule: Literal["rest"] = F("rest", description="rest: slip and ball speeds below rate_mm_s "
+                                                  "for hold_s")
+    rate_mm_s: float = F(..., unit="mm/s", gt=0, le=1e4,
+                         description="largest slip speed and ball speed, in (0, 1e4] mm/s")
+    hold_s: float = F(..., unit="s", gt=0, le=MAX_TIME_S,
+                      description="for this long, in (0, 1e6] s; shorter than the stage's "
+                                  "duration_s")
+
+    def build(self, duration, r, fs):
+        from dynslip.physics.protocols import Rest
+
+        return Rest(rate=self.rate_mm_s / r, hold=self.hold_s, duration=duration)
+
+    def check_stage(self, stage):
+        if stage.duration_s is not None and self.hold_s >= stage.duration_s:
+            raise ValueError(f"until: rest can never hold: hold_s = {self.hold_s} must be shorter "
+                             f"than duration_s = {stage.duration_s}")
 
 
 class StageSpec(Strict):
@@ -40,29 +185,18 @@ class StageSpec(Strict):
     duration_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
                                  description="stage duration, in (0, 1e6] s; for condition stages "
                                              "the longest it may run")
-    until: Literal[
-        "duration", "clamp_force_below", "rest", "theta_max_below", "ball_speed_above",
-        "ball_reaction_below",
-    ] = F(
-        "duration",
-        description="stop rule: the duration, the clamp's axial force below a "
-        "threshold, rest, "
-        "the contact edge's polar angle below theta_stop_rad, or the ball's speed above "
-        "ball_speed_mm_s (a pull "
-        "has torn the ball out), or the hold's force on the ball below force_threshold_N (a held "
-        "ball standing in for one on its support: the support would stop carrying it)",
-    )
-    ball_speed_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e3,
-                                      description="until: ball_speed_above: the ball-speed "
-                                                  "threshold")
+    until: Until = F(
+        DurationSpec(),
+        description="stop rule, by rule: duration (the default), clamp_force_below (force_N), "
+        "ball_reaction_below (force_N: a held ball standing in for one on its support: the "
+        "support would stop carrying it), theta_max_below (angle_rad), ball_speed_above "
+        "(speed_mm_s: a pull has torn the ball out), rest (rate_mm_s, hold_s); a rule without "
+        "parameters may be written as its name")
     ball_force_N: float | None = F(None, unit="N", ge=-1e3, le=1e3,
                                    description="ball: pull: the applied force on the ball at the "
                                                "stage's end (up > 0; "
                                    "toward the pocket's opening < 0), ramped linearly from 0 over "
                                    "duration_s")
-    theta_stop_rad: float | None = F(None, unit="rad", gt=0, lt=math.pi,
-                                     description="until: theta_max_below: the polar angle (pi/2: "
-                                                 "opening radius R)")
     ball_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
                                   description="signed velocity (up > 0), in [-1e4, 1e4] mm/s, of a "
                                               "held ball (ball: "
@@ -80,15 +214,6 @@ class StageSpec(Strict):
         description="signed axial velocity (up > 0), in [-1e4, 1e4] mm/s, over this stage of "
         "each held body with motion: stage (physics.bodies), by name; a body not named stays "
         "where the previous stage left it")
-    force_threshold_N: float | None = F(None, unit="N", gt=0, le=1e6,
-                                        description="threshold of until: clamp_force_below, in (0, "
-                                                    "1e6] N")
-    rest_rate_mm_s: float | None = F(None, unit="mm/s", gt=0, le=1e4,
-                                     description="until: rest: largest slip speed and ball speed "
-                                                 "below this, "
-                                     "in (0, 1e4] mm/s")
-    rest_hold_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
-                                  description="until: rest: for this long, in (0, 1e6] s")
     clamp: Literal["move", "let_go", "free", "band"] = F(
         "move", description="move: the clamp holds the edge and moves as given; let_go: its force "
                             "on the sheet is "
@@ -122,39 +247,15 @@ class StageSpec(Strict):
             if self.duration_s is not None:
                 raise ValueError("overlapping timing: a clamp_to_z_mm move takes |dz|/speed; drop "
                                  "duration_s")
-            if self.until != "duration":
+            if self.until.rule != "duration":
                 raise ValueError("a clamp_to_z_mm move ends at its target: use until: duration")
         elif self.clamp_speed_mm_s is not None:
             raise ValueError("clamp_speed_mm_s without clamp_to_z_mm")
         elif self.duration_s is None:
             raise ValueError("duration_s is required (the duration, or the longest a condition "
                              "stage may run)")
-        if self.until == "clamp_force_below":
-            if self.force_threshold_N is None:
-                raise ValueError("until: clamp_force_below needs force_threshold_N")
-            if self.clamp not in ("move", "band"):
-                raise ValueError("until: clamp_force_below needs a clamp that holds the edge "
-                                 "(clamp: move or band)")
-            if (
-                self.clamp_velocity_mm_s == 0.0
-                and self.ball == "hold"
-                and self.ball_velocity_mm_s == 0.0
-            ):
-                raise ValueError("until: clamp_force_below with a clamp and ball at rest can never "
-                                 "hold "
-                                 "(nothing unloads the sheet)")
-        if self.until == "ball_reaction_below":
-            if self.force_threshold_N is None:
-                raise ValueError("until: ball_reaction_below needs force_threshold_N")
-            if self.ball != "hold":
-                raise ValueError("until: ball_reaction_below reads a held ball's reaction: it "
-                                 "needs ball: hold")
-        if self.until == "ball_speed_above" and self.ball_speed_mm_s is None:
-            raise ValueError("until: ball_speed_above needs ball_speed_mm_s")
         if (self.ball == "pull") != (self.ball_force_N is not None):
             raise ValueError("ball_force_N goes with ball: pull (and ball: pull needs it)")
-        if self.until == "theta_max_below" and self.theta_stop_rad is None:
-            raise ValueError("until: theta_max_below needs theta_stop_rad")
         for name, v in self.body_velocity_mm_s.items():
             if not (math.isfinite(v) and -1e4 <= v <= 1e4):
                 raise ValueError(f"body_velocity_mm_s[{name!r}] = {v}: allowed [-1e4, 1e4] mm/s")
@@ -167,12 +268,7 @@ class StageSpec(Strict):
                              "without clamp_to_z_mm")
         if self.ball_velocity_mm_s != 0.0 and self.ball != "hold":
             raise ValueError("ball_velocity_mm_s moves a held ball: it needs ball: hold")
-        if self.until == "rest":
-            if self.rest_rate_mm_s is None or self.rest_hold_s is None:
-                raise ValueError("until: rest needs rest_rate_mm_s and rest_hold_s")
-            if self.rest_hold_s >= self.duration_s:
-                raise ValueError("until: rest can never hold: rest_hold_s must be shorter than "
-                                 "duration_s")
+        self.until.check_stage(self)
         return self
 
 
@@ -189,8 +285,6 @@ def default_stages() -> list[StageSpec]:
             clamp="free",
             ball="free",
             duration_s=200.0,
-            until="rest",
-            rest_rate_mm_s=0.002,
-            rest_hold_s=10.0,
+            until=RestSpec(rate_mm_s=0.002, hold_s=10.0),
         ),
     ]
