@@ -142,9 +142,10 @@ def test_a_rest_stage_ends_where_the_rest_rule_says_from_the_saved_frames(
     np.testing.assert_allclose(ds["rho"].values, ref["rho"].values[:n], rtol=0, atol=1e-12)
     expected = _rest_end(t, m, rate, HOLD_S)
     print(f"rest rate {rate:.4e} R/s; frame k {t_k:.2f} s reads {m[t == t_k][0] / rate:.4f} x rate;"
-          f" rule's end {expected:.2f} s, stage end {t[-1]:.2f} s")
-    assert expected == pytest.approx(t_k1 + HOLD_S, abs=1e-9)
+          f" the rule's end from the frames {expected} s, the stage's end {t[-1]:.2f} s")
+    assert expected is not None, f"the stage ended at {t[-1]:.2f} s, before the rule holds"
     assert t[-1] == pytest.approx(expected, abs=1e-9), (t[-1], expected)
+    assert expected == pytest.approx(t_k1 + HOLD_S, abs=1e-9)
     stage = res.summary["stages"][1]
     assert stage["condition_met"] is True
     assert res.summary["trapped"] is not None
@@ -282,7 +283,12 @@ TUBE = {
 
 @pytest.fixture(scope="module")
 def tube_run(tmp_path_factory):
-    res = api.run(_load(tmp_path_factory.mktemp("tube"), TUBE, "tube"))
+    """The run, also where its verdict has no answer (a residual above the bound): what it
+    computed is what the balance below is read from."""
+    try:
+        res = api.run(_load(tmp_path_factory.mktemp("tube"), TUBE, "tube"))
+    except api.ComputationError as err:
+        res = err.partial
     assert res.summary["status"] == "ok"
     return res
 
