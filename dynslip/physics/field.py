@@ -15,16 +15,12 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import (
-    free_ball_velocity,
-    held_entries,
-    place_bodies,
-    place_free,
-)
+from dynslip.physics import conditions
+from dynslip.physics.bodies.held import held_entries, place_bodies, place_free
+from dynslip.physics.conditions import Edge
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.layout import N_ACC, N_ACC_MOVED, Layout
 from dynslip.physics.linalg import Structure
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 
 EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see sheet_structure)
@@ -107,21 +103,12 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     g_rho, g_z, _ = k["grads"]
     eta_a = k["eta_a"]
     u = k["u"]
-    pinned = args.clamp_mode == CLAMP_POSITION
-    band = args.clamp_mode == CLAMP_BAND
-    # Clamp: prescribed velocity (its force on the sheet is dE/dx_c), or a ramped force
-    # with the edge node moving like any free node (drag relative to the ball), or the band:
-    # carried radially, sliding along the wall at w = S(F_z, grip)/(eta A) relative to the band
-    # (drag relative to the band; the band's force on the sheet is still dE/dx_c).
-    f_app = args.clamp_force(t)
-    u_c_free = (f_app - jnp.stack([g_rho[-1], g_z[-1]])) / eta_a[-1]
-    s_band = model.band_slip(-g_z[-1], rho[-1], args.eps)
-    w_band = jnp.where(band, s_band / eta_a[-1], 0.0)
-    held_edge = pinned | band
-    crho = jnp.where(held_edge, g_rho[-1], f_app[0])
-    cz = jnp.where(held_edge, g_z[-1], f_app[1])
-    held = args.ball_mode == BALL_HOLD
-    fb = args.ball_force(t) + args.support_force(zb)
+    # the clamp (its force on the sheet, conditions.clamp_force) and the ball
+    # (conditions.ball_velocity): the modes of the stage (dynslip.physics.conditions)
+    edge = Edge(jnp.stack([g_rho[-1], g_z[-1]]), rho[-1], eta_a[-1])
+    carried = conditions.edge_carried(args)
+    f_clamp = conditions.clamp_force(args, t, edge.g)
+    crho, cz = f_clamp
     # the sheet's pull on the ball: the held bodies carry the rest, by pressure (held_load) and
     # by friction (its axial part, which depends on the ball's velocity: bodies.held); a body
     # that moves with the ball (the bottle) is displaced by zb, and its load goes to the lab
@@ -129,20 +116,16 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     hdelta = layout.held_internal(y)
     hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb, hdelta,
                              None if forces is None else forces[2])
-    if hf is None:
-        vb = jnp.where(held, args.vzb, (fb + c_pen + args.weight) / args.ball_drag)
-        c_ball = c_pen
-    else:
-        if vb is None:
-            vb_free = free_ball_velocity(hf, fb + c_pen + args.weight, args.ball_drag, held)
-            vb = jnp.where(held, args.vzb, vb_free)
+    if hf is None or vb is None:
+        vb = conditions.ball_velocity(args, t, zb, c_pen, None if hf is None else lambda: hf)
+    c_ball = c_pen
+    if hf is not None:
         c_ball = c_pen + hf.axial(vb)
         u = u + hf.force(vb).T / eta_a
-    f_hold = jnp.where(held, args.ball_drag * vb - c_ball - args.weight, fb)
-    u_c = jnp.where(held_edge, jnp.stack([args.vrhoc, args.vzc - vb + w_band]), u_c_free)
-    u = u.at[:, -1].set(u_c)
+    em = conditions.edge_motion(model, args, edge, f_clamp, vb)
+    u = u.at[:, -1].set(em.u)
     v = u + jnp.stack([jnp.zeros_like(rho), jnp.full_like(z, vb)])
-    moving = (jnp.arange(layout.n) < layout.n - 1) | ~held_edge  # nodes with constitutive drag
+    moving = (jnp.arange(layout.n) < layout.n - 1) | ~carried  # nodes with constitutive drag
     d_drag = (
         jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
     )
@@ -150,19 +133,18 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
     if hf is not None:
         d_fric = d_fric + jnp.sum(hf.dissipation(vb))  # friction on the held bodies
-    # the band: its slip's drag and friction (together F_z w); the clamp's work is the band's
-    # carrier's, at the clamp's velocity
-    d_drag = d_drag + eta_a[-1] * w_band**2
-    # the hold's reaction net of drag: the sheet's drag is relative to the ball, so its reaction
-    # (eta A u on every node with constitutive drag) acts on the ball (in c_ball), and the
-    # ball's own drag is the hold's too; without them the reaction is the one a support at
-    # rest would carry (a stop rule reads it, so a slack span's drag does not end a stage)
+    # the edge's slip along the wall relative to the clamp: its drag (and its friction, below);
+    # the clamp's work is at the clamp's velocity
+    d_drag = d_drag + eta_a[-1] * em.slip**2
+    # the reactions net of drag: the sheet's drag is relative to the ball, so its reaction
+    # (eta A u on every node with constitutive drag) acts on the ball (in c_ball), as it acts on
+    # a clamp that carries the edge; a stop rule reads them, so a slack span's drag does not end
+    # a stage
     drag_z = jnp.sum(jnp.where(moving, eta_a * u[1], 0.0))
-    f_static = jnp.where(held, f_hold - args.ball_drag * vb + drag_z, fb)
-    # the clamp's axial force net of the same drag: what the sheet's shape alone asks of it
-    cz_static = jnp.where(held_edge, cz - drag_z, cz)
-    d_fric = d_fric + jnp.where(band, (-g_z[-1] - s_band) * w_band, 0.0)
-    w_clamp = cz * (v[1, -1] - w_band) + crho * v[0, -1]
+    f_hold, f_static = conditions.ball_reaction(args, t, zb, vb, c_ball, drag_z)
+    cz_static = jnp.where(carried, cz - drag_z, cz)
+    d_fric = d_fric + em.friction
+    w_clamp = cz * (v[1, -1] - em.slip) + crho * v[0, -1]
     w_ball = (f_hold + args.weight) * vb
     v_free = None
     w_bodies = jnp.zeros(())

@@ -12,10 +12,11 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.held import free_ball_velocity, frictional, held_frame
+from dynslip.physics import conditions
+from dynslip.physics.bodies.held import frictional, held_frame
+from dynslip.physics.conditions import Edge
 from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import AbstractFriction
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.sheet import SheetModel, penalty_pressure
 from dynslip.physics.terms import contact_gap, forces, held_projections
 
@@ -261,52 +262,39 @@ def sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None, projections=
 
 
 def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load, projections=None):
-    """The ball's velocity: :func:`ball_rate`, with the held bodies' friction (its axial part
-    depends on the velocity itself: :func:`dynslip.physics.bodies.held.free_ball_velocity`);
-    ``projections`` the held bodies' of the nodes (None: projected here)."""
-    if not frictional(model.bodies):
-        return ball_rate(inc, g[-1], zb, load)
+    """The ball's velocity at the increment's end in the stage's ball mode
+    (:func:`dynslip.physics.conditions.ball_velocity`), under the clamp's axial force on the
+    sheet less the held bodies' ``load``, with the held bodies' friction where one has any (its
+    frame is built only where the mode reads it); ``projections`` the held bodies' of the nodes
+    (None: projected here)."""
     args = inc.args
+    pull = conditions.clamp_force(args, inc.t1, g[-1])[1] - load
+    if not frictional(model.bodies):
+        return conditions.ball_velocity(args, inc.t1, zb, pull)
 
-    def free():
-        hf = sheet_held_frame(model, args, q, zb, g, inc.held_delta0, projections)
-        pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
-        cz = jnp.where(pinned, g[-1, 1], args.clamp_force(inc.t1)[1])
-        fb = args.ball_force(inc.t1) + args.support_force(zb)
-        return free_ball_velocity(hf, fb + (cz - load) + args.weight, args.ball_drag)
+    def frame():
+        return sheet_held_frame(model, args, q, zb, g, inc.held_delta0, projections)
 
-    # a held ball's velocity is prescribed: the sheet's held friction frame and the root search
-    # are skipped (lax.cond; under vmap both branches run)
-    vzb = jnp.asarray(args.vzb, dtype=jnp.result_type(float))
-    return jax.lax.cond(args.ball_mode == BALL_HOLD, lambda: vzb, free)
+    return conditions.ball_velocity(args, inc.t1, zb, pull, frame)
 
 
 def ball_rate(inc: Increment, g_edge, zb, load):
-    """The ball's velocity from the clamp's force on the sheet $C_z$ less the held bodies'
-    ``load`` (held: prescribed; force-controlled: $(F_h + F_s(z_b) + C_z - L + F_g)/\\eta_b$)."""
-    args = inc.args
-    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
-    cz = jnp.where(pinned, g_edge[1], args.clamp_force(inc.t1)[1])
-    fb = args.ball_force(inc.t1) + args.support_force(zb)
-    return jnp.where(
-        args.ball_mode == BALL_HOLD, args.vzb, (fb + (cz - load) + args.weight) / args.ball_drag
-    )
+    """The ball's velocity without held friction: :func:`ball_velocity`'s from the clamped
+    edge's energy gradient ``g_edge`` alone."""
+    pull = conditions.clamp_force(inc.args, inc.t1, g_edge)[1] - load
+    return conditions.ball_velocity(inc.args, inc.t1, zb, pull)
 
 
 def edge_rate(model: SheetModel, inc: Increment, g_edge, zb, load, vb=None, rho_edge=0.0):
-    """Rate relative to the ball of the clamped edge: prescribed (pinned clamp), drag under
-    the ramped clamp force, or the band's (prescribed radially, sliding along the wall past
-    the grip, :meth:`SheetModel.band_slip`, at the edge's radius ``rho_edge``); ``vb`` the
-    ball's velocity (None: :func:`ball_rate`'s)."""
-    args = inc.args
-    pinned = args.clamp_mode == CLAMP_POSITION
-    band = args.clamp_mode == CLAMP_BAND
+    """Rate relative to the ball of the clamped edge in the stage's clamp mode
+    (:func:`dynslip.physics.conditions.edge_motion`), at the edge's radius ``rho_edge``;
+    ``vb`` the ball's velocity (None: :func:`ball_rate`'s)."""
     if vb is None:
         vb = ball_rate(inc, g_edge, zb, load)
-    eta_a = args.drag * model.mesh.area[-1]
-    free = (args.clamp_force(inc.t1) - g_edge) / eta_a
-    w = jnp.where(band, model.band_slip(-g_edge[1], rho_edge, args.eps) / eta_a, 0.0)
-    return jnp.where(pinned | band, jnp.stack([args.vrhoc, args.vzc - vb + w]), free)
+    args = inc.args
+    edge = Edge(g_edge, rho_edge, args.drag * model.mesh.area[-1])
+    force = conditions.clamp_force(args, inc.t1, g_edge)
+    return conditions.edge_motion(model, args, edge, force, vb).u
 
 
 def increment_rates(model, friction, inc: Increment, q, zb, g, load, projections=None):

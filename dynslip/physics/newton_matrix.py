@@ -12,6 +12,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from dynslip.physics import conditions
 from dynslip.physics.bodies.held import frictional, held_entries, place_free
 from dynslip.physics.field import free_body_rates
 from dynslip.physics.increment import (
@@ -27,7 +28,6 @@ from dynslip.physics.increment import (
     untouched,
 )
 from dynslip.physics.linalg import small_matmul
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_BAND, CLAMP_POSITION
 from dynslip.physics.terms import forces, forces_and_hessians, held_projections
 
 __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
@@ -185,17 +185,19 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, e
     lq, lz = lq.at[-1].set(jnp.zeros((2, 2)).at[:, 0].set(er)), lz.at[-1].set(0.0)
     lg, lv = lg.at[-1].set(eg), lv.at[-1].set(ev)
     # the ball's equation eta_b v - A_0(C_z, z_b, L) - sum_i a_i = 0 (a free ball; held: its
-    # velocity is prescribed, V = 0): dv_b/dy = (dA_0/dy + sum_i da_i/dy)/(eta_b - sum_i
-    # da_i/dv_b)
-    pinned = (args.clamp_mode == CLAMP_POSITION) | (args.clamp_mode == CLAMP_BAND)
-    free = args.ball_mode != BALL_HOLD
-    slope = args.ball_drag - jnp.sum(av)
-    inv = jnp.where(free, 1.0 / jnp.where(free, slope, 1.0), 0.0)
-    _, dfs = jax.jvp(args.support_force, (zb,), (jnp.ones_like(zb),))
+    # velocity is prescribed, V = 0): dv_b/dy = (dA_0/dy + sum_i da_i/dy) dv_b/dA, the
+    # compliance dv_b/dA = 1/(eta_b - sum_i da_i/dv_b) (conditions.ball_compliance); A_0's
+    # derivatives in the edge's gradient (the clamp's force), z_b (the support) and L
+    inv = conditions.ball_compliance(args, jnp.sum(av))
+    a_g, a_z, a_l = jax.jacfwd(
+        lambda ge, z, ld: conditions.ball_load(
+            args, inc.t1, z, conditions.clamp_force(args, inc.t1, ge)[1] - ld),
+        argnums=(0, 1, 2),
+    )(g[-1], zb, load)
     vq = inv * aq
-    vg = (inv * ag).at[-1, 1].add(jnp.where(pinned, inv, 0.0))
-    vz = inv * (dfs + jnp.sum(az))
-    vl = -inv
+    vg = (inv * ag).at[-1].add(inv * a_g)
+    vz = inv * (a_z + jnp.sum(az))
+    vl = inv * a_l
     h_low = jnp.swapaxes(h_up, 1, 2)  # h_low[j] = d2E/dx_{j+1} dx_j
     hh, hz = hh
     dg_dz = hz[:, :, 1]  # (n, 2): the held bodies at rest see q + zb
