@@ -1,8 +1,7 @@
 """dynslip: stick-slip forming of an elastic sheet over a rigid ball.
 
-The paper's static contact-region model (:mod:`dynslip.physics.sphere`,
-:mod:`dynslip.physics.cylinder`)
-and a whole-sheet forming simulator.
+The paper's static contact-region model (:mod:`dynslip.physics.static`: the ball, and the
+2D argument in :mod:`dynslip.physics.static.plane_strain`) and a whole-sheet forming simulator.
 
 Importing the package changes one global setting, and only one: ``jax_enable_x64`` is turned
 on, because the package's numerics are float64: its tolerances (Newton's down to 1e-12, the
