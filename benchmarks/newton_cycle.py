@@ -114,7 +114,7 @@ def increment(n: int, t: float, dt: float, limit: float | None) -> None:
 
     def status(y):
         kin = evaluate(model, lay, t1, y, args)[1]["kin"]
-        return np.asarray(kin["N"] > 0), np.asarray(kin["S"] != 0)
+        return np.asarray(kin.normal > 0), np.asarray(kin.slip != 0)
 
     mech = 2 * n - 1  # rho_1..rho_{n-1}, z_0..z_{n-1}
     k = jnp.zeros_like(y0)

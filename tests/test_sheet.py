@@ -166,19 +166,19 @@ def test_kinematics_stuck_and_free_nodes():
     rho = 0.995 * jnp.sin(th)  # pressed 0.005 R into the ball
     z = 0.995 * jnp.cos(th)
     k = m.kinematics(rho, z, 0.0, Coulomb(mu=jnp.asarray(50.0)), 0.0, 0.3)
-    assert float(jnp.min(k["N"][:-1])) > 0
-    assert float(jnp.max(jnp.abs(k["ft"][1:-1]))) > 1e-3  # loaded ...
-    assert float(jnp.max(jnp.abs(k["S"]))) == 0.0  # ... but stuck
-    t_dir = k["theta_dir"]
-    u_scale = float(jnp.max(jnp.abs(k["u"])))
-    assert float(jnp.max(jnp.abs(jnp.sum(k["u"] * t_dir, axis=0)[:-1]))) < 1e-13 * u_scale
+    assert float(jnp.min(k.normal[:-1])) > 0
+    assert float(jnp.max(jnp.abs(k.ft[1:-1]))) > 1e-3  # loaded ...
+    assert float(jnp.max(jnp.abs(k.slip))) == 0.0  # ... but stuck
+    t_dir = k.tangent
+    u_scale = float(jnp.max(jnp.abs(k.u)))
+    assert float(jnp.max(jnp.abs(jnp.sum(k.u * t_dir, axis=0)[:-1]))) < 1e-13 * u_scale
     k0 = m.kinematics(
         rho + 0.0, z + 3.0, 0.0, Coulomb(mu=jnp.asarray(50.0)), 0.0, 0.3
     )  # lifted off
-    g_rho, g_z, _ = k0["grads"]
+    g_rho, g_z, _ = k0.grads
     u_expect = -jnp.stack([g_rho, g_z]) / (0.3 * m.mesh.area)
     assert np.allclose(
-        np.asarray(k0["u"][:, 1:-1]), np.asarray(u_expect[:, 1:-1]), rtol=1e-12, atol=1e-14
+        np.asarray(k0.u[:, 1:-1]), np.asarray(u_expect[:, 1:-1]), rtol=1e-12, atol=1e-14
     )
 
 

@@ -100,9 +100,9 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     internal = layout.internal(y)
     k = model.kinematics(rho, z, zb, args.friction, args.eps, args.drag, internal,
                          grads=None if forces is None else _grads(forces))
-    g_rho, g_z, _ = k["grads"]
-    eta_a = k["eta_a"]
-    u = k["u"]
+    g_rho, g_z, _ = k.grads
+    eta_a = k.eta_a
+    u = k.u
     # the clamp (its force on the sheet, conditions.clamp_force) and the ball
     # (conditions.ball_velocity): the modes of the stage (dynslip.physics.conditions)
     edge = Edge(jnp.stack([g_rho[-1], g_z[-1]]), rho[-1], eta_a[-1])
@@ -130,7 +130,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
         jnp.sum(jnp.where(moving, eta_a * (u[0] ** 2 + u[1] ** 2), 0.0)) + args.ball_drag * vb**2
     )
     last = jnp.arange(layout.n) == layout.n - 1
-    d_fric = jnp.sum(jnp.where(last, 0.0, (k["ft"] - k["S"]) * k["S"] / eta_a))
+    d_fric = jnp.sum(jnp.where(last, 0.0, (k.ft - k.slip) * k.slip / eta_a))
     if hf is not None:
         d_fric = d_fric + jnp.sum(hf.dissipation(vb))  # friction on the held bodies
     # the edge's slip along the wall relative to the clamp: its drag (and its friction, below);
@@ -158,7 +158,7 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
     dacc = jnp.stack(parts)
     dint = None
     if internal is not None:
-        dint = jnp.where(last, 0.0, args.friction.internal_rate(k["S"] / eta_a, k["N"], internal))
+        dint = jnp.where(last, 0.0, args.friction.internal_rate(k.slip / eta_a, k.normal, internal))
     dheld = None if hdelta is None else hf.internal_rates(vb)  # held slip distances' rates
     dy = layout.pack(v[0], v[1], vb, dacc, dint, v_free, dheld)
     return dy, {
@@ -244,7 +244,7 @@ def place_free_moving(model: SheetModel, layout: Layout, t, y, args: StageArgs,
     rho, z, zb, _ = layout.unpack(y)
     v0, _, eta = free_body_rates(placed, rho, z, zb)
     g_rho, g_z, _ = placed.kinematics(rho, z, zb, args.friction, args.eps, args.drag,
-                                      layout.internal(y))["grads"]
+                                      layout.internal(y)).grads
     hf = placed.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb,
                               layout.held_internal(y))
     half = hf.bound() / eta + 1.0
@@ -347,10 +347,10 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=Non
                          grads=None if forces is None else _grads(forces))
     if layout.n_int:
         y = layout.with_internal(
-            y, args.friction.reset(internal, k["S"] / k["eta_a"], k["N"], heal_rate)
+            y, args.friction.reset(internal, k.slip / k.eta_a, k.normal, heal_rate)
         )
     if layout.n_held_int:
-        g_rho, g_z, _ = k["grads"]
+        g_rho, g_z, _ = k.grads
         hf = model.held_friction(rho, z, -jnp.stack([g_rho, g_z]), args.drag, args.eps, zb,
                                  layout.held_internal(y), None if forces is None else forces[2])
         y = layout.with_held_internal(y, hf.reset(vb, heal_rate))

@@ -55,7 +55,7 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
     slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
     # per held body (none without held bodies: the ball's fields alone)
-    g_rho, g_z, _ = aux["kin"]["grads"]
+    g_rho, g_z, _ = aux["kin"].grads
     per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
                                 args.drag, args.eps, contact_threshold,
                                 layout.held_internal(y), hf=aux["held_frame"], projections=ps)

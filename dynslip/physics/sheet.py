@@ -40,7 +40,7 @@ moving ball behave as on a held one and keeps the energy balance exact.)
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import equinox as eqx
 import jax
@@ -54,6 +54,7 @@ if TYPE_CHECKING:
     from dynslip.physics.bodies.base import AbstractBody
 
 __all__ = [
+    "Kinematics",
     "Mesh",
     "Penalty",
     "SheetModel",
@@ -194,6 +195,20 @@ def node_stretches(mesh: Mesh, rho, z):
     return lt, lp
 
 
+class Kinematics(NamedTuple):
+    """Each node's motion relative to the ball under the ball's friction law and the force
+    split behind it (:meth:`SheetModel.kinematics`), arrays over the nodes."""
+
+    u: jax.Array  # (2, N) velocity relative to the ball (node N-1, the clamp, set by its mode)
+    ft: jax.Array  # driving force along the ball's tangent (G h0 R)
+    fn: jax.Array  # driving force along its normal
+    normal: jax.Array  # the penalty's normal force N
+    slip: jax.Array  # the friction law's slip force S
+    grads: tuple  # (dE/drho, dE/dz, dE/dzb)
+    eta_a: jax.Array  # the drag coefficient eta A
+    tangent: jax.Array  # (2, N) the ball's tangent t (toward the equator)
+
+
 def _held_entries(bodies):
     # imported here: physics.bodies.contact imports this module's penalty
     from dynslip.physics.bodies.held import held_entries
@@ -319,11 +334,9 @@ class SheetModel(eqx.Module):
     ):
         """Node velocities relative to the ball and the force split, for the driver.
 
-        Returns a dict with ``u`` (2, N) velocity relative to the ball (node N-1, the
-        clamp, excluded by the driver), ``ft``, ``fn_total`` (driving force components),
-        ``N`` (normal force), ``S`` (slip force), ``grads`` (dE/drho, dE/dz, dE/dzb).
-        ``drag`` is eta (per reference area); time units follow from it. ``internal`` is
-        the friction law's per-node state (slip distance), None for memoryless laws.
+        Returns :class:`Kinematics`. ``drag`` is eta (per reference area); time units follow
+        from it. ``internal`` is the friction law's per-node state (slip distance), None for
+        memoryless laws.
         ``grads``: :meth:`gradients` where the caller has them at this state (None: computed).
         """
         g_rho, g_z, g_zb = self.gradients(rho, z, zb) if grads is None else grads
@@ -340,16 +353,7 @@ class SheetModel(eqx.Module):
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)
-        return {
-            "u": u,
-            "ft": ft,
-            "fn_total": fn,
-            "N": normal,
-            "S": s,
-            "grads": (g_rho, g_z, g_zb),
-            "eta_a": eta_a,
-            "theta_dir": t,
-        }
+        return Kinematics(u, ft, fn, normal, s, (g_rho, g_z, g_zb), eta_a, t)
 
     def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
                     contact_threshold=1e-2, internal=None, kin=None):
@@ -362,16 +366,16 @@ class SheetModel(eqx.Module):
         lt, lp = node_stretches(self.mesh, rho, z)
         tt, tp = relaxed_tensions(self.material, lt, lp)
         def_area = self.mesh.area * lt * lp
-        pressure = k["N"] / def_area
+        pressure = k.normal / def_area
         contact = pressure > contact_threshold
         contact = contact.at[-1].set(False)
-        friction_force = (k["S"] - k["ft"]) / def_area  # density, + toward the equator
-        slip = k["S"] / k["eta_a"]
+        friction_force = (k.slip - k.ft) / def_area  # density, + toward the equator
+        slip = k.slip / k.eta_a
         mu_mob = jnp.where(
             contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan
         )
         theta = jnp.where(contact, jnp.arctan2(rho, z - zb), jnp.nan)
-        slipping = k["S"] != 0.0
+        slipping = k.slip != 0.0
         state = jnp.where(~contact, 0, jnp.where(~slipping, 1, jnp.where(slip < 0, 2, 3))).astype(
             jnp.int8
         )
