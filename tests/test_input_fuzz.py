@@ -75,7 +75,7 @@ def _branch(node: dict, defs: dict, key, data) -> dict:
         cands = [c for c in cands if key in c.get("properties", {})]
         if isinstance(data, dict) and len(cands) > 1:
             for c in cands:
-                for disc in ("model", "kind"):
+                for disc in ("model", "kind", "law", "rule"):
                     p = c["properties"].get(disc, {})
                     if disc in data and data[disc] in (p.get("const"), p.get("default")):
                         return c

@@ -149,13 +149,13 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N)
     stage = np.ones_like(t, dtype=int)
     stage[:2] = 0
     first = (
-        {"name": "rest", "ball": "free", "until": "duration"}
+        {"name": "rest", "ball": "free", "until": {"rule": "duration"}}
         if preload_N is None
         else {
             "name": "preload",
             "ball": "pull",
             "ball_force_N": preload_N,
-            "until": "duration",
+            "until": {"rule": "duration"},
             "duration_s": 1.0,
         }
     )

@@ -317,6 +317,20 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
             sub = defs[prop["allOf"][0]["$ref"].split("/")[-1]]
             _rows(sub, defs, f"{prefix}{name}.", rows)
             continue
+        disc = prop.get("discriminator")
+        if disc and "oneOf" in prop:  # a choice by tag (friction law, stop rule): each variant's
+            tag = disc["propertyName"]
+            rows.append((f"{prefix}{name}.{tag}", " | ".join(disc["mapping"]),
+                         json.dumps((prop.get("default") or {}).get(tag, "required")), "", "",
+                         prop.get("description", "")))
+            for value, ref in disc["mapping"].items():  # fields, named after their tag
+                sub = defs[ref.split("/")[-1]]
+                sub = {**sub, "properties": {k: {**v, "description": f"{tag}: {value}: "
+                                                 f"{v.get('description', '')}"}
+                                             for k, v in sub.get("properties", {}).items()
+                                             if k != tag}}
+                _rows(sub, defs, f"{prefix}{name}.", rows)
+            continue
         typ = prop.get("type")
         if typ is None and "anyOf" in prop:
             typ = " | ".join(

@@ -17,7 +17,7 @@ from __future__ import annotations
 import typing
 from typing import Annotated, Any, Union
 
-from pydantic import Field
+from pydantic import BaseModel, Field
 from pydantic_core import core_schema
 
 __all__ = ["Registry"]
@@ -30,9 +30,9 @@ class Registry:
         self.tag = tag
         self.default = default
         self.others_ignored = others_ignored
-        self.specs: dict[str, type] = {}
+        self.specs: dict[str, type[BaseModel]] = {}
 
-    def tag_of(self, spec: type) -> str:
+    def tag_of(self, spec: type[BaseModel]) -> str:
         """The tag of a spec class: its ``tag`` field's ``Literal`` value."""
         ann = spec.model_fields[self.tag].annotation
         values = typing.get_args(ann)
@@ -40,12 +40,12 @@ class Registry:
             raise TypeError(f"{spec.__name__}.{self.tag} must be a Literal of one value, got {ann}")
         return values[0]
 
-    def add(self, spec: type) -> type:
+    def add(self, spec: type[BaseModel]) -> type[BaseModel]:
         """Record ``spec`` under its tag (a class decorator, for the package's own variants)."""
         self.specs[self.tag_of(spec)] = spec
         return spec
 
-    def register(self, spec: type) -> type:
+    def register(self, spec: type[BaseModel]) -> type[BaseModel]:
         """Add ``spec`` after the schema was built (from outside the package): the models whose
         fields reach this registry are rebuilt, innermost first. A tag already taken is an
         error."""
@@ -57,7 +57,7 @@ class Registry:
         _rebuild_holders()
         return spec
 
-    def unregister(self, spec: type) -> None:
+    def unregister(self, spec: type[BaseModel]) -> None:
         """Remove ``spec`` (added by :meth:`register`) and rebuild the models that reach it."""
         tag = self.tag_of(spec)
         if self.specs.get(tag) is spec:
@@ -94,10 +94,8 @@ def _registries(annotation: Any, metadata: list) -> list[Registry]:
         if isinstance(m, Registry)]
 
 
-def _models_in(annotation: Any) -> list[type]:
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
     """The pydantic model classes named in an annotation (through lists, unions, Annotated)."""
-    from pydantic import BaseModel
-
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return [annotation]
     return [m for a in typing.get_args(annotation) for m in _models_in(a)]
@@ -107,15 +105,16 @@ def _rebuild_holders() -> None:
     """Rebuild every schema model whose fields reach a registry, children before parents."""
     from dynslip.schema.base import Strict
 
-    models, stack = [], [Strict]
+    models: list[type[BaseModel]] = []
+    stack: list[type[BaseModel]] = [Strict]
     while stack:
         for sub in stack.pop().__subclasses__():
             models.append(sub)
             stack.append(sub)
-    holds: dict[type, bool] = {}
-    order: list[type] = []
+    holds: dict[type[BaseModel], bool] = {}
+    order: list[type[BaseModel]] = []
 
-    def visit(m: type) -> bool:
+    def visit(m: type[BaseModel]) -> bool:
         if m in holds:
             return holds[m]
         holds[m] = False  # a cycle through m adds nothing new
