@@ -10,10 +10,14 @@ Both solvers read them through the functions at the end (:func:`clamp_force`,
 
 The mode is a traced integer of :class:`~dynslip.physics.field.StageArgs` (``clamp_mode``,
 ``ball_mode``; the constants of :mod:`dynslip.physics.protocols`), so that one compiled step
-serves every stage: :func:`dispatch` runs the mode's branch by ``jax.lax.switch`` over the
-registry's modes in the constants' order (under ``vmap`` with batched modes every branch runs
-and the results are selected). A new mode is a subclass of :class:`AbstractClamp` or
-:class:`AbstractBall` entered in :data:`CLAMPS` or :data:`BALLS` under its integer.
+serves every stage: :func:`dispatch` computes every mode's closed form and selects the
+stage's (``jnp.where``), and runs only the stage's mode (``jax.lax.switch``) where a branch is
+costly (a free ball's root search against held friction). Why not ``switch`` throughout: XLA
+contracts products and sums into fused multiply-adds as each compiled branch allows, so the
+rates would move in the last bit against the select, and a stick-slip path amplifies that (to
+3e-9 on ``scenarios/method1.yaml``); the select keeps the runs equal to 1e-14. A new mode is a
+subclass of :class:`AbstractClamp` or :class:`AbstractBall` entered in :data:`CLAMPS` or
+:data:`BALLS` under the next integer.
 
 Signs and units (nondimensional, see :mod:`dynslip.physics.field`): forces in G h0 R, + up
 (+z) and outward (+rho); ``g`` is the energy's gradient at the clamped edge, so the sheet pulls
