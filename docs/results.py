@@ -8,10 +8,14 @@
     python docs/results.py --unmarked          # no run: tables of numbers outside the manifest
 
 :data:`TABLES` is the manifest: each measured table of the docs, the markdown file it lies
-in, the ``dynslip`` commands that measure it, the function of this module that turns their
-output folders into the table's rows, the arguments that make the small-mesh variant the
-suite runs, whether it is slow, and the files of the package it depends on. In its file a
-table lies between two markers, with its provenance line under it::
+in, the commands that measure it, the function of this module that turns their output
+folders into the table's rows, the arguments (or commands) that make the small-mesh variant
+the suite runs, whether it is slow, and the files of the package it depends on. A command is
+a ``dynslip`` command line or a script of docs/ or benchmarks/ (the benchmark harness for the
+timings of docs/speed.md), either led by ``NAME=value`` settings of the environment; a
+command two tables share runs once (:func:`run_command`). A run that answers "unknown" (exit
+3) is a result: its kept folder is read. In its file a table lies between two markers, with
+its provenance line under it::
 
     <!-- results:NAME -->
     | ... the table ... |
@@ -367,8 +371,8 @@ SPEED = {
         doc="docs/speed.md",
         header=("solver", "N", "steps (rejected)", "run s", "run s / load_step's", "trapped",
                 "theta_max", "max abs dtheta on the common contact (rad)"),
-        commands=("DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5 DYNSLIP_BENCH_SPEED_NODES=200 "
-                  "python benchmarks/run.py speed",),
+        commands=("DYNSLIP_BENCH_SPEED_LAW=coulomb DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5 "
+                  "DYNSLIP_BENCH_SPEED_NODES=200 python benchmarks/run.py speed",),
         rows=speed_kvaerno5_rows,
         small="DYNSLIP_BENCH_SPEED_NODES=16",
         slow=True,
@@ -578,7 +582,7 @@ def per_n_window_rows(runs: list[Path]) -> list[list[str]]:
 
 M = "--set physics.friction.mu_s=0.99 --set physics.friction.mu_k=0.82"  # the measured pair
 SMALL = "--set numerics.nodes=16"
-SMALL_WINDOW = "--set numerics.nodes=16 --nodes 16 --coarse 2 --tol 3"
+SMALL_WINDOW = "--set numerics.nodes=30 --nodes 30 --coarse 2 --tol 3"
 
 
 def coin_chord_rows(runs: list[Path]) -> list[list[str]]:
@@ -809,7 +813,10 @@ def fronts_stage_rows(runs: list[Path]) -> list[list[str]]:
     for label, run in zip(("method 2, let go", "method 1"), runs[2:], strict=True):
         f = run / "fronts_summary.json"
         for st in json.loads(f.read_text())["stages"] if f.is_file() else []:
-            if st.get("name") in ("rest",) or not st.get("frames"):
+            if st.get("name") == "rest":
+                continue
+            if not st.get("frames"):  # a stage the run did not reach
+                out.append([label, st["name"], "-", "-"])
                 continue
             out.append([label, st["name"], str(st.get("front_direction", "-")).replace("_", " "),
                         f"{num(st.get('front_travel_toward_equator_rbar'), '.3f')} / "
@@ -1020,6 +1027,39 @@ STRETCH = S("largest_stretch.path_max_lambda_theta", ".3g")
 CHORD = S("mesh_check.max_chord_depth", ".3f")
 END = joined(lambda r: f"{S('theta_max', '.3f')(r)} / {S('rbar_max', '.3f')(r)}")
 
+def last(cell: Callable[[Path], str]) -> Cell:
+    """A row's cell read off its last run (the release, after the run that formed its start)."""
+    return lambda runs: cell(runs[-1])
+
+
+def _release(pocket_nodes: tuple[int, int, int]):
+    """The release rows from the main job's pocket: at the file's N (150), with the ramp twice
+    as slow and with the drag time halved, from the pocket formed at the file's N; then from
+    the pockets formed at N = 100 and 200 (``pocket_nodes``: the N of the three pockets)."""
+    n0, n1, n2 = pocket_nodes
+    pocket = [run("method2", nodes=n) for n in pocket_nodes]
+    rel = "dynslip run scenarios/release_pull_tube.yaml --set numerics.nodes={} --set " \
+          "start_from={{run:{}}}/trajectory.nc"
+    rows = [(("the file (N = 150)",), (pocket[0], rel.format(n0, 0))),
+            (("ramp twice as slow (`physics.stages.pull.duration_s=570`)",),
+             (pocket[0], rel.format(n0, 2) + " --set physics.stages.pull.duration_s=570")),
+            (("drag time halved (`numerics.drag_time_s=0.0125`)",),
+             (pocket[0], rel.format(n0, 4) + " --set numerics.drag_time_s=0.0125")),
+            (("N = 100 (start formed at N = 100)",), (pocket[1], rel.format(n1, 6))),
+            (("N = 200 (start formed at N = 200)",), (pocket[2], rel.format(n2, 8)))]
+    return spec(rows, last(release_cell("release_force_N", ".3g")),
+                last(release_cell("ball_speed_mm_s", ".2g")),
+                last(release_cell("drag_share", percent=True)),
+                last(release_cell("sheet_drag_share", percent=True)),
+                last(S("release.peak_force_N", ".4g")))
+
+
+RELEASE = _release((150, 100, 200))
+#: the release needs the main job's pocket, which the mesh resolves from N = 150 only: the
+#: small variant releases every row from the pocket at N = 150
+RELEASE_SMALL = _release((150, 150, 150))[0]
+
+
 DOCS_TABLES = {
     # README.md and docs/experiment.md: the experiment's study
     "answer": _study_table(
@@ -1130,7 +1170,7 @@ DOCS_TABLES = {
         rows=lambda runs: per_n_window_rows([runs[0] / "window"]), small="", slow=True,
         reads=("scenarios/method2_let_go_pressure.yaml",),
         small_commands=("python docs/window_field.py scenarios/method2_let_go_pressure.yaml "
-                        "--field physics.friction.mu_ref --nodes 12,14,16 --lo 2.2 --hi 2.6 "
+                        "--field physics.friction.mu_ref --nodes 30,40,50 --lo 2.2 --hi 2.6 "
                         "--coarse 2 --tol 1 --set physics.friction.mu_max=10",)),
     "pressure_frames": Table(
         doc="docs/experiment.md",
@@ -1150,7 +1190,7 @@ DOCS_TABLES = {
                 "the tool's resolution check"),
         commands=(window("coin", "--nodes 50,100 --lo 0 --hi 3 --coarse 4 --tol 0.01"),
                   window("coin", "--nodes 200,400 --lo 0 --hi 3 --coarse 4 --tol 0.01")),
-        rows=coin_window_rows, small="--nodes 12,16 --coarse 2 --tol 3", slow=True),
+        rows=coin_window_rows, small="--nodes 30,40 --coarse 2 --tol 3", slow=True),
     # docs/bodies.md
     "mesh_check_bodies": table(
         "docs/bodies.md", ("run", "ball", "held bodies"),
@@ -1238,13 +1278,13 @@ DOCS_TABLES = {
                          "--tol 0.005"),
                   *(run("method2_rim_feed", *MEAS, nodes=n) for n in (50, 100, 200, 400, 800))),
         rows=rim_feed_edge_rows, small="", slow=True,
-        small_commands=(window("method2_rim_feed", "--nodes 12,14,16 --lo 0.6 --hi 1.6 --coarse 2 "
+        small_commands=(window("method2_rim_feed", "--nodes 30,40,50 --lo 0.6 --hi 1.6 --coarse 2 "
                                "--tol 1"),
-                        window("method2_rim_feed", "--nodes 18 --lo 0.6 --hi 0.7 --coarse 2 "
+                        window("method2_rim_feed", "--nodes 60 --lo 0.6 --hi 0.7 --coarse 2 "
                                "--tol 1"),
-                        window("method2_rim_feed", "--nodes 20 --lo 0.62 --hi 0.66 --coarse 2 "
+                        window("method2_rim_feed", "--nodes 70 --lo 0.62 --hi 0.66 --coarse 2 "
                                "--tol 1"),
-                        *(run("method2_rim_feed", *MEAS, nodes=n) for n in (12, 14, 16, 18, 20)))),
+                        *(run("method2_rim_feed", *MEAS, nodes=n) for n in (30, 40, 50, 60, 70)))),
     "shipped_defaults": table(
         "docs/forming.md",
         ("run", "N", "trapped", "theta_max", "rbar_max", "sin(theta_max) <= rbar_max",
@@ -1314,12 +1354,12 @@ DOCS_TABLES = {
         doc="docs/forming.md", header=("N", "mu_c (mu_s)", "+-", "mu_k at mu_c"),
         commands=(window("method2_let_go", "--nodes 50,100,200 --lo 1.0 --hi 1.6 --coarse 4 "
                          "--tol 0.005"),),
-        rows=converged_rows(RATIO), small="--nodes 12,14,16 --coarse 2 --tol 1", slow=True),
+        rows=converged_rows(RATIO), small="--nodes 30,40,50 --coarse 2 --tol 1", slow=True),
     "method1_converged": Table(
         doc="docs/forming.md", header=("N", "mu_c (mu_s)", "+-", "mu_k at mu_c"),
         commands=(window("method1", "--nodes 50,100,200 --lo 1.0 --hi 1.6 --coarse 4 "
                          "--tol 0.005"),),
-        rows=converged_rows(RATIO), small="--nodes 12,14,16 --coarse 2 --tol 1", slow=True),
+        rows=converged_rows(RATIO), small="--nodes 30,40,50 --coarse 2 --tol 1", slow=True),
     "letgo_sensitivity": Table(
         doc="docs/forming.md", header=("parameter", "default", "changed to", "mu_c", "change"),
         commands=tuple(window("method2_let_go", "--lo 1.1 --hi 1.5 --coarse 5 --tol 0.01", *sets)
@@ -1366,7 +1406,7 @@ DOCS_TABLES = {
                (window("margin_let_go", "--lo 1.0 --hi 1.5 --coarse 4 --tol 0.005"),
                 run("margin_let_go", *MEAS)))],
              WINDOWS, CRIT, LAST_TRAPPED),
-        small="--nodes 12,14,16 --coarse 2 --tol 3 --set numerics.nodes=16"),
+        small="--nodes 30,40,50 --coarse 2 --tol 3 --set numerics.nodes=30"),
     "method1_stretch": table(
         "docs/forming.md",
         ("hand stretch", "trapped", "theta_max", "rbar_max", "largest lambda_theta",
@@ -1376,22 +1416,12 @@ DOCS_TABLES = {
               for x in (1.5, 2.0, 2.5)],
              joined(TRAPPED), joined(S("theta_max", ".3f")), joined(S("rbar_max", ".3f")),
              joined(STRETCH), joined(S("mu_mobilised_max", ".3f")))),
-    "release_tube": table(
-        "docs/forming.md",
-        ("run", "release force (N)", "ball speed at that frame (mm/s)", "ball drag share",
-         "sheet drag share", "peak force against the sheet (N)"),
-        spec([(("the file (N = 150)",), (run("release_pull_tube"),)),
-              (("ramp twice as slow (`physics.stages.pull.duration_s=570`)",),
-               (run("release_pull_tube", "physics.stages.pull.duration_s=570"),)),
-              (("drag time halved (`numerics.drag_time_s=0.0125`)",),
-               (run("release_pull_tube", "numerics.drag_time_s=0.0125"),)),
-              (("N = 100 (start formed at N = 100)",), (run("release_pull_tube", nodes=100),)),
-              (("N = 200 (start formed at N = 200)",), (run("release_pull_tube", nodes=200),))],
-             joined(release_cell("release_force_N", ".3g")),
-             joined(release_cell("ball_speed_mm_s", ".2g")),
-             joined(release_cell("drag_share", percent=True)),
-             joined(release_cell("sheet_drag_share", percent=True)),
-             joined(S("release.peak_force_N", ".4g")))),
+    "release_tube": Table(
+        doc="docs/forming.md",
+        header=("run", "release force (N)", "ball speed at that frame (mm/s)", "ball drag share",
+                "sheet drag share", "peak force against the sheet (N)"),
+        commands=RELEASE[0], rows=RELEASE[1], small="", slow=True,
+        small_commands=RELEASE_SMALL),
     # docs/fronts.md
     "fronts_runs": Table(
         doc="docs/fronts.md",

@@ -12,6 +12,7 @@ law's table of docs/experiment.md.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -34,9 +35,17 @@ def main(argv=None) -> int:
 
     root = Path(__file__).resolve().parents[1]
     scenario = a.scenario if a.scenario.is_absolute() else root / a.scenario
-    run_window_nodes(scenario, [int(n) for n in a.nodes.split(",")], a.sets,
-                     out=Path.cwd() / "window", force=True, field=a.field, lo=a.lo, hi=a.hi,
-                     coarse=a.coarse, tol=a.tol)
+    from dynslip.errors import ComputationError
+
+    nodes = [int(n) for n in a.nodes.split(",")]
+    try:
+        run_window_nodes(scenario, nodes, a.sets, out=Path.cwd() / "window", force=True,
+                         field=a.field, lo=a.lo, hi=a.hi, coarse=a.coarse, tol=a.tol)
+    except ComputationError as err:  # every member failed: no critical value, exit 3 as dynslip
+        (Path.cwd() / "window" / "window.json").write_text(json.dumps(
+            {"nodes": nodes, "critical_mu": {str(n): None for n in nodes}, "failed": str(err)}))
+        print(f"window_field: {err}", file=sys.stderr)
+        return 3
     return 0
 
 
