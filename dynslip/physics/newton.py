@@ -113,6 +113,7 @@ __all__ = [
     "Rate",
     "SegmentCarry",
     "SegmentOutput",
+    "Trial",
     "increment_cap",
     "zero_rate",
 ]
