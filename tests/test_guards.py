@@ -47,30 +47,11 @@ POCKET = {
 HOLD_S = 0.5  # the rest rule's hold: 5 frames
 
 
-#: a stop rule's parameters as flat stage fields, for a schema that takes ``until`` by name only
-_FLAT = {"rate_mm_s": "rest_rate_mm_s", "hold_s": "rest_hold_s", "speed_mm_s": "ball_speed_mm_s"}
-
-
-def _flat(data):
-    data = copy.deepcopy(data)
-    for st in data["physics"]["stages"]:
-        if isinstance(st.get("until"), dict):
-            rule = st.pop("until")
-            st["until"] = rule.pop("rule")
-            st.update({_FLAT[k]: v for k, v in rule.items()})
-    return data
-
-
 def _load(tmp, data, name):
-    """The scenario ``data`` validated; ``until`` as ``{rule: ..., parameters}``, or by name with
-    flat parameters where the schema takes that form."""
+    """The scenario ``data`` written to a file and validated."""
     path = tmp / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data))
-    try:
-        return api.load(path)
-    except api.InputError:
-        path.write_text(yaml.safe_dump(_flat(data)))
-        return api.load(path)
+    return api.load(path)
 
 
 def _moving(ds):
