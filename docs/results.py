@@ -587,7 +587,7 @@ SMALL_WINDOW = "--set numerics.nodes=30 --nodes 30 --coarse 2 --tol 3"
 
 def coin_chord_rows(runs: list[Path]) -> list[list[str]]:
     d = [S("mesh_check.max_chord_depth", ".4f")(r) + " R" for r in runs]
-    return [["50", d[0], d[1]], ["100", d[2], d[3]], ["200", d[4], d[5]], ["400", "", d[6]]]
+    return [["50", d[0], d[1]], ["100", d[2], d[3]], ["200", d[4], d[5]], ["400", "-", d[6]]]
 
 
 def coin_window_rows(runs: list[Path]) -> list[list[str]]:
@@ -710,7 +710,7 @@ def sweep_bench_rows(runs: list[Path]) -> list[list[str]]:
         r = b.get(mode, {})
         rows.append([label[mode], num(r.get("wall_s"), ".0f") + " s",
                      num(r.get("members_per_minute"), ".2f"),
-                     num(r.get("per_member_s"), ".0f") + " s"])
+                     f"{num(r.get('member_s_min'), '.0f')}-{num(r.get('member_s_max'), '.0f')} s"])
     return rows
 
 
@@ -726,8 +726,8 @@ def sweep_rows(runs: list[Path]) -> list[list[str]]:
     for label, run in zip(("1 (members one after another; the default on the CPU)",
                            "32 (a worker's whole share in one lockstep batch)"), runs, strict=True):
         s = _sweep_summary(run)
-        out.append([label, f"{RUNS[run]['wall_s']:.0f} s", num(s.get("members_per_minute"), ".1f"),
-                    f"{s.get('n_ok', '-')} ok"])
+        out.append([label, f"{RUNS[run.parent]['wall_s']:.0f} s",
+                    num(s.get("members_per_minute"), ".1f"), f"{s.get('n_ok', '-')} ok"])
     return out
 
 
@@ -737,8 +737,10 @@ def lockstep_rows(runs: list[Path]) -> list[list[str]]:
                            "batched, one process, one member per batch", "dask, 2 workers"),
                           runs, strict=True):
         s = _sweep_summary(run)
-        out.append([label, f"{RUNS[run]['wall_s']:.1f} s", num(s.get("members_per_minute"), ".1f"),
-                    f"{s.get('n_ok', '-')} ok"])
+        recs = [json.loads(f.read_text()) for f in sorted((run / "members").glob("*.json"))]
+        solve = sum(dig(r, "summary.solver.run_s") or 0.0 for r in recs)
+        out.append([label, f"{RUNS[run.parent]['wall_s']:.1f} s",
+                    num(s.get("members_per_minute"), ".1f"), f"{solve:.1f} s"])
     return out
 
 
@@ -1470,7 +1472,7 @@ DOCS_TABLES = {
         rows=lambda runs: sweep_rows([r / "sweep" for r in runs]), small="", slow=True,
         reads=("scenarios/sweep_method2.yaml",),
         small_commands=tuple(f"python docs/sweep_batch.py scenarios/sweep_method2.yaml --mode "
-                             f"batched --batch-size {b} --nodes 12 --head 2" for b in (1, 4))),
+                             f"batched --batch-size {b} --nodes 30 --head 2" for b in (1, 4))),
     "sweep_lockstep": Table(
         doc="docs/sweeps.md",
         header=("runner", "wall", "members / minute", "solve time (all members)"),
@@ -1480,7 +1482,7 @@ DOCS_TABLES = {
         rows=lambda runs: lockstep_rows([r / "sweep" for r in runs]), small="", slow=True,
         reads=("docs/data/sweep_lockstep.yaml",),
         small_commands=tuple(f"python docs/sweep_batch.py docs/data/sweep_lockstep.yaml {a} "
-                             "--nodes 12 --head 2" for a in (
+                             "--nodes 30 --head 2" for a in (
             "--mode sequential", "--mode batched --batch-size 2", "--mode batched --batch-size 1",
             "--mode dask"))),
     "study_loading": Table(
@@ -1491,7 +1493,7 @@ DOCS_TABLES = {
         rows=lambda runs: study_loading_rows([runs[0] / "sweep"]), small="", slow=True,
         reads=("scenarios/study_loading_path.yaml",),
         small_commands=("python docs/sweep_batch.py scenarios/study_loading_path.yaml "
-                        "--nodes 12",)),
+                        "--nodes 30 --head 2",)),
 }
 
 
@@ -1687,6 +1689,11 @@ def run_command(cmd: str, extra: str, runs_dir: Path, name: str, i: int,
     tag = hashlib.sha256(repr(done[1:]).encode()).hexdigest()[:10]
     out = runs_dir / name / f"{i}" if fresh else runs_dir / "runs" / tag
     out.parent.mkdir(parents=True, exist_ok=True)
+    meta = out.with_name(out.name + ".run.json")  # a finished run of this command, kept
+    if not fresh and meta.is_file():
+        RUNS[Path(json.loads(meta.read_text())["folder"])] = json.loads(meta.read_text())
+        _DONE[done] = Path(json.loads(meta.read_text())["folder"])
+        return _DONE[done]
     own.mkdir(parents=True, exist_ok=True)
     print(f"  {' '.join(f'{k}={v}' for k, v in env.items())} {shlex.join(words)}".strip(),
           flush=True)
@@ -1720,6 +1727,7 @@ def run_command(cmd: str, extra: str, runs_dir: Path, name: str, i: int,
     RUNS[out] = {"rc": rc, "wall_s": wall, "log": log}
     if not fresh:
         _DONE[done] = out
+        meta.write_text(json.dumps({**RUNS[out], "folder": str(out)}))
     return out
 
 

@@ -73,9 +73,17 @@ def main(argv=None) -> int:
     if a.batch_size:
         sweep_runners.BATCH_SIZE = a.batch_size
     out = Path.cwd() / "sweep"
+    from dynslip.errors import ComputationError
+
     t0 = time.perf_counter()
-    run_sweep(path, out=out, mode=a.mode, plot=False)
-    (out / "wall.json").write_text(json.dumps({"wall_s": time.perf_counter() - t0}))
+    try:
+        run_sweep(path, out=out, mode=a.mode, plot=False)
+    except ComputationError as err:  # every member failed; its summary is written: exit 3
+        print(f"sweep_batch: {err}", file=sys.stderr)
+        return 3
+    finally:
+        if out.is_dir():
+            (out / "wall.json").write_text(json.dumps({"wall_s": time.perf_counter() - t0}))
     return 0
 
 
