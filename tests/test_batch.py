@@ -48,7 +48,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def kwargs(mu_s, mu_k, settings=SETTINGS):
     return dict(
-        friction=SlipWeakening(mu_s=mu_s, mu_k=mu_k, d_c=0.02, eps=1e-3),
+        # arrays, not floats: members of one batch share the law's compiled structure
+        friction=SlipWeakening(**{k: jnp.asarray(v, dtype=float) for k, v in
+                                  {"mu_s": mu_s, "mu_k": mu_k, "d_c": 0.02, "eps": 1e-3}.items()}),
         eps=1e-3,
         drag=0.1,
         ball_drag=0.1 * 4 * math.pi,
