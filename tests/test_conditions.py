@@ -19,12 +19,15 @@ from dynslip.physics import increment as ni
 from dynslip.physics.field import Layout, StageArgs, evaluate
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
+from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
     CLAMP_BAND,
     CLAMP_FORCE,
     CLAMP_POSITION,
+    Duration,
+    Stage,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.terms import forces
@@ -238,3 +241,19 @@ def test_a_new_clamp_mode_is_one_class(monkeypatch):
         v_edge_i, vb_i = _increment_edge_and_ball(MODEL, y, args)
         np.testing.assert_allclose(v_edge_i, v_edge, rtol=1e-13)
         assert vb_i == pytest.approx(vb, rel=1e-14)
+
+
+def test_a_stage_in_an_unknown_mode_is_refused(monkeypatch):
+    """A stage whose mode no registry holds is refused where its loads are built (inside the
+    compiled step a traced integer outside the registry would select another mode's law); once
+    entered, the mode is accepted."""
+    def build(clamp_mode):
+        stage = Stage("s", Duration(duration=1.0), clamp_mode=clamp_mode)
+        return stage_args(stage, 0.0, 0.0, 0.0, (0.0, 0.0), Coulomb(mu=jnp.asarray(0.8)), 0.0,
+                          0.1, 0.4, 0.0)
+
+    mode = len(bc.CLAMPS)
+    with pytest.raises(ValueError, match=f"clamp mode {mode}"):
+        build(mode)
+    monkeypatch.setitem(bc.CLAMPS, mode, AxialForce())
+    assert int(build(mode).clamp_mode) == mode

@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.physics.bodies.held import held_entries, n_free, n_memory, stage_moved
+from dynslip.physics.conditions import BALLS, CLAMPS
 from dynslip.physics.failures import NonFinite, RunFailure, StepLimit
 from dynslip.physics.field import N_ACC, N_ACC_MOVED, Layout, StageArgs, _f
 from dynslip.physics.frames import initial_state, state_from
@@ -54,6 +55,12 @@ def stage_args(
     support_k=1e3,
     body_z0=None,
 ):
+    if stage.clamp_mode not in CLAMPS or stage.ball_mode not in BALLS:
+        # a traced mode outside the registries would select another mode's law silently
+        raise ValueError(
+            f"stage {stage.name!r}: clamp mode {stage.clamp_mode} (known: {sorted(CLAMPS)}), "
+            f"ball mode {stage.ball_mode} (known: {sorted(BALLS)})"
+        )
     dur = stage.max_duration
     moved = {}
     if body_z0 is not None:
