@@ -450,7 +450,7 @@ def test_exponent_without_a_dot_is_a_number_in_files(tmp_path, capsys):
     rc, err = _cli(["validate", f], capsys)
     assert rc == 0, err
     sc = validate_data(
-        yaml.load(f.read_text(), Loader=__import__("dynslip.schema.yamlio").schema.yamlio.Loader)
+        yaml.load(f.read_text(), Loader=__import__("dynslip.schema.base").schema.base.Loader)
     )
     assert sc.numerics.rtol == 1e-5 and sc.numerics.atol == 1e-7
 

@@ -17,6 +17,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dynslip.errors import InputError
+from dynslip.schema.base import _classes, read_yaml
 from dynslip.schema.paths import get_path, set_path
 
 BASE_KEY = "base"
@@ -117,8 +118,6 @@ def is_sweep_file(path) -> bool:
 
 def load_spec(path) -> SweepSpec:
     """Read and validate a sweep file; raises :class:`InputError` (one line)."""
-    from dynslip.schema.yamlio import read_yaml
-
     path = Path(path)
     data = read_yaml(path, "sweep")  # UTF-8 text, duplicate keys refused; InputError otherwise
     if not isinstance(data, dict):
@@ -150,8 +149,6 @@ def load_spec(path) -> SweepSpec:
 def _unit_of_field(dotted: str, members: list) -> str:
     """The unit a scenario field declares in its schema metadata, or ``"1"``."""
     try:
-        from dynslip.schema.base import _classes
-
         kind = members[0].resolved.get("kind")
         cls = _classes().get(kind)
         if cls is None:
