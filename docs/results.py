@@ -762,10 +762,11 @@ def study_loading_rows(runs: list[Path]) -> list[list[str]]:
 
 
 def release_cell(key: str, spec: str = ".3g", percent: bool = False) -> Callable[[Path], str]:
-    """A cell of the release as measured (summary.json ``release.force_ramp``)."""
+    """A cell of the release as measured (summary.json ``release.force_ramp``; a force as its
+    magnitude, the summary's sign being the pull's direction, toward the opening)."""
     def cell(run: Path) -> str:
         v = dig(summary(run), f"release.force_ramp.{key}")
-        return "-" if v is None else (num(100 * v, ".2g") + "%" if percent else num(v, spec))
+        return "-" if v is None else (num(100 * v, ".2g") + "%" if percent else num(abs(v), spec))
     return cell
 
 
@@ -1053,7 +1054,8 @@ def _release(pocket_nodes: tuple[int, int, int]):
                 last(release_cell("ball_speed_mm_s", ".2g")),
                 last(release_cell("drag_share", percent=True)),
                 last(release_cell("sheet_drag_share", percent=True)),
-                last(S("release.peak_force_N", ".4g")))
+                last(lambda r: num(abs(dig(summary(r), "release.peak_force_N") or float("nan")),
+                                   ".4g")))
 
 
 RELEASE = _release((150, 100, 200))
@@ -1460,7 +1462,7 @@ DOCS_TABLES = {
         doc="docs/sweeps.md", header=("mode", "wall", "members / minute", "per member"),
         commands=("DYNSLIP_BENCH_SWEEP_MEMBERS=3 python benchmarks/run.py sweep",),
         rows=lambda runs: sweep_bench_rows(runs),
-        small="DYNSLIP_BENCH_SWEEP_NODES=12 DYNSLIP_BENCH_SWEEP_MEMBERS=2", slow=True,
+        small="DYNSLIP_BENCH_SWEEP_NODES=30 DYNSLIP_BENCH_SWEEP_MEMBERS=2", slow=True,
         reads=("benchmarks/sweep.py", "scenarios/method2_let_go.yaml")),
     "sweep_64": Table(
         doc="docs/sweeps.md",
