@@ -130,10 +130,10 @@ def run(scn, out=None, *, force: bool = False, console=None) -> RunResult:
                 raise
             raise failed from err
         return _read(scn, out, out)
-    kinds.preflight(scn, console)  # bad input before anything runs
+    prepared = kinds.preflight(scn, console)  # bad input before anything runs
     outs = Outputs(None)  # in memory: no file written, none read back
     try:
-        kinds.answered(kinds.run(scn, outs, console))
+        kinds.answered(kinds.run(scn, outs, console, prepared))
     except (ComputationError, MaterialRangeError) as err:
         failed = _failed(err, _kept(scn, outs))
         if failed is err:

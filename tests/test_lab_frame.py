@@ -169,7 +169,7 @@ def test_a_ball_that_ran_away_is_no_answer(away):
     def reasons(limit):
         sc = scn.model_copy(update={"numerics": scn.numerics.model_copy(
             update={"runaway_mm": limit})})
-        s = summarize(sc, ds, _Result(err.partial.summary))
+        s = summarize(sc.world(), ds, _Result(err.partial.summary))
         return s["trapped_unknown_reasons"]
 
     assert any("ran away: 3 mm" in r for r in reasons(2.9))
@@ -192,7 +192,7 @@ def test_unknown_reasons_name_an_energy_residual_above_the_bound(away):
     rel = s["energy_balance"]["relative_residual"]
     sc = scn
     mesh = s["mesh_check"]
-    why = unknown_reasons(sc, ds, _Result(s), mesh, 2 * sc.numerics.energy_bound, [])
+    why = unknown_reasons(sc.world(), ds, _Result(s), mesh, 2 * sc.numerics.energy_bound, [])
     assert any("energy residual" in r for r in why)
     assert rel < sc.numerics.energy_bound  # the run itself balances its energy
 
@@ -282,8 +282,9 @@ def test_the_sheet_letting_go_of_the_tube_is_a_named_event():
     from dynslip.schema.base import load
     from helpers import synthetic_trajectory
 
-    p = load(ROOT / "scenarios" / "method2.yaml").physics
-    names = [name for name, *_ in p.named_bodies()]
+    sc = load(ROOT / "scenarios" / "method2.yaml")
+    p, world = sc.physics, sc.world()
+    names = world.body_names
     nt, nr = 6, 12
     stage = np.array([0, 1, 1, 1, 2, 2])  # fold, push_down (band), hold (band)
     ds = synthetic_trajectory(np.zeros((nt, nr), np.int8), stage=stage,
@@ -296,9 +297,9 @@ def test_the_sheet_letting_go_of_the_tube_is_a_named_event():
     z = ds["z"].values.copy()
     z[:, -1] = edge
     ds = ds.assign(z=(("time", "rbar"), z), body_z=(("time", "body"), body_z))
-    assert let_go_events(p, ds) == []
+    assert let_go_events(world, ds) == []
     z[3:, -1] = rim[3:] - 0.01  # slid past the rim from frame 3
-    events = let_go_events(p, ds.assign(z=(("time", "rbar"), z)))
+    events = let_go_events(world, ds.assign(z=(("time", "rbar"), z)))
     assert len(events) == 1 and events[0]["name"] == "sheet let go"
     assert events[0]["time_s"] == float(ds["time"].values[3]) and events[0]["stage"] == "push_down"
     assert events[0]["rim_z_mm"] == pytest.approx(rim[3] * p.ball_radius_mm)

@@ -106,12 +106,9 @@ def test_help_has_no_backticks_and_version_names_the_commit(capsys):
 
 
 def _stage_run(met_last: bool):
-    """A scenario-like object with a rest stage and the driver's stage ends."""
-    stages = [
-        types.SimpleNamespace(name="push", until=types.SimpleNamespace(rule="duration")),
-        types.SimpleNamespace(name="rest", until=types.SimpleNamespace(rule="rest")),
-    ]
-    p = types.SimpleNamespace(stages=stages)
+    """A world-like object with a rest stage and the driver's stage ends."""
+    rules = {"push": "duration", "rest": "rest"}
+    p = types.SimpleNamespace(stage_names=tuple(rules), until=rules.__getitem__)
     result = types.SimpleNamespace(
         stage_end=[
             {"name": "push", "t_start": 0.0, "t_end": 2.0, "condition_met": True},

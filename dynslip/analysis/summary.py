@@ -24,9 +24,12 @@ from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.analysis.resolution import body_chord_check, chord_check
 
 
-def summarize(sc, ds: xr.Dataset, result) -> dict:
-    """summary.json: the end state, the friction it needs, energy balance, solver statistics."""
-    p = sc.physics
+def summarize(world, ds: xr.Dataset, result) -> dict:
+    """summary.json: the end state, the friction it needs, energy balance, solver statistics,
+    of the run of ``world`` (:class:`~dynslip.schema.world.World`: its bodies, stages, scales
+    and limits) whose trajectory is ``ds``."""
+    lim = world.limits
+    r = world.scales.R_mm
     end = ds.isel(time=-1)
     failed = result.failed is not None
     contact = np.asarray(end["state"]) > 0
@@ -37,9 +40,9 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     i_t = int(np.nanargmax(lt))
     mu_mob = np.asarray(end["mu_mobilised"])
     mu_mobilised_max = float(np.nanmax(mu_mob[contact])) if contact.any() else float("nan")
-    stage_names = [s.name for s in p.stages]
+    stage_names = world.stage_names
     slack = next(
-        (s for s in result.stage_end if _stage_until(p, s["name"]) == "clamp_force_below"), None
+        (s for s in result.stage_end if world.until(s["name"]) == "clamp_force_below"), None
     )
     # the energy that flowed: the work done on the sheet and ball (every body's counted), or
     # the stored energy released where a start state unloads (a release): the residual is
@@ -51,14 +54,14 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
     work_scale = float(max(np.max(work), np.max(released))) if work.size else float("nan")
     resid = ds["energy_residual"].values
     last = result.stage_end[-1] if result.stage_end else None
-    at_rest = bool(last and last["condition_met"] and _stage_until(p, last["name"]) == "rest"
+    at_rest = bool(last and last["condition_met"] and world.until(last["name"]) == "rest"
                    and len(result.stage_end) == len(stage_names))
     reaction = float(end["ball_reaction"])
-    ball = p.ball_body()
-    mesh_check = chord_check(ds, sc.numerics.max_chord_depth, ball)
-    if p.named_bodies():  # every held body at its height in each frame (analysis.resolution)
-        mesh_check["bodies"] = body_chord_check(ds, p.named_bodies(), sc.numerics.max_chord_depth,
-                                                p.ball_radius_mm)
+    ball = world.ball
+    mesh_check = chord_check(ds, lim.max_chord_depth, ball)
+    entries = list(world.bodies)
+    if entries:  # every held body at its height in each frame (analysis.resolution)
+        mesh_check["bodies"] = body_chord_check(ds, entries, lim.max_chord_depth, r)
         mesh_check["bodies_means"] = (
             "per held body (name): the largest depth (R, and mm) that a straight element between "
             "two nodes reaches inside the body placed where it is in each saved frame, when and on "
@@ -72,10 +75,10 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         )
     trap = trap_check(ball, end, theta_max)
     rel_resid = float(np.max(np.abs(resid)) / work_scale) if work_scale > 0 else float("nan")
-    events = let_go_events(p, ds)
-    reasons = unknown_reasons(sc, ds, result, mesh_check, rel_resid, events)
+    events = let_go_events(world, ds)
+    reasons = unknown_reasons(world, ds, result, mesh_check, rel_resid, events)
     trapped = None if reasons else bool(
-        at_rest and trap["past"] and abs(reaction) < sc.numerics.trap_reaction_tol)
+        at_rest and trap["past"] and abs(reaction) < lim.trap_reaction_tol)
     lip = (math.sin(theta_max) / rbar_max) if np.isfinite(theta_max) and rbar_max > 0 else None
     path_lt = float(np.nanmax(ds["lambda_theta"].values))
     path_lp = float(np.nanmax(ds["lambda_phi"].values))
@@ -120,11 +123,11 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
                       "(lambda^2 + 2/lambda = I1, incompressible), against latex's damage "
                       "stretch of about 6 (the paper, Section 2.1)"),
         },
-        "friction_law": p.friction.law,
-        "mu": p.friction.nominal_mu,
+        "friction_law": world.friction["friction_law"],
+        "mu": world.friction["mu"],
         **(
-            {"mu_s": p.friction.mu_s, "mu_k": p.friction.mu_k, "d_c_mm": p.friction.d_c_mm}
-            if p.friction.law == "slip_weakening"
+            {k: world.friction[k] for k in ("mu_s", "mu_k", "d_c_mm")}
+            if world.friction["friction_law"] == "slip_weakening"
             else {}
         ),
         "mu_mobilised_max": mu_mobilised_max,
@@ -138,10 +141,10 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         "slack_rim_height": {
             "reached": bool(slack["condition_met"]) if slack else None,
             "z_R": slack["clamp_z"] if slack else None,
-            "z_mm": slack["clamp_z"] * p.ball_radius_mm if slack else None,
+            "z_mm": slack["clamp_z"] * r if slack else None,
         },
         "end_at_rest": at_rest,
-        "end_at_rest_says": rest_words(p, ds, result, at_rest),
+        "end_at_rest_says": rest_words(world, ds, result, at_rest),
         "ball_reaction_end": reaction,
         "ball_z_end": float(end["ball_z"]),
         "clamp_force_end": float(end["clamp_force"]),
@@ -153,7 +156,7 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
                                  "every moving body) and of the stored energy released since "
                                  "the start; relative_residual is the largest residual over it"),
             "relative_residual": rel_resid,
-            "bound": sc.numerics.energy_bound,
+            "bound": lim.energy_bound,
             "initial_energy": float(ds.attrs["energy_initial"]),
         },
         "stages": result.stage_end,
@@ -169,13 +172,12 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
             "method": st.get("method"),
             "newton_iterations": st.get("newton_iterations"),
         },
-        "nodes": sc.numerics.nodes,
+        "nodes": lim.nodes,
     }
-    entries = p.named_bodies()
     if entries:
         from dynslip.analysis.clearance import body_contacts
 
-        summary["bodies"] = body_contacts(ds, entries, p.ball_radius_mm)
+        summary["bodies"] = body_contacts(ds, entries, r)
         summary["bodies_means"] = (
             "per held body: the sheet's closest approach over the saved path (closest_R, "
             "closest_mm; negative: inside it) and whether it touched the body; the contact's "
@@ -185,16 +187,15 @@ def summarize(sc, ds: xr.Dataset, result) -> dict:
         )
         from dynslip.analysis.clearance import body_overlaps, overlap_tolerance
 
-        tol = overlap_tolerance(p.thickness_um * 1e-3 / p.ball_radius_mm,
-                                sc.numerics.penalty_width)
-        overlaps = body_overlaps(ds, entries, p.ball_body(), p.ball_radius_mm, tol)
+        tol = overlap_tolerance(world.thickness_R, lim.penalty_width)
+        overlaps = body_overlaps(ds, entries, ball, r, tol)
         if overlaps:
             # the model has no contact between rigid bodies: no answer from such a path
             summary["bodies_overlap"] = overlaps
             summary["bodies_overlap_means"] = (
                 "a body moved by the stages or free passes into the ball or another body "
                 "(into) deeper than the sheet's thickness plus twice the penalty's width "
-                f"({tol * p.ball_radius_mm:.3g} mm): the model has no contact between rigid "
+                f"({tol * r:.3g} mm): the model has no contact between rigid "
                 "bodies, so the path is not a world of solids and trapped has no answer")
             summary["trapped"] = None
             summary["trapped_unknown_reasons"].append(
@@ -220,16 +221,16 @@ def uniaxial_equivalent(ds: xr.Dataset) -> float:
     return float(max(r.real for r in roots if abs(r.imag) < 1e-9))
 
 
-def let_go_events(p, ds: xr.Dataset) -> list:
+def let_go_events(world, ds: xr.Dataset) -> list:
     """The sheet let go of the tube: over a stage whose band holds the edge, the edge slid
     past the tube's rim (below the rim's lowest point, where the band's wall ends): the first
     frame where it did, as ``[{name, stage, time_s, edge_z_mm, rim_z_mm}]`` (empty: never)."""
-    if p.tube is None:
+    if world.tube_rim_z is None:
         return []
-    band = [k for k, s in enumerate(p.stages) if s.clamp == "band"]
+    band = list(world.band_stages)
     stage = np.asarray(ds["stage"].values)
-    rim = np.full(stage.shape, p.tube_rim_z)
-    names = [name for name, *_ in p.named_bodies()]
+    rim = np.full(stage.shape, world.tube_rim_z)
+    names = world.body_names
     if "body_z" in ds and "tube wall" in names:
         rim = rim + np.asarray(ds["body_z"].values[:, names.index("tube wall")], float)
     edge = np.asarray(ds["z"].values[:, -1], float)
@@ -237,19 +238,19 @@ def let_go_events(p, ds: xr.Dataset) -> list:
     if not past.any():
         return []
     i = int(np.argmax(past))
-    r = p.ball_radius_mm
-    return [{"name": "sheet let go", "stage": p.stages[int(stage[i])].name,
+    r = world.scales.R_mm
+    return [{"name": "sheet let go", "stage": world.stage_names[int(stage[i])],
              "time_s": float(ds["time"].values[i]), "edge_z_mm": float(edge[i] * r),
              "rim_z_mm": float(rim[i] * r),
              "means": "the sheet's edge slid along the tube's outer wall past its rim: the band "
                       "no longer holds it on the tube (the model's band has no wall there)"}]
 
 
-def unknown_reasons(sc, ds: xr.Dataset, result, mesh_check: dict, rel_resid: float,
+def unknown_reasons(world, ds: xr.Dataset, result, mesh_check: dict, rel_resid: float,
                     events: list) -> list:
     """Why trapped has no answer, one line each (empty: it has one)."""
-    p, nu = sc.physics, sc.numerics
-    r = p.ball_radius_mm
+    nu = world.limits
+    r = world.scales.R_mm
     out = []
     if result.failed is not None:
         out.append(f"the run failed: {result.failed}")
@@ -270,19 +271,19 @@ def unknown_reasons(sc, ds: xr.Dataset, result, mesh_check: dict, rel_resid: flo
         out.append(f"the ball ran away: {moved:.4g} mm from where it started (numerics."
                    f"runaway_mm = {nu.runaway_mm:g})")
     if "body_z" in ds:
-        names = [name for name, *_ in p.named_bodies()]
-        for name in p.free_names():
+        names = world.body_names
+        for name in world.free:
             k = names.index(name)
             d = abs(float(ds["body_z"].values[-1, k]) - float(ds["body_z"].values[0, k])) * r
             if d > nu.runaway_mm:
                 out.append(f"body {name!r} ran away: {d:.4g} mm from where it started")
     for s in result.stage_end:
-        if not s["condition_met"] and _stage_until(p, s["name"]) != "duration":
+        if not s["condition_met"] and world.until(s["name"]) != "duration":
             out.append(f"stage {s['name']!r} ended at its time limit (t = {s['t_end']:.4g} s) "
-                       f"before its condition (until: {_stage_until(p, s['name'])})")
+                       f"before its condition (until: {world.until(s['name'])})")
     done = len(result.stage_end)
-    if result.failed is None and done < len(p.stages):
-        out.append(f"the run ended after {done} of {len(p.stages)} stages")
+    if result.failed is None and done < len(world.stage_names):
+        out.append(f"the run ended after {done} of {len(world.stage_names)} stages")
     for e in events:
         out.append(f"the sheet let go of the tube at t = {e['time_s']:.4g} s (stage "
                    f"{e['stage']!r}): its edge slid past the rim")
@@ -336,7 +337,7 @@ def trap_check(ball, frame, theta_max: float) -> dict:
     }
 
 
-def rest_words(p, ds: xr.Dataset, result, at_rest: bool) -> str:
+def rest_words(world, ds: xr.Dataset, result, at_rest: bool) -> str:
     """Whether the run ended at rest, in words: a run whose last stage ended at its time limit
     is flagged, with how far the ball moved over that stage (its end state is where the run
     stopped, not a rest state)."""
@@ -346,14 +347,14 @@ def rest_words(p, ds: xr.Dataset, result, at_rest: bool) -> str:
                 f"t = {last['t_end']:.4g} s")
     if last is None:
         return "not at rest: the run ended before its first stage did"
-    if _stage_until(p, last["name"]) != "rest":
+    if world.until(last["name"]) != "rest":
         return (f"no rest stage: the run ends with stage {last['name']!r} at "
                 f"t = {last['t_end']:.4g} s (its end state is not checked for rest)")
     z = ds["ball_z"].values
     in_stage = np.flatnonzero(ds["stage"].values == len(result.stage_end) - 1)
     moved = (f"; the ball moved from z = {z[in_stage[0]]:.3g} to {z[in_stage[-1]]:.3g} R over "
              "the stage" if in_stage.size else "")
-    limit = len(result.stage_end) == len(p.stages) and not last["condition_met"]
+    limit = len(result.stage_end) == len(world.stage_names) and not last["condition_met"]
     why = "ended at its time limit" if limit else "did not finish"
     return (f"NOT AT REST: stage {last['name']!r} {why} (t = {last['t_end']:.4g} s) before the "
             f"sheet and ball came to rest{moved}; the end state is where the run stopped, not a "
@@ -381,6 +382,3 @@ def outcome_words(s: dict) -> str:
         return f"trapped; {contact}"
     return f"not trapped; {contact}"
 
-
-def _stage_until(p, name):
-    return next(s.until.rule for s in p.stages if s.name == name)

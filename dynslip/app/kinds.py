@@ -2,8 +2,9 @@
 
 :data:`RUNNERS` maps a scenario's ``kind`` to ``runner(scenario, out, console) -> summary``
 (the runner writes its files into the folder ``out``); :data:`PREFLIGHTS` maps a kind to
-the check that must pass before any output folder is touched (``start_from`` of a
-forming scenario). :func:`run_into` is the one way a run folder is written, by
+what must be made and checked before any output folder is touched (a forming scenario's
+world, its memory and its ``start_from``), which the runner then receives as ``prepared``.
+:func:`run_into` is the one way a run folder is written, by
 ``dynslip run`` and by :func:`dynslip.run` with ``out=``.
 """
 
@@ -26,7 +27,7 @@ RUNNERS: dict[str, Callable] = {
     "forming": forming.run_forming,
 }
 PREFLIGHTS: dict[str, Callable] = {
-    "forming": forming.resolve_start,
+    "forming": forming.prepare,
 }
 
 
@@ -38,18 +39,22 @@ def runner(kind: str) -> Callable:
         raise InputError(f"kind {kind!r}: no runner; allowed: {', '.join(RUNNERS)}") from None
 
 
-def preflight(scn, console=None) -> None:
-    """The checks of ``scn``'s kind that need no output folder (bad input raises
-    :class:`InputError` before anything is written)."""
+def preflight(scn, console=None):
+    """What ``scn``'s kind makes and checks before any output folder (bad input raises
+    :class:`InputError` before anything is written): the forming world; None for a kind
+    without a preflight."""
     check = PREFLIGHTS.get(scn.kind)
-    if check is not None:
-        check(scn, console)
+    return None if check is None else check(scn, console)
 
 
-def run(scn, out, console=None) -> dict:
+def run(scn, out, console=None, prepared=None) -> dict:
     """Run ``scn`` into the folder ``out`` (its files written there), or into
-    :class:`~dynslip.app.outputs.Outputs` (in memory without a folder); return its summary."""
-    return runner(scn.kind)(scn, out if isinstance(out, Outputs) else Path(out), console)
+    :class:`~dynslip.app.outputs.Outputs` (in memory without a folder); return its summary.
+    ``prepared``: what :func:`preflight` returned, handed to the runner."""
+    out = out if isinstance(out, Outputs) else Path(out)
+    if prepared is None:
+        return runner(scn.kind)(scn, out, console)
+    return runner(scn.kind)(scn, out, console, prepared)
 
 
 def _inside(path, folder: Path) -> bool:
@@ -78,11 +83,12 @@ def run_into(
             f"--out {str(out)!r}: holds the scenario file {str(source)!r}, which replacing "
             "the folder would delete; allowed: a folder that does not hold the scenario"
         )
-    preflight(scn, console)  # bad input found before anything is written (e.g. a start_from file)
+    # bad input found before anything is written (e.g. a start_from file)
+    prepared = preflight(scn, console)
     with staged as staging:
         if header is not None:
             console.print(header)
-        return answered(run(scn, staging, console))
+        return answered(run(scn, staging, console, prepared))
 
 
 def answered(summary):

@@ -48,20 +48,18 @@ def describe() -> str:
     )
 
 
-def check_forming(sc) -> None:
-    """Raise :class:`InputError` when the forming scenario ``sc`` would hold more than the
-    machine."""
-    from dynslip.schema.forming import build_protocol
-
-    nodes = int(sc.numerics.nodes)
-    frames = (
-        sum(s.max_duration for s in build_protocol(sc).stages) / sc.numerics.save_interval_s + 1
-    )
+def check_forming(world) -> None:
+    """Raise :class:`InputError` when the forming run of ``world``
+    (:class:`~dynslip.schema.world.World`) would hold more than the machine."""
+    nodes = int(world.limits.nodes)
+    every = world.settings.save_interval
+    frames = sum(s.max_duration for s in world.protocol.stages) / every + 1
     need = estimate(nodes, frames)
     have = machine_memory()
     if need > have:
         raise InputError(
-            f"numerics.nodes = {nodes}, numerics.save_interval_s = {sc.numerics.save_interval_s:g}: the run would "  # noqa: E501
-            f"hold ~{need / 2**30:.3g} GiB ({nodes} nodes x {frames:.3g} frames x {n_fields()} fields x 16 bytes "  # noqa: E501
-            f"+ solver), this machine has {have / 2**30:.3g} GiB; allowed: fewer nodes or a larger save_interval_s"  # noqa: E501
+            f"numerics.nodes = {nodes}, numerics.save_interval_s = {every:g}: the run would "
+            f"hold ~{need / 2**30:.3g} GiB ({nodes} nodes x {frames:.3g} frames x {n_fields()} "
+            f"fields x 16 bytes + solver), this machine has {have / 2**30:.3g} GiB; allowed: "
+            f"fewer nodes or a larger save_interval_s"
         )

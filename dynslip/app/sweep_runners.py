@@ -37,8 +37,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from dynslip.app.members import Member
 from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import PARTIAL_KEPT, ComputationError, InputError
@@ -250,7 +248,7 @@ def _batchable(m: Member) -> bool:
     return m.resolved.get("kind") == "forming" and not m.resolved.get("start_from")
 
 
-def _forming_outputs(sc, model, result, out: Path | None) -> dict:
+def _forming_outputs(world, result, out: Path | None) -> dict:
     """What :func:`dynslip.app.forming.finish` makes of a lockstep member's result: the
     summary (raises :class:`ComputationError` for a failed run), with its files in ``out``
     when given (``keep_runs``; the figures too)."""
@@ -259,18 +257,16 @@ def _forming_outputs(sc, model, result, out: Path | None) -> dict:
     from dynslip.app.outputs import Outputs
     from dynslip.data import files as io
 
-    names = [s.name for s in sc.physics.stages]
-    rbar = np.asarray(model.mesh.rbar)
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     if result.failed:
         where = out / TRAJECTORY_FILE if out is not None else "<not kept: keep_runs is off>"
         if result.frames and out is not None:
-            ds = to_dataset(sc, result.frames, rbar, result.e0, False, names)
+            ds = to_dataset(world, result.frames, result.e0, False)
             io.write_netcdf(ds, out / TRAJECTORY_FILE)
-            io.write_json(out / "summary.json", summarize(sc, ds, result))
+            io.write_json(out / "summary.json", summarize(world, ds, result))
         raise ComputationError(f"{result.failed}{PARTIAL_KEPT}{where}")
-    return finish(sc, model, result, Outputs(out), names)
+    return finish(world, result, Outputs(out))
 
 
 def run_forming_batch(
@@ -280,7 +276,6 @@ def run_forming_batch(
     as :func:`execute_member` writes it (module level: it travels to worker processes).
     Members whose compiled solves differ (a float setting of the increment control, say)
     form separate batches, each of at most ``batch_size`` members (None: all)."""
-    from dynslip.app.forming import build_core
     from dynslip.physics.batch import batch_key, simulate_batch
     from dynslip.schema.base import validate_data
 
@@ -289,9 +284,9 @@ def run_forming_batch(
     batches: dict[tuple, list] = {}
     for i, data in enumerate(datas):
         try:
-            sc = validate_data(data, "<member>")
-            core = build_core(sc)
-            batches.setdefault(batch_key(*core), []).append((i, sc, core))
+            world = validate_data(data, "<member>").world()
+            core = (world.model, world.protocol, world.simulate_kwargs())
+            batches.setdefault(batch_key(*core), []).append((i, world, core))
         except ComputationError as err:
             recs[i] = {"status": "failed", "error": f"ComputationError: {err}", "summary": {}}
         except Exception as err:  # noqa: BLE001 - a member's failure is data
@@ -311,11 +306,11 @@ def run_forming_batch(
                     "summary": {},
                 }
             continue
-        for (i, sc, core), result in zip(batch, results, strict=True):
+        for (i, world, _), result in zip(batch, results, strict=True):
             rec: dict[str, Any] = {"status": "ok", "error": "", "summary": {}}
             out = Path(run_dirs[i]) / "run" if run_dirs[i] else None
             try:
-                rec["summary"] = _jsonable_summary(_forming_outputs(sc, core[0], result, out))
+                rec["summary"] = _jsonable_summary(_forming_outputs(world, result, out))
             except ComputationError as err:
                 rec.update(status="failed", error=f"ComputationError: {err}")
             except Exception as err:  # noqa: BLE001

@@ -1,5 +1,6 @@
 """The meridian with every body drawn: the sheet at chosen frames, the ball, and bodies of the
-apparatus (held, or moving with the clamp), from a saved trajectory."""
+apparatus (held, or moving with the clamp), from a saved trajectory; ``world.png`` of a forming
+run from its trajectory and its world (:func:`world_figure`)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-__all__ = ["plot_world"]
+__all__ = ["plot_world", "world_figure", "drawn_ball"]
 
 
 def plot_world(
@@ -94,3 +95,48 @@ def _limits(ax, ds, frames, limits):
     else:
         ax.set_xlim(*limits[0])
         ax.set_ylim(*limits[1])
+
+
+def drawn_ball(ball):
+    """The ball's body for the figures: None for the unit sphere (drawn as a circle)."""
+    from dynslip.physics.bodies import Sphere
+
+    return None if isinstance(ball, Sphere) and ball.is_unit else ball
+
+
+def world_figure(ds: xr.Dataset, world, outcome) -> Figure:
+    """``world.png`` of the run of ``world`` (:class:`~dynslip.schema.world.World`: its ball,
+    held bodies and name) whose trajectory is ``ds``: the meridian with the ball and every held
+    body (the tube's wall, the bottle), at the deepest push, halfway back, the widest contact
+    and the end."""
+    import textwrap
+
+    from dynslip.physics.bodies.held import held_entries
+
+    entries = held_entries(world.model.bodies)
+    moves = [e.moves_with_ball or e.stage or e.free for e in entries]
+    held = [e.body for e, m in zip(entries, moves, strict=True) if not m]
+    # every moving body at its saved displacement (the ball's height for the bottle)
+    moved = [(e.body, ds["body_z"].values[:, k]) for k, (e, m) in
+             enumerate(zip(entries, moves, strict=True)) if m]
+    theta = ds["theta_max"].values
+    widest = int(np.nanargmax(theta)) if np.isfinite(theta).any() else 0
+    last = ds.sizes["time"] - 1
+    # the deepest push (the sheet's edge lowest, or the ball highest relative to it: the
+    # tube's bottom), the widest contact and the end: the pocket's making
+    depth = ds["ball_z"].values - ds["z"].values[:, -1]
+    deep = int(np.argmax(depth))
+    # halfway back from the deepest push: the lip and the neck under the ball while it refills
+    after = np.arange(depth.size) >= deep
+    half = int(np.argmin(np.where(after, np.abs(depth - 0.5 * (depth[deep] + depth[last])),
+                                  np.inf)))
+    frames: dict = {}
+    for label, i in (("deepest push", deep), ("halfway back", half),
+                     ("widest contact", widest), ("end", last)):
+        if i not in frames.values():
+            frames[label] = i
+    end = "\n".join(textwrap.wrap(f"end: {outcome}", 55))
+    zb = float(ds["ball_z"].values[last])
+    return plot_world(ds, frames, held=held, moved=moved, limits=None,
+                      ball=drawn_ball(world.ball), zoom=((0.0, 2.8), (zb - 2.2, zb + 1.4)),
+                      title=f"{world.name} (N = {ds.sizes['rbar']})\n{end}")

@@ -212,7 +212,7 @@ class FormingPhysics(Strict):
         """Every held body of the world, ``(name, core body, moves_with_ball, friction spec)``
         (:mod:`dynslip.schema.friction`; the tube's and the bottle's ``mu`` as Coulomb's): the
         tube's wall, the bottle's parts and each of ``physics.bodies``, in the order the solver
-        holds them (``build_core`` makes each a ``Held`` entry)."""
+        holds them (:func:`~dynslip.schema.world.build_world` makes each a ``Held`` entry)."""
         from dynslip.schema.bodies import body_core
 
         t, b = self.tube, self.bottle
@@ -496,20 +496,34 @@ class FormingScenario(ScenarioBase):
     numerics: FormingNumerics = FormingNumerics()
     _source_dir: Path | None = PrivateAttr(default=None)
 
+    # the core protocol, built once by the validation and kept with the physics it was built
+    # from (a copy of the scenario with other physics builds its own)
+    _protocol: tuple | None = PrivateAttr(default=None)
+
+    def protocol(self):
+        """The core :class:`~dynslip.physics.protocols.Protocol` of the stages
+        (:func:`build_protocol`), built once per ``physics``."""
+        if self._protocol is None or self._protocol[0] is not self.physics:
+            self._protocol = (self.physics, build_protocol(self))
+        return self._protocol[1]
+
+    def world(self):
+        """The run's :class:`~dynslip.schema.world.World`, every core object built from this
+        scenario (:func:`dynslip.schema.world.build_world`)."""
+        from dynslip.schema.world import build_world
+
+        return build_world(self)
+
     @model_validator(mode="after")
     def _cross(self):
         # The clamp path must stay outside the ball (checked on the keyframes; condition stages at
-        # their
-        # longest reach).
-        from dynslip.physics.protocols import Protocol  # pure core, cheap
-
+        # their longest reach).
         try:
-            prot = build_protocol(self)
+            prot = self.protocol()
         except ValueError as err:
             raise ValueError(f"physics.stages: {err}") from None
         if self.start_from is None and clamp_enters_ball(prot, self.physics.ball_body()):
             raise ValueError("physics.stages: the clamp path enters the ball")
-        assert isinstance(prot, Protocol)
         free = self.physics.free_names()
         if free and self.numerics.solver != "load_step":
             raise ValueError(f"numerics.solver = {self.numerics.solver}: the free body "
@@ -526,7 +540,3 @@ class FormingScenario(ScenarioBase):
                              f"(at its longest) would save {frames:.3g} frames; allowed: at most "
                              f"{MAX_FRAMES:.0e}")
         return self
-
-    # the resolved start state of ``start_from`` (filled in by
-    # :func:`dynslip.app.forming.resolve_start`)
-    _start: tuple | None = PrivateAttr(default=None)

@@ -1,0 +1,213 @@
+"""The world of a forming run, built once from its validated scenario (:func:`build_world`).
+
+A :class:`World` holds every core object a run needs and every plain value that its
+dataset, summary and figures read: the sheet model (mesh, material, penalty, ball and held
+bodies with their laws and motion flags), the protocol, the solver's settings, the driver's
+loads, the scales that convert the core's units (lengths in R, forces in G h0 R, time in s)
+back to the file's, and the provenance (the resolved scenario as JSON). After it is built,
+nothing downstream sees the pydantic scenario: the app runs the world, analysis and plots read
+the dataset and the world.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import jax.numpy as jnp
+
+__all__ = ["World", "Scales", "Limits", "build_world", "settings_of"]
+
+
+@dataclass(frozen=True)
+class Scales:
+    """The units of the core: lengths in ``R_mm`` (the ball radius), forces in
+    ``force_scale_N`` = G h0 R, pressures in G h0 / R, time in s."""
+
+    R_mm: float
+    G_Pa: float
+    h0_m: float
+    force_scale_N: float
+
+    @property
+    def attrs(self) -> dict:
+        """The trajectory's ``scales`` attributes (SI: R and h0 in m, G in Pa)."""
+        return {"R_m": self.R_mm * 1e-3, "G_Pa": self.G_Pa, "h0_m": self.h0_m,
+                "force_scale_N": self.force_scale_N}
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What decides the run's verdict (``summary.json``): the numerics' bounds on the mesh,
+    the reaction, the energy balance and a runaway, and the contact's smoothing widths."""
+
+    max_chord_depth: float
+    trap_reaction_tol: float
+    energy_bound: float
+    runaway_mm: float
+    penalty_width: float
+    contact_threshold: float
+    friction_smoothing: float
+    nodes: int
+
+
+@dataclass(frozen=True)
+class World:
+    """A forming run's world in the core's units (see the module docstring).
+
+    ``bodies``: ``(name, core body, moves_with_ball)`` of each held body in the solver's order;
+    ``free``: the names of those free along the axis; ``stage_rules``: each stage's
+    ``(name, stop rule)``; ``band_stages``: the indices of the stages whose band holds the
+    edge; ``tube_rim_z``: the tube's rim height (R; None without a tube); ``friction``: the
+    ball's law as the trajectory's and the summary's attributes state it; ``start``: the
+    state and provenance of ``start_from`` once the app has resolved it (None before, or
+    without one)."""
+
+    name: str
+    model: Any
+    protocol: Any
+    settings: Any
+    loads: dict
+    scales: Scales
+    limits: Limits
+    bodies: tuple
+    free: tuple
+    stage_rules: tuple
+    band_stages: tuple
+    tube_rim_z: float | None
+    friction: dict
+    thickness_R: float
+    scenario_json: str
+    start_from: str | None = None
+    start: tuple | None = field(default=None, compare=False)
+
+    @property
+    def body_names(self) -> list:
+        return [name for name, *_ in self.bodies]
+
+    @property
+    def stage_names(self) -> tuple:
+        return self.protocol.names
+
+    @property
+    def ball(self):
+        return self.model.ball
+
+    def until(self, stage_name: str) -> str:
+        """The stop rule of the stage called ``stage_name``."""
+        return next(rule for name, rule in self.stage_rules if name == stage_name)
+
+    def simulate_kwargs(self) -> dict:
+        """The keyword arguments of :func:`dynslip.physics.simulate.simulate` (with the start
+        state where there is one)."""
+        kw = dict(self.loads, settings=self.settings)
+        if self.start is not None:
+            kw["start"] = self.start[0]
+        return kw
+
+    @property
+    def start_info(self) -> dict | None:
+        """The provenance of the start state (None without ``start_from``)."""
+        return None if self.start is None else self.start[1]
+
+    def with_start(self, start: tuple | None) -> World:
+        return dataclasses.replace(self, start=start)
+
+
+def settings_of(nu, ball_radius_mm: float, body_names: tuple):
+    """The driver's :class:`~dynslip.physics.solvers.Settings` of the numerics spec ``nu``:
+    every setting of the same name taken as it is, the four the spec states in its own units
+    or words converted."""
+    from dynslip.physics.solvers import Settings
+
+    same = {f.name for f in dataclasses.fields(Settings)} & set(type(nu).model_fields)
+    return Settings(
+        **{name: getattr(nu, name) for name in same},
+        pcoeff=nu.pid_pcoeff,
+        icoeff=nu.pid_icoeff,
+        save_interval=nu.save_interval_s,
+        heal_rate=nu.heal_rate_mm_s / ball_radius_mm,
+        body_names=body_names,
+    )
+
+
+def build_world(sc) -> World:
+    """The :class:`World` of ``sc``, a validated
+    :class:`~dynslip.schema.forming.FormingScenario` (its protocol built once, by the
+    scenario's validation)."""
+    from dynslip.physics.bodies.held import Held
+    from dynslip.physics.protocols import ball_drag_coefficient
+    from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+
+    p, nu = sc.physics, sc.numerics
+    r = p.ball_radius_mm
+    fs = p.force_scale_N
+    mesh = make_mesh(nu.nodes, p.rim_radius_mm / r / p.pre_stretch, nu.mesh_grading,
+                     nu.edge_grading)
+    # pressures in kPa per unit of G h0 / R (a pressure-dependent law's scale)
+    kpa = 1e3 * fs / r**2
+    moved = set(p.moved_names())
+    # a free body: its applied force in G h0 R, its drag as the ball's (eta_b of its multiple)
+    free: dict[str, dict[str, Any]] = {
+        b.name: dict(free=True, force=jnp.asarray((b.force_N or 0.0) / fs),
+                     drag=jnp.asarray(ball_drag_coefficient(nu.drag_time_s,
+                                                            1.0 if b.drag is None else b.drag)))
+        for b in p.bodies if b.motion == "free"
+    }
+    specs = p.held_specs()
+    held = tuple(
+        Held(body, law.build(r, nu.friction_smoothing, kpa),
+             moves_with_ball=with_ball, stage=name in moved, **free.get(name, {}))
+        for name, body, with_ball, law in specs
+    )
+    g_h0 = fs / r  # N/mm
+    # the penalty's parameters as arrays: leaves of the model's pytree, not compiled constants
+    stiffness: Any = jnp.asarray(nu.penalty_stiffness)
+    width: Any = jnp.asarray(nu.penalty_width)
+    model = SheetModel(
+        mesh,
+        p.material.core(),
+        Penalty(stiffness, width),
+        ball=p.ball_body(),
+        bodies=held,
+        band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
+    )
+    names = tuple(name for name, *_ in specs)
+    loads = dict(
+        friction=p.friction.build(r, nu.friction_smoothing, kpa),
+        eps=nu.friction_smoothing,
+        drag=nu.drag_time_s,
+        ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
+        pre_stretch=p.pre_stretch,
+        z_sheet=p.sheet_start_mm / r,
+        weight=-(p.ball_mass_g * 1e-3 * 9.81) / fs if p.gravity else 0.0,
+        support_stiffness=nu.support_stiffness,
+    )
+    f = p.friction
+    mu_s, mu_k, d_c_mm = f.static_kinetic()
+    friction = {"friction_law": f.law, "mu": f.nominal_mu, "mu_s": mu_s, "mu_k": mu_k,
+                "d_c_mm": d_c_mm}
+    return World(
+        name=sc.name,
+        model=model,
+        protocol=sc.protocol(),
+        settings=settings_of(nu, r, names),
+        loads=loads,
+        scales=Scales(R_mm=r, G_Pa=p.youngs_modulus_MPa * 1e6 / 3.0, h0_m=p.thickness_um * 1e-6,
+                      force_scale_N=fs),
+        limits=Limits(max_chord_depth=nu.max_chord_depth,
+                      trap_reaction_tol=nu.trap_reaction_tol, energy_bound=nu.energy_bound,
+                      runaway_mm=nu.runaway_mm, penalty_width=nu.penalty_width,
+                      contact_threshold=nu.contact_threshold,
+                      friction_smoothing=nu.friction_smoothing, nodes=nu.nodes),
+        bodies=tuple((name, body, with_ball) for name, body, with_ball, _ in specs),
+        free=tuple(p.free_names()),
+        stage_rules=tuple((s.name, s.until.rule) for s in p.stages),
+        band_stages=tuple(k for k, s in enumerate(p.stages) if s.clamp == "band"),
+        tube_rim_z=p.tube_rim_z if p.tube is not None else None,
+        friction=friction,
+        thickness_R=p.thickness_um * 1e-3 / r,
+        scenario_json=sc.to_json(),
+        start_from=sc.start_from,
+    )
