@@ -70,20 +70,12 @@ def _scenario(nodes: int, solver: str):
 
 def _end(sc, model, protocol, result):
     """(trajectory dataset, summary) of a result, as ``dynslip run`` makes them."""
-    import numpy as np
-
     from dynslip.analysis.summary import summarize
     from dynslip.app.forming import to_dataset
 
-    ds = to_dataset(
-        sc,
-        result.frames,
-        np.asarray(model.mesh.rbar),
-        result.e0,
-        result.failed is None,
-        protocol.names,
-    )
-    return ds, summarize(sc, ds, result)
+    world = sc.world()  # the same mesh and stages as ``model`` and ``protocol``
+    ds = to_dataset(world, result.frames, result.e0, result.failed is None)
+    return ds, summarize(world, ds, result)
 
 
 def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
