@@ -7,8 +7,8 @@ Heights are measured from the ball centre, upward. See docs/forming.md.
 One validated model per section of the forming scenario (physics, numerics, the scenario), each
 field with its bounds, unit and description, and the protocol the validated stages build. The
 stages are in :mod:`dynslip.schema.stages`, the tube and the bottle in
-:mod:`dynslip.schema.apparatus` (both re-exported here), the core protocol the stages build in
-:mod:`dynslip.schema.protocol` (:func:`build_protocol`, re-exported here).
+:mod:`dynslip.schema.apparatus` (both re-exported here), the core protocol the stages build and
+the run's world in :mod:`dynslip.schema.world` (:func:`build_protocol`, re-exported here).
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.bodies import BallSpec, BodySpec
 from dynslip.schema.friction import CoulombSpec, FrictionLaw, FrictionSpec
 from dynslip.schema.materials import MaterialSpec
-from dynslip.schema.protocol import build_protocol, clamp_enters_ball
 from dynslip.schema.stages import MAX_STAGES, MAX_TIME_S, StageSpec
 from dynslip.schema.stages import default_stages as _default_stages
+from dynslip.schema.world import build_protocol, clamp_enters_ball
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec",
            "FrictionSpec", "TubeSpec", "BottleSpec", "build_protocol"]
