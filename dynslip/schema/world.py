@@ -20,9 +20,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax.numpy as jnp
+
+if TYPE_CHECKING:
+    from dynslip.physics.protocols import Protocol
+    from dynslip.physics.sheet import SheetModel
+    from dynslip.physics.solvers import Settings
 
 __all__ = ["World", "Scales", "Limits", "build_world", "settings_of", "build_protocol",
            "clamp_enters_ball"]
@@ -73,9 +78,9 @@ class World:
     without one)."""
 
     name: str
-    model: Any
-    protocol: Any
-    settings: Any
+    model: SheetModel
+    protocol: Protocol
+    settings: Settings
     loads: dict
     scales: Scales
     limits: Limits
@@ -95,7 +100,7 @@ class World:
         return [name for name, *_ in self.bodies]
 
     @property
-    def stage_names(self) -> tuple:
+    def stage_names(self) -> list[str]:
         return self.protocol.names
 
     @property
@@ -123,7 +128,7 @@ class World:
         return dataclasses.replace(self, start=start)
 
 
-def settings_of(nu, ball_radius_mm: float, body_names: tuple):
+def settings_of(nu, ball_radius_mm: float, body_names: tuple) -> Settings:
     """The driver's :class:`~dynslip.physics.solvers.Settings` of the numerics spec ``nu``:
     every setting of the same name taken as it is, the four the spec states in its own units
     or words converted."""
