@@ -152,9 +152,10 @@ class AbstractFriction(eqx.Module):
     ``slip_force(ft, fn, internal, eps, area)`` returns $S$ (same shape as ``ft``), the part of
     the tangential force that is not cancelled by friction; the slip velocity is
     $S/(\\eta A)$. ``eps`` is the force-space smoothing per node (the law's own ``eps``
-    when None). ``area`` is the node's reference area $A$ (units of $R^2$), so that a law may
-    depend on the contact pressure $N/A$; the laws here ignore it. Laws with memory carry
-    ``n_internal()`` values per node.
+    when None). ``area`` is the node's contact area as :meth:`contact_area` chooses it (units
+    of $R^2$), so that a law may depend on the contact pressure $N/A$; the laws here other
+    than :class:`PressureDependent` ignore it. Laws with memory carry ``n_internal()`` values
+    per node.
     """
 
     eps: eqx.AbstractVar[float | jnp.ndarray]
@@ -176,6 +177,11 @@ class AbstractFriction(eqx.Module):
     def coefficient(self, internal, n: int):
         """The current friction coefficient per node (n,)."""
         raise NotImplementedError
+
+    def contact_area(self, area, areal_stretch):
+        """The area the law reads its pressure on, from the node's reference area and its
+        areal stretch $\\lambda_t\\lambda_\\phi$: the reference area (a law that ignores it)."""
+        return area
 
     def n_internal(self) -> int:
         """Number of internal state variables per node (0: memoryless law)."""
@@ -264,8 +270,9 @@ class PressureDependent(AbstractFriction):
     ``a``: the exponent, $0 \le a < 1$ ($a \ge 1$: a friction force that does not rise with
     the load); ``mu_max``: the bound, at least $\mu_\mathrm{ref} e^{w}$ so that the law
     passes through $(p_\mathrm{ref}, \mu_\mathrm{ref})$ exactly; ``blend``: $w$. The pressure
-    is $p = N/A$ with ``area`` $A$ as the solver passes it (the node's reference area:
-    force per reference area). Memoryless.
+    is $p = N/A$ on the deformed area $A = A_0\lambda_t\lambda_\phi$ (``deformed_area``; False:
+    on the reference area $A_0$, which overstates $p$ by the areal stretch, up to about 20 in a
+    pocket, and so understates $\mu$). Memoryless.
     """
 
     mu_ref: float | jnp.ndarray = 0.99
@@ -274,6 +281,10 @@ class PressureDependent(AbstractFriction):
     mu_max: float | jnp.ndarray = 2.18
     blend: float | jnp.ndarray = CAP_BLEND
     eps: float | jnp.ndarray = 0.0
+    deformed_area: bool = eqx.field(static=True, default=True)
+
+    def contact_area(self, area, areal_stretch):
+        return area * areal_stretch if self.deformed_area else area
 
     def mu(self, p):
         r"""$\mu(p)$ per node, $p \ge 0$ in the units of ``p_ref``."""

@@ -26,6 +26,7 @@ __all__ = [
     "ball_velocity",
     "edge_rate",
     "increment_rates",
+    "law_area",
     "node_force_jacobian",
     "node_held_frame",
     "node_rate",
@@ -84,6 +85,12 @@ class Increment(eqx.Module):
     # the held bodies' slip distances at the start (K_mem, n): mu of a held law with memory is
     # taken at them (the return map's delta0); None without such a body
     held_delta0: jax.Array | None = None
+    # each node's areal stretch, for a ball law that reads its pressure on the deformed area
+    # (None: the reference area). The residual reads it at the increment's end
+    # (:func:`increment_rates`); the Newton matrix's friction blocks hold it at the value given
+    # here (the start's), leaving out its derivative through the neighbouring nodes: an inexact
+    # Jacobian for the pressure law only, which changes Newton's path, not its root
+    areal_stretch: jax.Array | None = None
     # the complementarity parameter c of the ball friction's weighted form (:func:`weighted_slip`,
     # G h0); None: the law's own form
     weight: float | None = None
@@ -99,6 +106,12 @@ def node_contact(model: SheetModel, i, q, g):
     ft = jnp.where(pole, 0.0, f @ t)
     area = model.mesh.area[i]
     return fn, ft, n, t, area * penalty_pressure(model.penalty, d), area
+
+
+def law_area(friction: AbstractFriction, inc: Increment, i, area):
+    """Node ``i``'s area as the ball's law reads its pressure (``area`` its reference area)."""
+    return area if inc.areal_stretch is None else friction.contact_area(area,
+                                                                        inc.areal_stretch[i])
 
 
 def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
@@ -125,6 +138,7 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     fn, ft, n, t, normal, area = node_contact(model, i, q, g)
     eta_a = args.drag * area
     eps = args.eps * area
+    a_law = law_area(friction, inc, i, area)
     hf = None
     if held and frictional(model.bodies):
         hf = node_held_frame(model, inc, i, q, g, zb, projections)
@@ -132,12 +146,13 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     delta1, delta_mu = None, None
     if inc.weight is None:
         if delta0 is not None:
-            delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a, area)
-        s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=area)
+            delta_mu, delta1 = slip_update(friction, ft, normal, eps, delta0, inc.h / eta_a,
+                                           a_law)
+        s = friction.slip_force(ft, normal, delta_mu, eps=eps, area=a_law)
     else:
         # the weighted form (:func:`weighted_slip`), and the return map with its slip force,
         # which is the law's at the root (one evaluation of the law: the step's compile)
-        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta0, eps, area, alone)
+        s = weighted_slip(friction, inc, i, q, t, ft, normal, delta0, eps, area, alone, a_law)
         if delta0 is not None:
             delta_mu = delta0
             delta1 = jnp.where(normal > 0, delta0 + inc.h / eta_a * jnp.abs(s), delta0)
@@ -170,12 +185,13 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     _, ft, n, t, normal, area = node_contact(model, i, q, g)
     eta_a = args.drag * area
     eps = args.eps * area
+    a_law = law_area(friction, inc, i, area)
 
     w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a, alone)
 
     def slip(ft):
         # the weighted form's slope in F_t: its curve's at the shifted trial
-        return friction.slip_force(ft + shift, normal, delta0, eps=eps, area=area, weight=w)
+        return friction.slip_force(ft + shift, normal, delta0, eps=eps, area=a_law, weight=w)
 
     _, ds = jax.jvp(slip, (ft,), (jnp.ones_like(ft),))
     dfn = jnp.where(pole, jnp.stack([jnp.zeros(()), jnp.sign(n[1])]), n)
@@ -201,7 +217,7 @@ def _weighting(inc: Increment, i, q, t, eta_a, alone=None):
 
 
 def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, area,
-                  alone=None):
+                  alone=None, a_law=None):
     r"""The slip force in the weighted (primal-dual) form of the friction law, node weight
     $\gamma = \max(1, c\,\Delta t/(\eta A))$ for $c$ = ``inc.weight``: $S_\gamma =
     \gamma\Psi_\gamma(y) - (\gamma - 1)\,\eta A\,u_t$ at the shifted trial $y = F_t +
@@ -223,11 +239,12 @@ def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, 
     That reads the node's tangential rate as the ball law's alone, $\eta A u_t = S$: where a
     frictional held body's friction acts on the node too (``alone`` False; None: nowhere), it
     adds to $u_t$ and the weighted row would have other roots, so the node keeps the law's own
-    form ($\gamma = 1$)."""
+    form ($\gamma = 1$). ``area``: the node's reference area; ``a_law``: the area the law
+    reads its pressure on (None: ``area``)."""
     eta_a = inc.args.drag * area
     gamma, shift = _weighting(inc, i, q, t, eta_a, alone)
-    return friction.slip_force(ft + shift, normal, delta_mu, eps=eps, area=area,
-                               weight=gamma) - shift
+    return friction.slip_force(ft + shift, normal, delta_mu, eps=eps,
+                               area=area if a_law is None else a_law, weight=gamma) - shift
 
 
 def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None):
@@ -305,6 +322,9 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load, projections
     idx = jnp.arange(q.shape[0])
     d0 = inc.delta0
     ps = projections
+    if inc.areal_stretch is not None:
+        # the law's pressure at the increment's end, as every other force of implicit Euler
+        inc = eqx.tree_at(lambda c: c.areal_stretch, inc, model.areal_stretch(q[:, 0], q[:, 1]))
     vb = ball_velocity(model, inc, q, zb, g, load, ps)
     if d0 is None:
         u, _ = jax.vmap(lambda i, qi, gi, pi: node_rate(model, friction, inc, i, qi, gi, None,

@@ -325,8 +325,9 @@ class MotionNewton(eqx.Module):
         q0 = jnp.stack([rho, z - zb0], axis=1)
         delta0 = layout.internal(y0)
         hdelta0 = layout.held_internal(y0)
+        stretch = model.areal_stretch(rho, z)
         inc = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
-                        held_delta0=hdelta0)
+                        held_delta0=hdelta0, areal_stretch=stretch)
         rate = Rate(*rate)
         q = q0 + h * rate.q
         nf = layout.n_free
@@ -350,7 +351,8 @@ class MotionNewton(eqx.Module):
 
             # the increment with the law's weight
             data = Increment(q0=q0, zb0=zb0, delta0=delta0, t1=t1, h=h, args=args,
-                             held_delta0=hdelta0, weight=self.weight if weighted else None)
+                             held_delta0=hdelta0, areal_stretch=stretch,
+                             weight=self.weight if weighted else None)
 
             def res(q, zb):
                 # the residual and the state the increment's end reads (:func:`residual_and_state`)

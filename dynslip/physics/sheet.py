@@ -324,6 +324,16 @@ class SheetModel(eqx.Module):
         p = self.ball.project(jnp.stack([rho, z], axis=-1), zb)
         return p.normal.T, p.tangent.T
 
+    def areal_stretch(self, rho, z):
+        """Each node's areal stretch $\\lambda_t\\lambda_\\phi$ (deformed over reference area)."""
+        lt, lp = node_stretches(self.mesh, rho, z)
+        return lt * lp
+
+    def contact_area(self, friction: AbstractFriction, rho, z):
+        """Each node's area as ``friction`` reads its pressure (its reference area, or the
+        deformed one, :meth:`dynslip.physics.friction.AbstractFriction.contact_area`)."""
+        return friction.contact_area(self.mesh.area, self.areal_stretch(rho, z))
+
     def normal_force(self, rho, z, zb):
         """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
         return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
@@ -349,7 +359,8 @@ class SheetModel(eqx.Module):
         fn = jnp.where(pole, f[1] * jnp.sign(n[1]), fn)
         normal = self.normal_force(rho, z, zb)
         eps = eps_density * self.mesh.area
-        s = friction.slip_force(ft, normal, internal, eps=eps, area=self.mesh.area)
+        s = friction.slip_force(ft, normal, internal, eps=eps,
+                                area=self.contact_area(friction, rho, z))
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)

@@ -156,11 +156,17 @@ class SlipWeakeningSpec(FrictionSpec):
 @FRICTION_SPECS.add
 class PressureSpec(FrictionSpec):
     """Friction falling with the contact pressure (Schallamach): mu = mu_ref (p /
-    p_ref_kPa)^(-exponent) bounded by mu_max, p the node's contact force per reference area."""
+    p_ref_kPa)^(-exponent) bounded by mu_max, p the node's contact force per area (deformed, or
+    reference: ``pressure_on``)."""
 
     law: Literal["pressure"] = F(
         "pressure", description="pressure: mu = mu_ref (p / p_ref_kPa)^(-exponent) bounded by "
-        "mu_max (Schallamach), p the node's contact force per reference area")
+        "mu_max (Schallamach), p the node's contact force per area (pressure_on)")
+    pressure_on: Literal["deformed", "reference"] = F(
+        "deformed", description="the area p is taken on: deformed (the true contact pressure, "
+        "the node's reference area times its areal stretch; in the load increment, the stretch "
+        "at the increment's start) or reference (the undeformed area: overstates p by the "
+        "areal stretch, up to about 20 in a pocket)")
     exponent: float = F(1.0 / 3.0, ge=0, lt=1,
                         description="exponent a, in [0, 1): 1/3 is Schallamach's (Hertzian "
                         "asperities), 0 is Coulomb; at 1 the friction force would not rise with "
@@ -196,7 +202,8 @@ class PressureSpec(FrictionSpec):
         return PressureDependent(mu_ref=_f(self.mu_ref), p_ref=_f(self.p_ref_kPa /
                                                                   pressure_scale_kPa),
                                  a=_f(self.exponent), mu_max=_f(self.mu_max),
-                                 blend=_f(CAP_BLEND), eps=_f(eps))
+                                 blend=_f(CAP_BLEND), eps=_f(eps),
+                                 deformed_area=self.pressure_on == "deformed")
 
     @property
     def nominal_mu(self) -> float:
