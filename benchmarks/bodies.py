@@ -59,6 +59,7 @@ def _inline_ball():
                 normal=n,
                 s=jnp.zeros_like(r),
                 tangent=jnp.stack([n[..., 1], -n[..., 0]], axis=-1),
+                curvature=1.0 / rs,  # the distance |q| - 1 has the Hessian t t^T / |q|
             )
 
     return InlineBall()
