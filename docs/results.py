@@ -787,8 +787,9 @@ def pressure_frames_rows(runs: list[Path]) -> list[list[str]]:
         i = int(np.argmin(np.abs(ds["time"].values - t)))
         on = ds["state"].values[i] > 0
         J = (ds["lambda_theta"].values[i] * ds["lambda_phi"].values[i])[on]
+        # the saved pressure is already per deformed area (the trajectory contract)
         p = ds["pressure"].values[i][on] * float(ds.attrs["G_Pa"]) * float(ds.attrs["h0_m"]) / (
-            float(ds.attrs["R_m"])) / 1e3 / np.maximum(J, 1e-12) if on.any() else np.array([])
+            float(ds.attrs["R_m"])) / 1e3 if on.any() else np.array([])
         mu = ds["mu_mobilised"].values[i][on]
         if not on.any():
             out.append([str(t), stage, num(float(ds["theta_max"].values[i]), ".3f"), "-", "-",
