@@ -120,7 +120,7 @@ def run_forming(sc, out, console=None, world=None) -> dict:
             else float(frames[0]["energy_elastic"] + frames[0]["energy_penalty"])
         )
         ds = to_dataset(world, frames, e0, complete)
-        outs.netcdf(ds, "trajectory.nc")
+        outs.netcdf(ds, trajectory.TRAJECTORY_FILE)
         return ds
 
     def on_frame(rec):
@@ -153,7 +153,7 @@ def run_forming(sc, out, console=None, world=None) -> dict:
 
             outs.json(summarize(world, ds, result))
         raise ComputationError(
-            f"{result.failed}{PARTIAL_KEPT}{outs.where('trajectory.nc')}"
+            f"{result.failed}{PARTIAL_KEPT}{outs.where(trajectory.TRAJECTORY_FILE)}"
         )
     summary = finish(world, result, outs)
     print_end_table(console, summary)
@@ -171,7 +171,7 @@ def finish(world, result, outs: Outputs) -> dict:
 
     ds = to_dataset(world, result.frames, result.e0, True)
     io.check_units(ds)
-    outs.netcdf(ds, "trajectory.nc")
+    outs.netcdf(ds, trajectory.TRAJECTORY_FILE)
     summary = summarize(world, ds, result)
     if world.start_info is not None:
         from dynslip.analysis.release import release_metrics
