@@ -418,15 +418,22 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
         disc = prop.get("discriminator")
         if disc and "oneOf" in prop:  # a choice by tag (friction law, stop rule): each variant's
             tag = disc["propertyName"]
+            default = (prop.get("default") or {}).get(tag)
             rows.append((f"{prefix}{name}.{tag}", " | ".join(disc["mapping"]),
-                         json.dumps((prop.get("default") or {}).get(tag, "required")), "", "",
+                         "required" if default is None else json.dumps(default), "", "",
                          prop.get("description", "")))
-            for value, ref in disc["mapping"].items():  # fields, named after their tag
-                sub = defs[ref.split("/")[-1]]
-                sub = {**sub, "properties": {k: {**v, "description": f"{tag}: {value}: "
-                                                 f"{v.get('description', '')}"}
-                                             for k, v in sub.get("properties", {}).items()
-                                             if k != tag}}
+            variants = {value: defs[ref.split("/")[-1]].get("properties", {})
+                        for value, ref in disc["mapping"].items()}
+            # a field every variant has alike (a held body's name) once, the others named
+            # after their tag
+            first = next(iter(variants.values()))
+            common = {k: v for k, v in first.items() if k != tag and all(
+                p.get(k) == v for p in variants.values())}
+            _rows({"properties": common}, defs, f"{prefix}{name}.", rows)
+            for value, props in variants.items():
+                sub = {"properties": {k: {**v, "description": f"{tag}: {value}: "
+                                          f"{v.get('description', '')}"}
+                                      for k, v in props.items() if k != tag and k not in common}}
                 _rows(sub, defs, f"{prefix}{name}.", rows)
             continue
         typ = prop.get("type")
@@ -448,9 +455,11 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
                 prop.get("description", ""),
             )
         )
-        ref = (prop.get("items") or {}).get("$ref") if isinstance(prop.get("items"), dict) else None
-        if ref:  # a list of sections (stages): their fields, as name[].field
-            _rows(defs[ref.split("/")[-1]], defs, f"{prefix}{name}[].", rows)
+        items = prop.get("items") if isinstance(prop.get("items"), dict) else {}
+        if items.get("$ref"):  # a list of sections (stages): their fields, as name[].field
+            _rows(defs[items["$ref"].split("/")[-1]], defs, f"{prefix}{name}[].", rows)
+        elif "discriminator" in items:  # a list of tagged entries (held bodies), by their tag
+            _rows({"properties": {"": items}}, defs, f"{prefix}{name}[]", rows)
 
 
 def schema_reference(extra: dict[str, type] | None = None) -> str:

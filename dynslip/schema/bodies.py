@@ -18,29 +18,20 @@ naming the body's field, its value and what is allowed.
 from __future__ import annotations
 
 import math
-from typing import Literal
+import typing
+from typing import Annotated, Any, ClassVar, Literal
 
-from pydantic import model_validator
+from pydantic import BaseModel, TypeAdapter, model_validator
 
 from dynslip.schema.base import F, Strict
 from dynslip.schema.friction import FrictionLaw, FrictionlessSpec
+from dynslip.schema.registry import Registry
 
-__all__ = ["BallSpec", "BodySpec", "SegmentSpec", "KIND_SIZES",
+__all__ = ["BODY_KINDS", "BallSpec", "BodySpec", "ShapeSpec", "HeldFields", "SegmentSpec",
+           "SphereSpec", "DiscSpec", "CylinderSpec", "ConeSpec", "TorusSpec", "ProfileSpec",
            "ball_core", "body_core", "check_bodies"]
 
 Point = tuple[float, float]
-
-#: the size fields each kind takes (required ones first; the rest have defaults)
-KIND_SIZES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "sphere": (("radius_mm",), ()),
-    "disc": (("radius_mm", "thickness_mm", "edge_radius_mm"), ()),
-    "cylinder": (("radius_mm", "height_mm"), ("inner_radius_mm", "edge_radius_mm")),
-    "cone": (("radius_mm", "apex_mm"), ()),
-    "torus": (("ring_radius_mm", "minor_radius_mm"), ()),
-    "profile": (("segments",), ()),
-}
-_ALL_SIZES = ("radius_mm", "thickness_mm", "edge_radius_mm", "height_mm", "inner_radius_mm",
-              "apex_mm", "ring_radius_mm", "minor_radius_mm", "segments")
 
 _MM = "mm, divided by ball_radius_mm (R) in the core"
 
@@ -90,69 +81,186 @@ class SegmentSpec(Strict):
                    math.radians(self.start_deg), math.radians(self.end_deg))
 
 
-class _Shape(Strict):
-    """The sizes of every kind (mm); which a kind takes: :data:`KIND_SIZES`."""
+class ShapeSpec(Strict):
+    """A body kind: ``kind`` names it (:data:`BODY_KINDS`), the other fields are its sizes (mm).
+    :meth:`core` builds its core body; a kind with ``can_be_ball`` may be ``physics.ball``
+    (then :meth:`top_mm` and :meth:`widest_mm` place the flat sheet and the clamp)."""
 
-    radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                description="sphere, disc, cylinder: the radius; cone: its base's "
-                                            f"radius; in (0, 1e4] {_MM}")
-    thickness_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                   description=f"disc: the thickness, in (0, 1e4] {_MM}")
-    edge_radius_mm: float | None = F(None, unit="mm", ge=0, le=1e4,
-                                     description="disc: its edge's rounding radius, in (0, "
-                                                 "thickness / 2]; cylinder: its corners' (0: "
-                                                 f"sharp, the default); {_MM}")
-    height_mm: float | None = F(None, unit="mm", gt=0, le=1e5,
-                                description=f"cylinder: its height, in (0, 1e5] {_MM}")
-    inner_radius_mm: float | None = F(None, unit="mm", ge=0, le=1e4,
-                                      description="cylinder: the inner radius of a tube wall (0: "
-                                                  f"solid, the default), below the radius; {_MM}")
-    apex_mm: float | None = F(None, unit="mm", ge=-1e5, le=1e5,
-                              description="cone: the apex's height above its base (negative: "
-                                          f"below), nonzero; {_MM}")
-    ring_radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                     description="torus: the radius of its centre circle, above "
-                                                 f"the minor radius; {_MM}")
-    minor_radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                      description=f"torus: its tube's radius; {_MM}")
-    segments: list[SegmentSpec] | None = F(None, max_length=200,
-                                           description="profile: its segments, C1 where they "
-                                                       "join, from axis to axis or closed "
-                                                       "(at most 200)")
-    z_mm: float = F(0.0, unit="mm", ge=-1e5, le=1e5,
-                    description="placement along the axis from the ball's centre, up: the centre "
-                                "of a sphere, disc or torus, the bottom of a cylinder, the base "
-                                f"of a cone, the shift of a profile's points; {_MM}")
+    kind: str
+    #: whether ``physics.ball`` may be of this kind (the one place that says so)
+    can_be_ball: ClassVar[bool] = False
+    #: sizes a held body must give that the ball may leave to their defaults
+    held_needs: ClassVar[tuple[str, ...]] = ()
 
-    def _check_sizes(self, kind: str, where: str):
-        need, optional = KIND_SIZES[kind]
-        missing = [k for k in need if getattr(self, k) is None]
+    @model_validator(mode="before")
+    @classmethod
+    def _sizes_of_kind(cls, data):
+        # one line naming the size: another kind's size, or a size of this kind left out
+        if not isinstance(data, dict):
+            return data
+        kind = typing.get_args(cls.model_fields["kind"].annotation)[0]
+        own = set(cls.model_fields)
+        others = [k for k in data if isinstance(k, str) and k not in own and any(
+            k in s.model_fields for s in BODY_KINDS.specs.values())]
+        sizes = [k for k in cls.model_fields if k not in HeldFields.model_fields and k != "kind"]
+        if others:
+            raise ValueError(f"{', '.join(others)} is not a size of a {kind} (its sizes: "
+                             f"{', '.join(sizes)})")
+        needs = [k for k, f in cls.model_fields.items()
+                 if k in sizes and (f.is_required() or (issubclass(cls, HeldFields)
+                                                        and k in cls.held_needs))]
+        missing = [k for k in needs if data.get(k) is None]
         if missing:
-            raise ValueError(f"{where}: a {kind} needs {', '.join(missing)}")
-        extra = [k for k in _ALL_SIZES if k not in need + optional and getattr(self, k) is not None]
-        if extra:
-            raise ValueError(f"{where}: {', '.join(extra)} is not a size of a {kind} (its sizes: "
-                             f"{', '.join(need + optional)})")
+            raise ValueError(f"a {kind} needs {', '.join(missing)}")
+        return data
 
-    def core(self, kind: str, r: float):
-        """The core body (units of R); raises BodyGeometryError for an invalid solid."""
-        from dynslip.physics.bodies import Cone, Cylinder, Disc, Profile, Sphere, Torus
+    def core(self, r: float, z: float = 0.0):
+        """The core body (units of R), placed at height ``z`` (units of R); raises
+        BodyGeometryError for an invalid solid."""
+        raise NotImplementedError
+
+    def top_mm(self, r: float) -> float:
+        """A ball's top above its centre (mm; ``r`` = ball_radius_mm)."""
+        raise NotImplementedError
+
+    def widest_mm(self, r: float) -> float:
+        """A ball's largest radius from the axis (mm)."""
+        raise NotImplementedError
+
+    def radius(self, r: float) -> float:
+        """A ball's radius (mm): its largest radius from the axis."""
+        return self.widest_mm(r)
+
+
+#: the body kinds of the scenario file, by ``kind``: held bodies take every one, the ball those
+#: with ``can_be_ball``; ``BODY_KINDS.register(Spec)`` adds one from outside
+BODY_KINDS = Registry("kind")
+
+
+@BODY_KINDS.add
+class SphereSpec(ShapeSpec):
+    """A sphere; as the ball, of ball_radius_mm by default."""
+
+    kind: Literal["sphere"] = F("sphere", description="sphere")
+    radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
+                                description="the radius (required of a held sphere; the ball's "
+                                            "default: ball_radius_mm); in "
+                                            f"(0, 1e4] {_MM}")
+    can_be_ball: ClassVar[bool] = True
+    held_needs: ClassVar[tuple[str, ...]] = ("radius_mm",)
+
+    def radius(self, r: float) -> float:
+        """The radius (mm): radius_mm, else ball_radius_mm ``r``."""
+        return r if self.radius_mm is None else self.radius_mm
+
+    def core(self, r: float, z: float = 0.0):
+        from dynslip.physics.bodies import Sphere
+
+        return Sphere(self.radius(r) / r, centre_z=z)
+
+    def top_mm(self, r: float) -> float:
+        return self.radius(r)
+
+    def widest_mm(self, r: float) -> float:
+        return self.radius(r)
+
+
+@BODY_KINDS.add
+class DiscSpec(ShapeSpec):
+    """A disc (a coin) with a rounded edge, centred at its placement."""
+
+    kind: Literal["disc"] = F("disc", description="disc: a coin")
+    radius_mm: float = F(..., unit="mm", gt=0, le=1e4, description=f"the radius, in (0, 1e4] {_MM}")
+    thickness_mm: float = F(..., unit="mm", gt=0, le=1e4,
+                            description=f"the thickness, in (0, 1e4] {_MM}")
+    edge_radius_mm: float = F(..., unit="mm", ge=0, le=1e4,
+                              description=f"its edge's rounding radius, in (0, thickness / 2]; "
+                                          f"{_MM}")
+    can_be_ball: ClassVar[bool] = True
+
+    def core(self, r: float, z: float = 0.0):
+        from dynslip.physics.bodies import Disc
+
+        return Disc(self.radius_mm / r, self.thickness_mm / r, self.edge_radius_mm / r,
+                    centre_z=z)
+
+    def top_mm(self, r: float) -> float:
+        return 0.5 * self.thickness_mm
+
+    def widest_mm(self, r: float) -> float:
+        return self.radius_mm
+
+
+@BODY_KINDS.add
+class CylinderSpec(ShapeSpec):
+    """A cylinder standing on its bottom, solid or a tube wall, its corners sharp or rounded."""
+
+    kind: Literal["cylinder"] = F("cylinder", description="cylinder")
+    radius_mm: float = F(..., unit="mm", gt=0, le=1e4, description=f"the radius, in (0, 1e4] {_MM}")
+    height_mm: float = F(..., unit="mm", gt=0, le=1e5,
+                         description=f"its height, in (0, 1e5] {_MM}")
+    inner_radius_mm: float | None = F(None, unit="mm", ge=0, le=1e4,
+                                      description="the inner radius of a tube wall (0: solid, the "
+                                                  f"default), below the radius; {_MM}")
+    edge_radius_mm: float | None = F(None, unit="mm", ge=0, le=1e4,
+                                     description=f"its corners' rounding radius (0: sharp, the "
+                                                 f"default); {_MM}")
+
+    def core(self, r: float, z: float = 0.0):
+        from dynslip.physics.bodies import Cylinder
+
+        return Cylinder(self.radius_mm / r, z, z + self.height_mm / r,
+                        inner_radius=(self.inner_radius_mm or 0.0) / r,
+                        edge_radius=(self.edge_radius_mm or 0.0) / r)
+
+
+@BODY_KINDS.add
+class ConeSpec(ShapeSpec):
+    """A cone on the axis: its base at its placement, its apex above (or below) it."""
+
+    kind: Literal["cone"] = F("cone", description="cone")
+    radius_mm: float = F(..., unit="mm", gt=0, le=1e4,
+                         description=f"its base's radius, in (0, 1e4] {_MM}")
+    apex_mm: float = F(..., unit="mm", ge=-1e5, le=1e5,
+                       description="the apex's height above its base (negative: below), "
+                                   f"nonzero; {_MM}")
+
+    def core(self, r: float, z: float = 0.0):
+        from dynslip.physics.bodies import Cone
+
+        return Cone(self.radius_mm / r, z, z + self.apex_mm / r)
+
+
+@BODY_KINDS.add
+class TorusSpec(ShapeSpec):
+    """A torus about the axis, centred at its placement."""
+
+    kind: Literal["torus"] = F("torus", description="torus")
+    ring_radius_mm: float = F(..., unit="mm", gt=0, le=1e4,
+                              description="the radius of its centre circle, above the minor "
+                                          f"radius; {_MM}")
+    minor_radius_mm: float = F(..., unit="mm", gt=0, le=1e4,
+                               description=f"its tube's radius; {_MM}")
+
+    def core(self, r: float, z: float = 0.0):
+        from dynslip.physics.bodies import Torus
+
+        return Torus(self.ring_radius_mm / r, self.minor_radius_mm / r, centre_z=z)
+
+
+@BODY_KINDS.add
+class ProfileSpec(ShapeSpec):
+    """A solid of revolution drawn by its meridian's segments, shifted up by its placement."""
+
+    kind: Literal["profile"] = F("profile", description="profile")
+    segments: list[SegmentSpec] = F(..., max_length=200,
+                                    description="its segments, C1 where they join, from axis to "
+                                                "axis or closed (at most 200)")
+
+    def core(self, r: float, z: float = 0.0):
+        from dynslip.physics.bodies import Profile
         from dynslip.physics.bodies.segments import Arc, Line
 
-        z = self.z_mm / r
-        if kind == "sphere":
-            return Sphere(self.radius_mm / r, centre_z=z)
-        if kind == "disc":
-            return Disc(self.radius_mm / r, self.thickness_mm / r, self.edge_radius_mm / r,
-                        centre_z=z)
-        if kind == "cylinder":
-            return Cylinder(self.radius_mm / r, z, z + self.height_mm / r,
-                            inner_radius=(self.inner_radius_mm or 0.0) / r,
-                            edge_radius=(self.edge_radius_mm or 0.0) / r)
-        if kind == "cone":
-            return Cone(self.radius_mm / r, z, z + self.apex_mm / r)
-        if kind == "torus":
-            return Torus(self.ring_radius_mm / r, self.minor_radius_mm / r, centre_z=z)
         segs = []
         for s in self.segments:
             c = s.core(r)
@@ -164,15 +272,15 @@ class _Shape(Strict):
         return Profile(segs)
 
 
-class BodySpec(_Shape):
-    """A held body (an obstacle): its kind and sizes (mm), its placement, its motion and the
-    sheet's friction on it."""
+class HeldFields(Strict):
+    """What a held body adds to its kind's sizes: its name, placement, motion and the sheet's
+    friction on it."""
 
     name: str = F(..., min_length=1, max_length=100, description="the body's name (unique)")
-    kind: Literal["sphere", "disc", "cylinder", "cone", "torus", "profile"] = F(
-        ..., description="sphere (radius_mm), disc (radius_mm, thickness_mm, edge_radius_mm), "
-        "cylinder (radius_mm, height_mm; inner_radius_mm, edge_radius_mm), cone (radius_mm, "
-        "apex_mm), torus (ring_radius_mm, minor_radius_mm), profile (segments)")
+    z_mm: float = F(0.0, unit="mm", ge=-1e5, le=1e5,
+                    description="placement along the axis from the ball's centre, up: the centre "
+                                "of a sphere, disc or torus, the bottom of a cylinder, the base "
+                                f"of a cone, the shift of a profile's points; {_MM}")
     motion: Literal["held", "with_ball", "stage", "free"] = F(
         "held", description="held: at rest; with_ball: carried with the ball (as the bottle); "
         "stage: moved by the stages (each stage's body_velocity_mm_s gives its velocity by "
@@ -192,8 +300,7 @@ class BodySpec(_Shape):
                               "slip distances relative to the body, each body its own)")
 
     @model_validator(mode="after")
-    def _sizes(self):
-        self._check_sizes(self.kind, f"body {self.name!r}")
+    def _free_only(self):
         if self.motion != "free":
             given = [k for k in ("force_N", "drag") if getattr(self, k) is not None]
             if given:
@@ -202,63 +309,56 @@ class BodySpec(_Shape):
         return self
 
 
-class BallSpec(Strict):
-    """The ball's kind (the moving body): a sphere of ``ball_radius_mm`` by default, or a
-    disc (a coin). The length unit R stays ``ball_radius_mm``: for a disc R is only the length
-    unit (set it to the coin's radius). Its centre is the ball's height; the trapped
-    criterion and the mesh check follow its kind (docs/bodies.md)."""
+class _Variants(Registry):
+    """A registry derived from :data:`BODY_KINDS`: the kinds that ``keep`` admits, each made
+    into ``cls`` + the kind (a held body's fields beside its sizes, one flat entry), built
+    once per kind."""
 
-    kind: Literal["sphere", "disc"] = F("sphere", description="sphere (radius_mm, default "
-                                        "ball_radius_mm) or disc (radius_mm, thickness_mm, "
-                                        "edge_radius_mm: a coin)")
-    radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                description="the sphere's radius (default ball_radius_mm) or the "
-                                            f"disc's; in (0, 1e4] {_MM}")
-    thickness_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                   description=f"disc: the thickness, in (0, 1e4] {_MM}")
-    edge_radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                     description="disc: its edge's rounding radius, in (0, "
-                                                 f"thickness / 2]; {_MM}")
+    def __init__(self, keep, base: type[BaseModel] | None = None, default: str | None = None):
+        self.tag, self.default, self.others_ignored = "kind", default, False
+        self._keep, self._base = keep, base
+        self._made: dict[type[BaseModel], type[BaseModel]] = {}
 
-    @model_validator(mode="after")
-    def _sizes(self):
-        if self.kind == "disc":
-            missing = [k for k in ("radius_mm", "thickness_mm", "edge_radius_mm")
-                       if getattr(self, k) is None]
-            if missing:
-                raise ValueError(f"ball: a disc needs {', '.join(missing)}")
-        else:
-            extra = [k for k in ("thickness_mm", "edge_radius_mm") if getattr(self, k) is not None]
-            if extra:
-                raise ValueError(f"ball: {', '.join(extra)} is not a size of a sphere (its "
-                                 f"size: radius_mm)")
-        return self
+    @property  # type: ignore[override]
+    def specs(self) -> dict[str, type[BaseModel]]:
+        return {tag: self._made_of(s) for tag, s in BODY_KINDS.specs.items() if self._keep(s)}
 
-    def radius(self, r: float) -> float:
-        """The ball's radius (mm): radius_mm, else ball_radius_mm ``r``."""
-        return r if self.radius_mm is None else self.radius_mm
-
-    def top_mm(self, r: float) -> float:
-        """Height of the ball's top above its centre (mm): where the flat sheet starts above."""
-        return self.radius(r) if self.kind == "sphere" else 0.5 * self.thickness_mm
-
-    def widest_mm(self, r: float) -> float:
-        """The ball's largest radius from the axis (mm)."""
-        return self.radius(r)
-
-    def core(self, r: float):
-        """The core body (units of R), centred at the origin."""
-        from dynslip.physics.bodies import Disc, Sphere
-
-        if self.kind == "sphere":
-            return Sphere(self.radius(r) / r)
-        return Disc(self.radius_mm / r, self.thickness_mm / r, self.edge_radius_mm / r)
+    def _made_of(self, shape: type[BaseModel]) -> type[BaseModel]:
+        if self._base is None:
+            return shape
+        if shape not in self._made:
+            self._made[shape] = type(f"Held{shape.__name__}", (shape, self._base),
+                                     {"__module__": shape.__module__, "__doc__": shape.__doc__})
+        return self._made[shape]
 
 
-def ball_core(ball: BallSpec | None, r: float):
+#: a held body: one flat entry ``{name, kind, <the kind's sizes>, z_mm, motion, friction}``
+HELD_KINDS = _Variants(lambda s: True, base=HeldFields)
+#: the ball: a kind with ``can_be_ball``, a sphere (of ball_radius_mm) by default
+BALL_KINDS = _Variants(lambda s: s.can_be_ball, default="sphere")
+
+BodySpec = Annotated[HeldFields, HELD_KINDS]
+
+
+class BallSpec:
+    """The ball's kind (the moving body): a sphere of ``ball_radius_mm`` by default, or a kind
+    with ``can_be_ball`` (a disc: a coin). ``BallSpec(**fields)`` validates into that kind's
+    spec. The length unit R stays ``ball_radius_mm``: for a ball that is not a sphere R is only
+    the length unit. Its centre is the ball's height; the trapped criterion and the mesh check
+    follow its kind (docs/bodies.md)."""
+
+    def __new__(cls, **fields) -> Any:
+        return TypeAdapter(cls).validate_python(fields)
+
+    @classmethod
+    def __get_pydantic_core_schema__(cls, source, handler):
+        return BALL_KINDS.__get_pydantic_core_schema__(source, handler)
+
+
+def ball_core(ball: ShapeSpec | None, r: float):
     """The core ball body (units of R): the unit :class:`Sphere` for the default (the closed
-    forms of :mod:`dynslip.physics.sheet`, operation for operation), else the sphere or disc
-    of the spec."""
+    forms of :mod:`dynslip.physics.sheet`, operation for operation), else its kind's body,
+    centred at the origin."""
     from dynslip.physics.bodies import Sphere
 
     if ball is None or (ball.kind == "sphere" and ball.radius(r) == r):
@@ -266,9 +366,9 @@ def ball_core(ball: BallSpec | None, r: float):
     return ball.core(r)
 
 
-def body_core(spec: BodySpec, r: float):
-    """The core body of a held body's spec (units of R)."""
-    return spec.core(spec.kind, r)
+def body_core(spec, r: float):
+    """The core body of a held body's spec (units of R), at its placement."""
+    return spec.core(r, spec.z_mm / r)
 
 
 #: the longest stretch (units of R) along which two bodies may touch and still count as touching
