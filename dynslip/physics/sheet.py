@@ -40,18 +40,27 @@ moving ball behave as on a held one and keeps the energy balance exact.)
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from dynslip.physics.bodies.base import AbstractBody
+from dynslip.physics.bodies.chords import chord_depths as body_chord_depths
+from dynslip.physics.bodies.held import held_entries, held_frame
+from dynslip.physics.bodies.sphere import Sphere
 from dynslip.physics.friction import AbstractFriction, soft_threshold
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
-
-if TYPE_CHECKING:
-    from dynslip.physics.bodies.base import AbstractBody
+from dynslip.physics.mesh import (
+    Mesh,
+    element_stretches,
+    make_mesh,
+    mesh_from_radii,
+    node_stretches,
+)
+from dynslip.physics.penalty import Penalty, penalty_energy, penalty_pressure
 
 __all__ = [
     "Kinematics",
@@ -65,48 +74,6 @@ __all__ = [
     "penalty_energy",
     "penalty_pressure",
 ]
-
-
-class Mesh(eqx.Module):
-    """Material radii of the nodes and the derived element/node measures (units of R)."""
-
-    rbar: jnp.ndarray  # (N,) node material radii, rbar[0] = 0
-    dr: jnp.ndarray  # (N-1,) element lengths
-    rmid: jnp.ndarray  # (N-1,) element mid radii
-    area_el: jnp.ndarray  # (N-1,) element reference areas 2 pi rmid dr
-    area: jnp.ndarray  # (N,) lumped node reference areas
-
-    @property
-    def n(self) -> int:
-        return int(self.rbar.shape[0])
-
-
-def make_mesh(n: int, r_edge: float, grading: float = 1.0, edge_grading: float = 1.0) -> Mesh:
-    """Mesh of ``n`` nodes from the pole to the material radius ``r_edge``, at
-    ``rbar_i = r_edge v_i**grading``, ``v_i = 1 - (1 - i/(n-1))**edge_grading``: uniform for
-    both 1; ``grading > 1`` grades it toward the pole (first element ``r_edge/(n-1)**grading``,
-    last about ``grading`` times the uniform one), ``edge_grading > 1`` toward the held edge
-    (last element ``r_edge/(n-1)**edge_grading``, first about ``edge_grading`` times the
-    uniform one: where the sheet wraps a tube's rim near its edge)."""
-    if n < 4:
-        raise ValueError("a sheet mesh needs at least 4 nodes")
-    if grading < 1.0 or edge_grading < 1.0:
-        raise ValueError("mesh grading must be at least 1 (1 is uniform)")
-    v = 1.0 - (1.0 - np.linspace(0.0, 1.0, n)) ** edge_grading
-    return mesh_from_radii(r_edge * v**grading)
-
-
-def mesh_from_radii(rbar) -> Mesh:
-    """The mesh of the given node material radii (pole first): element lengths, mid radii,
-    element areas and lumped node areas (half of each adjacent element's)."""
-    rbar = np.asarray(rbar, dtype=float)
-    dr = np.diff(rbar)
-    rmid = 0.5 * (rbar[1:] + rbar[:-1])
-    area_el = 2 * np.pi * rmid * dr
-    area = np.zeros(rbar.size)
-    area[:-1] += 0.5 * area_el
-    area[1:] += 0.5 * area_el
-    return Mesh(*(jnp.asarray(a) for a in (rbar, dr, rmid, area_el, area)))
 
 
 def chord_depths(rho, z, zb) -> np.ndarray:
@@ -138,10 +105,8 @@ def chord_depths(rho, z, zb) -> np.ndarray:
 def deepest_chord(rho, z, zb, pole_side: float, body=None) -> tuple[np.ndarray, ...]:
     """Per frame (frames leading) ``(depth, element, pole crossed)`` of the deepest chord in the
     ball ``body`` (None: the unit ball); a pole on its other side from ``pole_side`` crossed."""
-    from dynslip.physics.bodies.chords import chord_depths as in_body
-    from dynslip.physics.bodies.sphere import Sphere
     unit = body is None or isinstance(body, Sphere) and body.is_unit
-    depth = chord_depths(rho, z, zb) if unit else in_body(body, rho, z, zb)
+    depth = chord_depths(rho, z, zb) if unit else body_chord_depths(body, rho, z, zb)
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]
@@ -150,49 +115,6 @@ def deepest_chord(rho, z, zb, pole_side: float, body=None) -> tuple[np.ndarray, 
     )
     through = crossed & (worst < 1.0)
     return np.where(through, 1.0, worst), np.where(through, 0, k), crossed
-
-
-class Penalty(eqx.Module):
-    """Contact penalty: stiffness ``k`` (G h0 / R^3, per reference area) and width ``w`` (R)."""
-
-    k: float = 1.0e4
-    w: float = 1.0e-3
-
-
-def penalty_energy(pen: Penalty, d):
-    """Penalty energy per reference area as a function of the penetration ``d`` (C^2)."""
-    k, w = pen.k, pen.w
-    dc = jnp.clip(d, 0.0, w)
-    small = k * dc**3 / (6 * w)
-    large = k * (d**2 / 2 - w * d / 2 + w**2 / 6)
-    return jnp.where(d <= 0, 0.0, jnp.where(d < w, small, large))
-
-
-def penalty_pressure(pen: Penalty, d):
-    """Penalty pressure per reference area, d(phi)/d(d): zero for d <= 0 (C^1)."""
-    k, w = pen.k, pen.w
-    dc = jnp.clip(d, 0.0, w)
-    return jnp.where(d <= 0, 0.0, jnp.where(d < w, k * dc**2 / (2 * w), k * (d - w / 2)))
-
-
-def element_stretches(mesh: Mesh, rho, z):
-    """Element stretches (lambda_theta, lambda_phi), each (N-1,)."""
-    drho = rho[1:] - rho[:-1]
-    dz = z[1:] - z[:-1]
-    ds = jnp.sqrt(drho**2 + dz**2)
-    lt = ds / mesh.dr
-    lp = (rho[1:] + rho[:-1]) / (mesh.rbar[1:] + mesh.rbar[:-1])
-    return lt, lp
-
-
-def node_stretches(mesh: Mesh, rho, z):
-    """Node stretches: meridional as the mean of the adjacent elements; hoop rho/rbar
-    (at the pole, the first element's hoop stretch)."""
-    lt_e, lp_e = element_stretches(mesh, rho, z)
-    lt = jnp.concatenate([lt_e[:1], 0.5 * (lt_e[1:] + lt_e[:-1]), lt_e[-1:]])
-    rb = jnp.where(mesh.rbar > 0, mesh.rbar, 1.0)
-    lp = jnp.where(mesh.rbar > 0, rho / rb, lp_e[0])
-    return lt, lp
 
 
 class Kinematics(NamedTuple):
@@ -207,20 +129,6 @@ class Kinematics(NamedTuple):
     grads: tuple  # (dE/drho, dE/dz, dE/dzb)
     eta_a: jax.Array  # the drag coefficient eta A
     tangent: jax.Array  # (2, N) the ball's tangent t (toward the equator)
-
-
-def _held_entries(bodies):
-    # imported here: physics.bodies.contact imports this module's penalty
-    from dynslip.physics.bodies.held import held_entries
-
-    return held_entries(bodies)
-
-
-def _unit_sphere() -> AbstractBody:
-    # imported here: physics.bodies.contact imports this module's penalty
-    from dynslip.physics.bodies.sphere import Sphere
-
-    return Sphere()
 
 
 class SheetModel(eqx.Module):
@@ -241,7 +149,7 @@ class SheetModel(eqx.Module):
     mesh: Mesh
     material: AbstractMaterial
     penalty: Penalty
-    ball: AbstractBody = eqx.field(default_factory=_unit_sphere)
+    ball: AbstractBody = eqx.field(default_factory=Sphere)
     bodies: tuple = ()
     band_grip: float | jnp.ndarray = 0.0
 
@@ -268,7 +176,7 @@ class SheetModel(eqx.Module):
         ``projections`` the bodies' of the nodes where the caller has them
         (:func:`dynslip.physics.terms.held_projections`; None: projected here)."""
         x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
-        ds = ([e.body.distance(x, e.shift(zb)) for e in _held_entries(self.bodies)]
+        ds = ([e.body.distance(x, e.shift(zb)) for e in held_entries(self.bodies)]
               if projections is None else [p.distance for p in projections])
         return sum((jnp.sum(a * penalty_energy(pen, -d)) for d in ds), jnp.zeros(()))
 
@@ -288,7 +196,6 @@ class SheetModel(eqx.Module):
         friction. Not on the pole node nor the clamped edge. ``delta`` (K_mem, N): the held
         slip distances; ``projections``: the held bodies' of the nodes (None: projected
         here)."""
-        from dynslip.physics.bodies.held import held_frame
 
         idx = jnp.arange(rho.shape[0])
         live = (idx > 0) & (idx < rho.shape[0] - 1)

@@ -3,13 +3,13 @@ r"""Contact of the sheet's nodes with every body: the $C^2$ penalty of
 
 Node $i$ at $x_i$ penetrates body $k$ (displaced by $z_k$) by $\delta_{ik} = -d_k(x_i - z_k
 e_z)$; the penalty energy per reference area is $\sum_k \phi(\delta_{ik})$, $\phi$
-:func:`~dynslip.physics.sheet.penalty_energy`, and the force per reference area it exerts on
+:func:`~dynslip.physics.penalty.penalty_energy`, and the force per reference area it exerts on
 the node is
 
 $$f_i = -\nabla_{x_i}\sum_k\phi(\delta_{ik}) = \sum_k p_{ik}\, n_k(x_i),\qquad
   p_{ik} = \phi'(\delta_{ik}) \ge 0,$$
 
-$p$ :func:`~dynslip.physics.sheet.penalty_pressure`, exactly zero at a positive gap, $n_k$ the
+$p$ :func:`~dynslip.physics.penalty.penalty_pressure`, exactly zero at a positive gap, $n_k$ the
 body's outward normal. A node feels every body it penetrates; contact is detected by pressure,
 never by a gap. The force on body $k$ along the axis is $-\sum_i A_i p_{ik} n_{k,z}$, the
 derivative of the energy with respect to $z_k$. For the unit ball,
@@ -31,7 +31,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from dynslip.physics.sheet import Penalty, penalty_energy, penalty_pressure
+from dynslip.physics.penalty import Penalty, penalty_energy, penalty_pressure
 
 __all__ = ["Contact", "contact_energy_density", "contact_forces"]
 
@@ -76,7 +76,7 @@ def contact_forces(bodies, x_nodes, penalty: Penalty, positions=None) -> Contact
 
 def contact_energy_density(bodies, x_nodes, penalty: Penalty, positions=None):
     """Penalty energy per reference area of each node, summed over the bodies (N,), as
-    :func:`~dynslip.physics.sheet.penalty_energy` (times the nodes' reference areas, summed:
+    :func:`~dynslip.physics.penalty.penalty_energy` (times the nodes' reference areas, summed:
     the sheet's penalty energy, G h0 R^2); its negative gradient in x is
     :attr:`Contact.force` summed over the bodies."""
     zs = _positions(bodies, positions)

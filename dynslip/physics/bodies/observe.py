@@ -42,7 +42,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from dynslip.physics.bodies.held import held_entries, projected
-from dynslip.physics.sheet import node_stretches, penalty_pressure
+from dynslip.physics.mesh import node_stretches
+from dynslip.physics.penalty import penalty_pressure
 
 __all__ = ["FREE", "SLIP_BACK", "SLIP_ON", "STATE_MEANINGS", "STUCK", "TOUCHING",
            "body_observables"]
