@@ -1,6 +1,7 @@
 """Compare two run folders number by number: ``python benchmarks/compare_runs.py RUN_A RUN_B``.
 
-Every numeric variable of ``trajectory.nc`` (xarray; coordinates included) and every number of
+Every numeric variable of ``trajectory.nc`` (a forming run; ``result.nc`` for the static
+kinds; xarray, coordinates included) and every number of
 ``summary.json`` (nested dicts and lists walked; strings and booleans must be equal too) except
 the timings (:data:`TIMINGS`), by the largest absolute difference. NaN equals NaN, inf equals
 inf of the same sign. Prints the largest differences and exits 1 when one is above the
@@ -19,8 +20,12 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-#: summary keys that are wall-clock timings, not results (compared nowhere)
-TIMINGS = {"compile_s", "run_s", "time_per_step_ms", "wall_s"}
+#: summary keys that are wall-clock timings, not results (compared nowhere): the forming runs',
+#: and the static runs' phases (``t_<phase>_s``)
+TIMINGS = {"compile_s", "run_s", "time_per_step_ms", "wall_s", "t_bvp_s", "t_search_s"}
+
+#: the dataset of a run folder: a forming run's trajectory, or a static run's result
+DATASETS = ("trajectory.nc", "result.nc")
 
 
 def _diff_arrays(a: np.ndarray, b: np.ndarray) -> float:
@@ -45,18 +50,19 @@ def compare_trajectories(a: Path, b: Path) -> list[tuple[str, float]]:
     """(name, largest absolute difference) of every numeric variable and coordinate of two
     trajectory files; a variable in one file only counts inf."""
     rows = []
+    label = a.name
     with xr.open_dataset(a) as da, xr.open_dataset(b) as db:
         names = sorted(set(da.variables) | set(db.variables))
         for name in names:
             if name not in da.variables or name not in db.variables:
-                rows.append((f"trajectory.nc:{name} (in one file only)", math.inf))
+                rows.append((f"{label}:{name} (in one file only)", math.inf))
                 continue
             va, vb = da.variables[name], db.variables[name]
             if not (_numeric(va) and _numeric(vb)):
                 equal = va.shape == vb.shape and bool(np.all(va.values == vb.values))
-                rows.append((f"trajectory.nc:{name}", 0.0 if equal else math.inf))
+                rows.append((f"{label}:{name}", 0.0 if equal else math.inf))
                 continue
-            rows.append((f"trajectory.nc:{name}", _diff_arrays(va.values, vb.values)))
+            rows.append((f"{label}:{name}", _diff_arrays(va.values, vb.values)))
     return rows
 
 
@@ -92,7 +98,8 @@ def compare_summaries(a: Path, b: Path) -> list[tuple[str, float]]:
 
 def compare_runs(a: Path, b: Path) -> list[tuple[str, float]]:
     """Both comparisons of two run folders, largest difference first."""
-    rows = compare_trajectories(a / "trajectory.nc", b / "trajectory.nc")
+    name = next((d for d in DATASETS if (a / d).exists()), DATASETS[0])
+    rows = compare_trajectories(a / name, b / name)
     rows += compare_summaries(a / "summary.json", b / "summary.json")
     return sorted(rows, key=lambda r: -r[1])
 
@@ -105,8 +112,8 @@ def main(argv=None) -> int:
     p.add_argument("--show", type=int, default=8, help="how many of the largest to print")
     args = p.parse_args(argv)
     rows = compare_runs(args.run_a, args.run_b)
-    n_traj = sum(r[0].startswith("trajectory.nc:") for r in rows)
-    print(f"{args.run_a} vs {args.run_b}: {n_traj} trajectory variables, "
+    n_traj = sum(r[0].startswith(DATASETS) for r in rows)
+    print(f"{args.run_a} vs {args.run_b}: {n_traj} dataset variables, "
           f"{len(rows) - n_traj} summary values compared (timings left out)")
     for name, d in rows[: args.show]:
         print(f"  {d:.3e}  {name}")
