@@ -5,9 +5,14 @@ Lengths in the file are in mm; the core divides them by ``physics.ball_radius_mm
 length unit of the core: for a ball that is not a sphere, R is only the unit). Heights are
 measured from the ball's centre (its reference placement, the origin), upward.
 
-A body is one flat entry ``{name, kind, <the kind's sizes>, z_mm, motion, friction}``: the
-sizes of another kind are refused. ``z_mm`` places the body: the centre of a sphere, disc or
-torus, the bottom of a cylinder, the base of a cone; a profile's points are shifted by it.
+Each kind is one :class:`ShapeSpec` subclass in :data:`BODY_KINDS` (``kind: Literal["name"]``,
+its sizes in mm, :meth:`ShapeSpec.core` building its core body); ``BODY_KINDS.register(Spec)``
+adds one from outside the package (tests/test_body_registry.py does so). A held body is one
+flat entry ``{name, kind, <the kind's sizes>, z_mm, motion, friction}`` (its kind's spec with
+:class:`HeldFields`): the sizes of another kind are refused. The ball is a kind whose spec
+has ``can_be_ball`` (a sphere, the default, or a disc). ``z_mm`` places a held body: the
+centre of a sphere, disc or torus, the bottom of a cylinder, the base of a cone; a profile's
+points are shifted by it.
 The checks that need the geometry (a profile not connected or crossing itself, bodies that
 overlap each other or the ball at the start, bodies that share a face with each other, the
 tube or the bottle, the flat sheet starting inside one) are made by
