@@ -1257,7 +1257,7 @@ DOCS_TABLES = {
         header=("N", "trapping window of mu_s (mu_k = 0.83 mu_s)", "critical mu_s",
                 "the tool's resolution check"),
         commands=(window("coin", "--nodes 50,100,200,400 --lo 0 --hi 3 --coarse 13 --tol 0.02"),),
-        rows=coin_window_rows, small="--nodes 30,40 --coarse 2 --tol 3", slow=True),
+        rows=coin_window_rows, small="--nodes 24,30,36,40 --coarse 2 --tol 3", slow=True),
     # docs/bodies.md
     "mesh_check_bodies": table(
         "docs/bodies.md", ("run", "ball", "held bodies"),

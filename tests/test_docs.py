@@ -139,9 +139,10 @@ def test_every_command_in_the_docs_parses_and_its_scenario_validates():
 
 
 def _value(text: str):
-    import yaml
+    """A ``--set`` value read as the command line reads it (YAML 1.2: ``1e4`` is a number)."""
+    from dynslip.schema.base import parse_value
 
-    return yaml.safe_load(text)
+    return parse_value(text)
 
 
 def test_python_api_page_skips_no_example():
