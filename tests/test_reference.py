@@ -40,14 +40,14 @@ def test_schema_descriptions_quote_the_reference(module, cls, field, quoted):
 
 
 def test_release_analysis_uses_the_runs_ball_drag():
-    """One eta_b formula (physics.protocols), used by the forming runner to build the run and by
+    """One eta_b formula (physics.protocols), used by the world's builder to build the run and by
     the release analysis to read it back: eta_b = tau 4 pi ball_drag."""
     from dynslip.analysis import release
-    from dynslip.app import forming
     from dynslip.physics import protocols
+    from dynslip.schema import world
 
     assert release.ball_drag_coefficient is protocols.ball_drag_coefficient
-    assert "protocols import ball_drag_coefficient" in Path(forming.__file__).read_text()
+    assert "protocols import ball_drag_coefficient" in Path(world.__file__).read_text()
     for drag_time_s, ball_drag in [(0.1, 1.0), (0.02, 3.5), (1.0, 0.0)]:
         assert (
             release.ball_drag_coefficient(drag_time_s, ball_drag)
