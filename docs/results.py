@@ -541,8 +541,8 @@ def crit_cells(runs: list[Path], n: int) -> tuple[str, str]:
 def windows_text(w: dict, n: int | None = None) -> str:
     """The trapping windows of a window.json at mesh size ``n`` (the finest by default)."""
     wins = w.get("windows") or {}
-    if not wins and "windows" not in w:
-        return "-"
+    if not wins:
+        return "-" if "windows" not in w else "none"
     if isinstance(wins, list):  # one mesh size (no --nodes): the windows themselves
         found = wins
     else:
