@@ -103,6 +103,18 @@ def _release_compiled_programs():
     gc.collect()
 
 
+def pytest_sessionfinish(session):
+    """Under pytest-xdist a worker hands its peak to the controller, which prints the summary."""
+    out = getattr(session.config, "workeroutput", None)
+    if out is not None:
+        out["peak_maps"] = _PEAK_MAPS[0]
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    _PEAK_MAPS[0] = max(_PEAK_MAPS[0], getattr(node, "workeroutput", {}).get("peak_maps", 0))
+
+
 def pytest_terminal_summary(terminalreporter):
     terminalreporter.write_line(
         f"memory maps: at most {_PEAK_MAPS[0]} at a module's end (the kernel's limit: "
