@@ -1092,7 +1092,7 @@ def _small_answer(cmd: str) -> str:
     return cmd + " --set numerics.nodes=30"
 
 
-ANSWER = spec([(("method 2 on the tube (`method2_pinned.yaml`, the experiment)", "Gent J_m = 50"),
+ANSWER = spec([(("method 2 on the tube, rim pinned (`method2_pinned.yaml`)", "Gent J_m = 50"),
            (window("method2_pinned", f"--lo 0.8 --hi 3.0 {WIN_TOL}", "numerics.nodes=50"),
             run("method2_pinned", *MEAS, nodes=50))),
           (("method 2 on the tube, 5.6 mm fed over the rim (`method2_rim_feed.yaml`)",
