@@ -12,8 +12,10 @@ by a balance the code does not use to make it (issue 44, item 4):
   and the hold's forces), times the wall's saved velocity, integrated over the frames.
 
 Each guard fails when its figure is a few percent off (the defects planted for the note: the
-rest rate x1.05, the release force x0.97, the moved body's work dropped). Small meshes
-(N <= 32); the runs of a module share one compiled step.
+rest rate x1.05, the release force x0.97, the moved body's work dropped). All of them are in
+the quick suite, so that the quick loop catches those defects: small meshes (N <= 32), the
+runs at N = 20 sharing one compiled step; each test's runs take under 15 s on one core
+(``pytest tests/test_guards.py --durations=0``, compilation cache cold).
 """
 
 from __future__ import annotations
@@ -216,7 +218,6 @@ def ramp(tmp_path_factory):
         return err.partial
 
 
-@pytest.mark.slow
 def test_the_release_force_of_a_force_ramp_against_its_closed_form(ramp):
     """``release_force`` (the applied force at the last saved frame below the threshold speed)
     against eta v_threshold: the ramp's step per frame (0.07 N, 0.6%) below it, the sheet's drag
@@ -275,7 +276,6 @@ def tube_run(tmp_path_factory):
     return res
 
 
-@pytest.mark.slow
 def test_energy_balance_with_a_moving_held_body(tube_run):
     """W_clamp + W_ball + W_bodies - (change of elastic and penalty energy) - friction and drag
     dissipation, from the saved accumulators: below 1% of the work (measured 1.2e-3, load
