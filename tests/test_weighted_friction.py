@@ -17,8 +17,8 @@ from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout
 from dynslip.physics.friction import soft_threshold, weighted_form
 from dynslip.physics.sheet import SheetModel, make_mesh
-from helpers import dense_blocks
-from test_newton import MODEL, MODES, WEAK, N, _args, _increment, _state, residual_jacobian
+from helpers import dense_blocks, increment_args
+from test_newton import MODEL, MODES, WEAK, N, _increment, _state, residual_jacobian
 
 C, EPS = 2.0, 0.3  # threshold and smoothing: e = 0.261, a wide band to sample
 
@@ -74,7 +74,7 @@ def test_weighted_newton_ends_on_the_laws_own_root(modes):
     iterations: 11 against 12 here; the let-go path's counts are in docs/speed.md)."""
     layout = Layout(N, 1)
     y0 = _state(layout, seed=3)
-    args = _args(WEAK, *modes)
+    args = increment_args(WEAK, *modes)
     y_law, ok, it_law = _solve(layout, y0, args)
     assert ok
     y_w, ok_w, it_w = _solve(layout, y0, args, weight=1e3)
@@ -102,7 +102,7 @@ def test_weighted_node_force_jacobian_equals_jacfwd():
     slope: :func:`test_weighted_form_is_continuously_differentiable_across_the_band`)."""
     layout = Layout(N, 1)
     y0 = _state(layout)
-    inc, q = _weighted(_increment(layout, y0, _args(WEAK, *MODES[0]), 0.5),
+    inc, q = _weighted(_increment(layout, y0, increment_args(WEAK, *MODES[0]), 0.5),
                        1e3)
     g = 5.0 * nt.forces(MODEL, q, inc.zb0)[0]
     idx = jnp.arange(N)
@@ -133,7 +133,7 @@ def test_weighted_blocks_equal_jacfwd(modes):
     derivative included) is jacfwd of that residual, to rounding."""
     layout = Layout(N, 1)
     y0 = _state(layout)
-    inc, q = _weighted(_increment(layout, y0, _args(WEAK, *modes), 0.5), 1e3)
+    inc, q = _weighted(_increment(layout, y0, increment_args(WEAK, *modes), 0.5), 1e3)
     zb = inc.zb0 + 1e-3
     jac, _ = residual_jacobian(inc, q, zb)
     blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
