@@ -402,13 +402,14 @@ def load_data(tmp, data: dict, name: str, **sets):
     return api.load(path, set=sets or None)
 
 
-def run_kept(scenario):
-    """``api.run``, and where the run ends without an answer (a ``ComputationError``: the
-    verdict unknown, the ball run away) what it computed, which is kept."""
+def run_kept(scenario, **kw):
+    """``api.run`` (its keywords in ``kw``), and where the run ends without an answer (a
+    ``ComputationError``: the verdict unknown, the ball run away) what it computed, which is
+    kept."""
     from dynslip import api
 
     try:
-        return api.run(scenario)
+        return api.run(scenario, **kw)
     except api.ComputationError as err:
         return err.partial
 

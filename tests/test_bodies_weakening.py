@@ -24,12 +24,11 @@ from dynslip.physics.bodies.held import Held, held_frame, n_memory
 from dynslip.physics.field import N_ACC, Layout, heal
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, Duration, Protocol, Stage
+from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
 from helpers import check_newton_matrix
 from test_bodies_friction import _args, _small_state
+from test_bodies_friction import _run as _pulled_over_bodies
 
 N = 16
 RIM, PRE, TAU, EPS = 2.54, 1.05, 0.1, 1e-3
@@ -67,24 +66,7 @@ WEAK = _model(_weakening(MU_POST, MU_K), _coulomb(MU_RING))
 
 
 def _run(model, heal_rate=0.0, solver="load_step"):
-    stages = (
-        Stage("push", Duration(duration=0.5 / 0.2), clamp_vz=-0.2),
-        Stage("hold", Duration(duration=2.0)),
-    )
-    protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
-    res = simulate(
-        model,
-        protocol,
-        friction=_coulomb(0.5),
-        eps=EPS,
-        drag=TAU,
-        ball_drag=TAU * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=0.0,
-        settings=Settings(solver=solver, save_interval=0.5, heal_rate=heal_rate),
-    )
-    assert res.failed is None, res.failed
-    return res
+    return _pulled_over_bodies(model, solver, hold=2.0, depth=-0.5, heal_rate=heal_rate)
 
 
 @pytest.fixture(scope="module")
