@@ -16,8 +16,7 @@ from dynslip.physics import newton_matrix as nm
 from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout
 from dynslip.physics.friction import soft_threshold, weighted_form
-from dynslip.physics.sheet import SheetModel, make_mesh
-from helpers import dense_blocks, increment_args
+from helpers import dense_blocks, increment_args, small_model
 from test_newton import MODEL, MODES, WEAK, N, _increment, _state, residual_jacobian
 
 C, EPS = 2.0, 0.3  # threshold and smoothing: e = 0.261, a wide band to sample
@@ -148,13 +147,13 @@ def _pinched():
     from dynslip.physics.bodies import Torus
     from dynslip.physics.bodies.held import Held
     from dynslip.physics.friction import Coulomb
-    from test_held_friction_jacobian import MAT, NS, PEN, ZB, _setup
+    from test_held_friction_jacobian import NS, ZB, _setup
 
     args, inc, q, zb = _setup(MODES[0][0], memory=False)
     x1 = np.asarray(q[1]) + np.array([0.0, ZB])
     ring = Torus(ring_radius=float(x1[0]), minor_radius=0.3, centre_z=float(x1[1]) + 0.2995)
-    model = SheetModel(make_mesh(NS, 2.4), MAT, PEN,
-                       bodies=(Held(ring, Coulomb(mu=jnp.asarray(0.7), eps=jnp.asarray(1e-3))),))
+    coulomb = Coulomb(mu=jnp.asarray(0.7), eps=jnp.asarray(1e-3))
+    model = small_model(NS, bodies=(Held(ring, coulomb),))
     return model, args, inc, q, zb
 
 
