@@ -12,10 +12,12 @@ by a balance the code does not use to make it (issue 44, item 4):
   and the hold's forces), times the wall's saved velocity, integrated over the frames.
 
 Each guard fails when its figure is a few percent off (the defects planted for the note: the
-rest rate x1.05, the release force x0.97, the moved body's work dropped). All of them are in
+rest rate x1.05, the release force x0.97 (the peak's or the force ramp's), the moved body's
+work dropped from its accumulator or from the residual the summary reports). All of them are in
 the quick suite, so that the quick loop catches those defects: small meshes (N <= 32), the
-runs at N = 20 sharing one compiled step; each test's runs take under 15 s on one core
-(``pytest tests/test_guards.py --durations=0``, compilation cache cold).
+runs at N = 20 sharing one compiled step. Measured with ``pytest tests/test_guards.py
+--durations=0`` and an empty compilation cache, the two cores busy with other work: each
+test's runs 7-13 s in the module, 15-21 s alone.
 """
 
 from __future__ import annotations
