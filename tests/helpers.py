@@ -2,12 +2,17 @@
 field is prescribed (fronts, animations, comparisons and the command line are tested on it
 without running the simulator); :func:`one_line`, the check of a one-line error message;
 the Newton matrix against ``jax.jacfwd`` of the increment's residual
-(:func:`newton_matrix_and_jacfwd`)."""
+(:func:`newton_matrix_and_jacfwd`) and the small model, state and stage it is checked at
+(:func:`small_model`, :func:`draped`, :func:`increment_args`); a run of the core simulator
+(:func:`run_sheet`, :func:`push_and_hold`); scenario files written and run
+(:func:`load_data`, :func:`run_kept`, :func:`banded_tube`, :func:`capstan_tube`); a spec
+registered for one test (:func:`registered`)."""
 
 from __future__ import annotations
 
 import contextlib
 import json
+import math
 import subprocess
 import sys
 
@@ -19,6 +24,11 @@ import xarray as xr
 
 from dynslip.data.files import provenance, variable
 from dynslip.data.trajectory import FREE, SLIP_EQUATOR, SLIP_POLE, STATE_MEANINGS
+from dynslip.physics.materials import make_material
+from dynslip.physics.member import stage_args
+from dynslip.physics.protocols import CLAMP_POSITION, Duration, Stage
+from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.simulate import simulate
 
 
 def synthetic_trajectory(
@@ -289,3 +299,173 @@ def check_newton_matrix(model, friction, inc, q, zb, free_ball: bool, rel: float
     if free_ball:
         assert np.abs(ref[~mask]).max() > 1e3 * tol
     return ref
+
+
+# ------------------------------------------- the small model the Newton matrix is checked at
+
+
+def small_model(n: int = 9, bodies: tuple = ()) -> SheetModel:
+    """A small Gent sheet (jm 50; ``n`` nodes out to 2.4 R, the contact penalty k = 1e4,
+    w = 1e-3) with the held ``bodies``."""
+    return SheetModel(
+        make_mesh(n, 2.4),
+        make_material("gent", jm=50.0),
+        Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)),
+        bodies=bodies,
+    )
+
+
+def draped(rbar, rng):
+    """A sheet draped over the ball (nodes near its surface, some pressed in), its heights
+    perturbed by ``rng``: ``(rho, z)`` at the nodes ``rbar``, numpy arrays."""
+    rbar = np.asarray(rbar)
+    th = np.minimum(1.05 * rbar, 1.5)
+    rho = 0.999 * np.sin(th) + 0.1 * rbar
+    z = 0.999 * np.cos(th) + 0.01 * rng.normal(size=rbar.size)
+    rho[0] = 0.0
+    return rho, z
+
+
+def increment_args(friction, ball_mode, clamp_mode=CLAMP_POSITION, **stage):
+    """The stage arguments of a 5 s stage (the clamp moving down at 0.2 R/s in
+    ``clamp_mode``, the ball in ``ball_mode``, its force ramped to 0; more of the stage's
+    fields in ``stage``) at time 0, the ball on a support at -0.01 R."""
+    st = Stage(
+        "s",
+        Duration(duration=5.0),
+        clamp_vz=-0.2,
+        ball_mode=ball_mode,
+        clamp_mode=clamp_mode,
+        ball_force_end=0.0,
+        **stage,
+    )
+    return stage_args(
+        st,
+        0.0,
+        0.0,
+        0.3,
+        (0.1, -0.2),
+        friction,
+        1e-3,
+        0.1,
+        0.4,
+        0.05,
+        support_z=-0.01,
+        support_k=1e3,
+    )
+
+
+# ------------------------------------------------------------------ runs of the core simulator
+
+
+def push_and_hold(z_sheet: float, depth: float, speed: float = 0.2, hold: float = 4.0):
+    """The stages of a push: the clamp from ``z_sheet`` down to ``depth`` at ``speed`` (R/s),
+    then held for ``hold`` s."""
+    return (
+        Stage("push", Duration(duration=(z_sheet - depth) / speed), clamp_vz=-speed),
+        Stage("hold", Duration(duration=hold)),
+    )
+
+
+def run_sheet(model, protocol, friction, settings, *, pre, z_sheet, tau=0.1, eps=1e-3, **kw):
+    """``simulate`` with the sheet's drag time ``tau`` (s) and the ball's drag that of the sheet
+    over the ball's area (4 pi tau), the friction smoothed over ``eps``; more of ``simulate``'s
+    keywords in ``kw``. The run must not fail."""
+    res = simulate(
+        model,
+        protocol,
+        friction=friction,
+        eps=eps,
+        drag=tau,
+        ball_drag=tau * 4 * math.pi,
+        pre_stretch=pre,
+        z_sheet=z_sheet,
+        settings=settings,
+        **kw,
+    )
+    assert res.failed is None, res.failed
+    return res
+
+
+# --------------------------------------------------------------- scenario files, written and run
+
+
+def load_data(tmp, data: dict, name: str, **sets):
+    """The scenario ``data`` written to ``tmp/<name>.yaml`` and loaded, with the ``--set``
+    values ``sets`` (dotted names as keywords: ``**{"numerics.nodes": 12}``)."""
+    import yaml
+
+    from dynslip import api
+
+    path = tmp / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return api.load(path, set=sets or None)
+
+
+def run_kept(scenario, **kw):
+    """``api.run`` (its keywords in ``kw``), and where the run ends without an answer (a
+    ``ComputationError``: the verdict unknown, the ball run away) what it computed, which is
+    kept."""
+    from dynslip import api
+
+    try:
+        return api.run(scenario, **kw)
+    except api.ComputationError as err:
+        return err.partial
+
+
+def banded_tube(name, *, mu, rim_radius_mm, pre_stretch, tube, grip, stages, numerics, **physics):
+    """A forming scenario's data: a Gent sheet (jm 50; Coulomb ``mu`` on the ball) over the rim
+    of a ``tube`` (its wall's sizes and friction, mm) whose wall is at ``rim_radius_mm``, held
+    on its outer wall by a band of ``grip`` (N/mm); more ``physics`` fields as keywords."""
+    return {
+        "name": name,
+        "kind": "forming",
+        "physics": {
+            "material": {"model": "gent", "jm": 50.0},
+            "friction": {"law": "coulomb", "mu": mu},
+            "rim_radius_mm": rim_radius_mm,
+            "pre_stretch": pre_stretch,
+            **physics,
+            "tube": tube,
+            "band_grip_N_per_mm": grip,
+            "stages": stages,
+        },
+        "numerics": numerics,
+    }
+
+
+def capstan_tube(name: str, tube_mu: float, save_interval_s: float, grip: float = 0.005,
+                 wall_radius_mm: float = 48.0) -> dict:
+    """The sheet over a tube's rounded rim (wall 16 mm: a half torus of radius 0.4 R, resolved
+    at N = 32; Coulomb ``tube_mu`` on it), folded up its outer wall to a band of ``grip`` (N/mm);
+    in the lab frame the tube is pushed down over the held ball at 0.4 mm/s for 66 s, which
+    draws the sheet inward over the rim. A slow push and a short drag time: the sheet's drag on
+    the nodes resting on the rim (eta v, relative to the ball) is a regularisation's share of
+    the pull (docs/bodies.md)."""
+    return banded_tube(
+        name,
+        mu=0.5,
+        rim_radius_mm=wall_radius_mm,
+        pre_stretch=0.8,
+        sheet_gap_mm=1.0,
+        tube={"wall_mm": 16.0, "height_mm": 80.0, "rim_gap_mm": 1.0, "mu": tube_mu},
+        grip=grip,
+        stages=[
+            {"name": "fold", "clamp_to_z_mm": 36.0, "clamp_speed_mm_s": 4.0},
+            {"name": "push", "clamp": "band", "ball": "hold", "tube_velocity_mm_s": -0.4,
+             "duration_s": 66.0},
+        ],
+        numerics={"nodes": 32, "save_interval_s": save_interval_s, "drag_time_s": 0.02},
+    )
+
+
+@contextlib.contextmanager
+def registered(registry, spec):
+    """``spec`` registered in ``registry`` (a schema's tagged union: ``FRICTION_SPECS``,
+    ``STOP_SPECS``, ``BODY_KINDS``) for the block, unregistered after it; yields ``spec``."""
+    registry.register(spec)
+    try:
+        yield spec
+    finally:
+        registry.unregister(spec)

@@ -25,8 +25,8 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material, relaxed_tensions
 from dynslip.physics.protocols import CLAMP_BAND, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh
-from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
+from helpers import run_sheet
 from test_forming import residual
 
 N = 32
@@ -52,19 +52,9 @@ def _run(solver="load_step"):
         Stage("push", Duration(duration=PUSH_S), clamp_mode=CLAMP_BAND, ball_vz=BALL_V),
     )
     protocol = Protocol(stages, clamp_rho0=R0 + A, clamp_z0=0.0, ball_z0=-1.05)
-    res = simulate(
-        MODEL,
-        protocol,
-        friction=Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(EPS)),
-        eps=EPS,
-        drag=TAU,
-        ball_drag=TAU * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=0.0,
-        settings=Settings(solver=solver, save_interval=0.25),
-    )
-    assert res.failed is None, res.failed
-    return res
+    friction = Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(EPS))
+    settings = Settings(solver=solver, save_interval=0.25)
+    return run_sheet(MODEL, protocol, friction, settings, pre=PRE, z_sheet=0.0, tau=TAU, eps=EPS)
 
 
 @pytest.fixture(scope="module")

@@ -27,11 +27,10 @@ from dynslip.physics.bodies.apparatus import bottle
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import Duration, Protocol, Stage
+from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
-from helpers import run_refused, set_field
+from helpers import push_and_hold, run_refused, run_sheet, set_field
 
 # the quick loop (-m 'not slow') leaves these out: each test runs the sheet over the bottle (N = 24)
 pytestmark = pytest.mark.slow
@@ -103,24 +102,11 @@ RING_AT = Cylinder(**{**RING, "z_bottom": RING["z_bottom"] + ZB, "z_top": RING["
 
 
 def _run(model, z_sheet, ball_z0, depth, speed=0.2, hold=4.0):
-    stages = (
-        Stage("push", Duration(duration=(z_sheet - depth) / speed), clamp_vz=-speed),
-        Stage("hold", Duration(duration=hold)),
-    )
+    stages = push_and_hold(z_sheet, depth, speed, hold)
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
-    res = simulate(
-        model,
-        protocol,
-        friction=Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3)),
-        eps=1e-3,
-        drag=TAU,
-        ball_drag=TAU * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=z_sheet,
-        settings=Settings(solver="load_step", save_interval=1.0),
-    )
-    assert res.failed is None, res.failed
-    return res
+    friction = Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3))
+    settings = Settings(solver="load_step", save_interval=1.0)
+    return run_sheet(model, protocol, friction, settings, pre=PRE, z_sheet=z_sheet, tau=TAU)
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,6 @@ Small meshes (N = 32, 9); one model per body set, compiled once.
 
 from __future__ import annotations
 
-import math
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -23,19 +21,21 @@ from dynslip.physics.bodies import Cylinder, Torus
 from dynslip.physics.bodies.held import Held, free_ball_velocity
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.materials import make_material
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
-    CLAMP_POSITION,
-    Duration,
     Protocol,
-    Stage,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
-from helpers import check_newton_matrix
+from helpers import (
+    check_newton_matrix,
+    draped,
+    increment_args,
+    push_and_hold,
+    run_sheet,
+    small_model,
+)
 from test_forming import residual
 
 N = 32
@@ -65,25 +65,15 @@ FRICTIONLESS = _model(None, None)
 SPEED = 0.2
 
 
-def _run(model, solver="load_step", hold=4.0):
-    stages = (
-        Stage("push", Duration(duration=1.5 / SPEED), clamp_vz=-SPEED),
-        Stage("hold", Duration(duration=hold)),
+def _run(model, solver="load_step", hold=4.0, depth=-1.5, **settings):
+    """The flat sheet pulled down over the held bodies to ``depth`` (R) at SPEED and held for
+    ``hold`` s, the ball far above; frames every 0.5 s (more Settings in ``settings``)."""
+    protocol = Protocol(
+        push_and_hold(0.0, depth, SPEED, hold), clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0
     )
-    protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
-    res = simulate(
-        model,
-        protocol,
-        friction=_coulomb(0.5),
-        eps=EPS,
-        drag=TAU,
-        ball_drag=TAU * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=0.0,
-        settings=Settings(solver=solver, save_interval=0.5),
-    )
-    assert res.failed is None, res.failed
-    return res
+    settings = Settings(solver=solver, save_interval=0.5, **settings)
+    return run_sheet(model, protocol, _coulomb(0.5), settings, pre=PRE, z_sheet=0.0, tau=TAU,
+                     eps=EPS)
 
 
 @pytest.fixture(scope="module")
@@ -189,48 +179,17 @@ def test_held_body_law_may_carry_a_slip_distance():
 # ----------------------------------------------------------------------------- the free ball
 
 NS = 9
-SMALL = SheetModel(
-    make_mesh(NS, 2.4),
-    MAT,
-    PEN,
-    bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2), _coulomb(0.7)),),
+SMALL = small_model(
+    NS, bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2), _coulomb(0.7)),)
 )
 
 
 def _small_state():
-    rng = np.random.default_rng(1)
-    rbar = np.asarray(SMALL.mesh.rbar)
-    th = np.minimum(1.05 * rbar, 1.5)
-    rho = 0.999 * np.sin(th) + 0.1 * rbar
-    z = 0.999 * np.cos(th) + 0.01 * rng.normal(size=NS)
-    rho[0] = 0.0
-    return rho, z
+    return draped(SMALL.mesh.rbar, np.random.default_rng(1))
 
 
 def _args(ball_mode):
-    stage = Stage(
-        "s",
-        Duration(duration=5.0),
-        clamp_vz=-0.2,
-        ball_mode=ball_mode,
-        clamp_mode=CLAMP_POSITION,
-        ball_force_end=0.0,
-        ball_vz=0.05,
-    )
-    return stage_args(
-        stage,
-        0.0,
-        0.0,
-        0.3,
-        (0.1, -0.2),
-        _coulomb(0.5),
-        1e-3,
-        0.1,
-        0.4,
-        0.05,
-        support_z=-0.01,
-        support_k=1e3,
-    )
+    return increment_args(_coulomb(0.5), ball_mode, ball_vz=0.05)
 
 
 @pytest.mark.slow

@@ -9,8 +9,6 @@ derivative of its residual. Small meshes (N = 24, 9); one model per body set, co
 
 from __future__ import annotations
 
-import math
-
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -19,19 +17,21 @@ from dynslip.physics import increment as ni
 from dynslip.physics.bodies import Cylinder, Sphere, Torus
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
-    CLAMP_POSITION,
-    Duration,
     Protocol,
-    Stage,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
-from helpers import newton_matrix_and_jacfwd
+from helpers import (
+    draped,
+    increment_args,
+    newton_matrix_and_jacfwd,
+    push_and_hold,
+    run_sheet,
+    small_model,
+)
 from test_forming import residual
 
 N = 24
@@ -50,24 +50,11 @@ WORLD_MODEL = SheetModel(make_mesh(N, RIM / PRE), MAT, PEN, bodies=WORLD)
 
 
 def _run(model, z_sheet, ball_z0, depth, solver="load_step", speed=0.2, hold=4.0, mu=0.5):
-    stages = (
-        Stage("push", Duration(duration=(z_sheet - depth) / speed), clamp_vz=-speed),
-        Stage("hold", Duration(duration=hold)),
-    )
+    stages = push_and_hold(z_sheet, depth, speed, hold)
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
-    res = simulate(
-        model,
-        protocol,
-        friction=Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(1e-3)),
-        eps=1e-3,
-        drag=TAU,
-        ball_drag=TAU * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=z_sheet,
-        settings=Settings(solver=solver, save_interval=1.0),
-    )
-    assert res.failed is None, res.failed
-    return res
+    friction = Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(1e-3))
+    settings = Settings(solver=solver, save_interval=1.0)
+    return run_sheet(model, protocol, friction, settings, pre=PRE, z_sheet=z_sheet, tau=TAU)
 
 
 def _end(res):
@@ -171,9 +158,7 @@ def test_energy_balance_with_several_bodies(world_run):
 # ----------------------------------------------------------------------------- Newton's matrix
 
 NS = 9
-SMALL = SheetModel(
-    make_mesh(NS, 2.4), MAT, PEN, bodies=(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),)
-)
+SMALL = small_model(NS, bodies=(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),))
 
 
 @pytest.mark.slow
@@ -183,36 +168,10 @@ def test_newton_blocks_with_a_held_body_equal_jacfwd(ball_mode):
     enters the ball's rate) is the derivative of the residual: exactly with the ball held;
     with the ball under force, all but the pinned edge's coupling to nodes other than its
     neighbour (left out, docs/bodies.md)."""
-    rng = np.random.default_rng(1)
-    rbar = np.asarray(SMALL.mesh.rbar)
-    th = np.minimum(1.05 * rbar, 1.5)
-    rho = 0.999 * np.sin(th) + 0.1 * rbar
-    z = 0.999 * np.cos(th) + 0.01 * rng.normal(size=NS)
-    rho[0] = 0.0
+    rho, z = draped(SMALL.mesh.rbar, np.random.default_rng(1))
     x = jnp.stack([jnp.asarray(rho), jnp.asarray(z)], -1)
     assert np.any(np.asarray(SMALL.bodies[0].distance(x)) < 0)  # some nodes press on the torus
-    stage = Stage(
-        "s",
-        Duration(duration=5.0),
-        clamp_vz=-0.2,
-        ball_mode=ball_mode,
-        clamp_mode=CLAMP_POSITION,
-        ball_force_end=0.0,
-    )
-    args = stage_args(
-        stage,
-        0.0,
-        0.0,
-        0.3,
-        (0.1, -0.2),
-        Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3)),
-        1e-3,
-        0.1,
-        0.4,
-        0.05,
-        support_z=-0.01,
-        support_k=1e3,
-    )
+    args = increment_args(Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3)), ball_mode)
     q = jnp.stack([jnp.asarray(rho), jnp.asarray(z) - 0.02], axis=1)
     inc = ni.Increment(
         q0=q, zb0=jnp.asarray(0.02), delta0=None, t1=jnp.asarray(0.3), h=jnp.asarray(0.3), args=args

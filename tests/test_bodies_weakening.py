@@ -19,25 +19,31 @@ import numpy as np
 import pytest
 
 from dynslip.physics import increment as ni
-from dynslip.physics.bodies import Cylinder, Torus
+from dynslip.physics.bodies import Torus
 from dynslip.physics.bodies.held import Held, held_frame, n_memory
 from dynslip.physics.field import N_ACC, Layout, heal
 from dynslip.physics.friction import Coulomb, SlipWeakening
-from dynslip.physics.materials import make_material
-from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, Duration, Protocol, Stage
-from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
-from helpers import check_newton_matrix
-from test_bodies_friction import _args, _small_state
+from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD
+from dynslip.physics.sheet import SheetModel, make_mesh, penalty_pressure
+from helpers import check_newton_matrix, small_model
+from test_bodies_friction import (
+    EPS,
+    MAT,
+    MU_POST,
+    MU_RING,
+    PEN,
+    POST,
+    PRE,
+    RIM,
+    RING,
+    TAU,
+    _args,
+    _small_state,
+)
+from test_bodies_friction import _run as _pulled_over_bodies
 
+# test_bodies_friction's post and ring, sheet and drag: the same bodies with other laws
 N = 16
-RIM, PRE, TAU, EPS = 2.54, 1.05, 0.1, 1e-3
-MAT = make_material("gent", jm=50.0)
-PEN = Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
-POST = Cylinder(radius=1.0, z_bottom=-3.0, z_top=0.0, edge_radius=0.25)
-RING = Torus(ring_radius=1.75, minor_radius=0.35, centre_z=-0.7)
-MU_POST, MU_RING = 0.15, 0.6
 MU_K = 0.05  # the post's kinetic coefficient in the weakening run
 D_C = 0.005  # R: the post's weakening length (the push slides the sheet about 0.02 R on it)
 HEAL = 1e-3  # R/s: the push slides at about 0.1 R/s; after the hold the sheet has stopped
@@ -67,24 +73,7 @@ WEAK = _model(_weakening(MU_POST, MU_K), _coulomb(MU_RING))
 
 
 def _run(model, heal_rate=0.0, solver="load_step"):
-    stages = (
-        Stage("push", Duration(duration=0.5 / 0.2), clamp_vz=-0.2),
-        Stage("hold", Duration(duration=2.0)),
-    )
-    protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0)
-    res = simulate(
-        model,
-        protocol,
-        friction=_coulomb(0.5),
-        eps=EPS,
-        drag=TAU,
-        ball_drag=TAU * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=0.0,
-        settings=Settings(solver=solver, save_interval=0.5, heal_rate=heal_rate),
-    )
-    assert res.failed is None, res.failed
-    return res
+    return _pulled_over_bodies(model, solver, hold=2.0, depth=-0.5, heal_rate=heal_rate)
 
 
 @pytest.fixture(scope="module")
@@ -184,9 +173,8 @@ def test_dragged_node_closed_form():
     (a = (G - mu_s N)/(eta A), b = (mu_s - mu_k) N/(d_c eta A)); and the vector field's rate is
     that right-hand side."""
     mu_s, mu_k, d_c = 0.6, 0.2, 0.01
-    model = SheetModel(make_mesh(9, 2.4), MAT, PEN,
-                       bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),
-                                    SlipWeakening(mu_s=_f(mu_s), mu_k=_f(mu_k), d_c=_f(d_c))),))
+    model = small_model(bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),
+                                     SlipWeakening(mu_s=_f(mu_s), mu_k=_f(mu_k), d_c=_f(d_c))),))
     x = jnp.asarray([[1.4, 0.2 + 0.3 - 5e-4]])  # one node pressed into the top of the tube
     area, drag = jnp.asarray([0.05]), 0.1
     tangent = model.bodies[0].body.project(x, 0.0).tangent
@@ -237,9 +225,8 @@ def test_healing_resets_the_held_slip_distance():
     the body is reset where the node is off the body, or slips no faster than the heal rate
     (0: none; then the median speed: the slower half), kept elsewhere; the rest of the state is
     untouched."""
-    model = SheetModel(make_mesh(9, 2.4), MAT, PEN,
-                       bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),
-                                    _weakening(0.7, 0.0, 0.01)),))
+    model = small_model(bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),
+                                     _weakening(0.7, 0.0, 0.01)),))
     layout = Layout(9, 0, N_ACC, 0, n_memory(model.bodies))
     rho, z = _small_state()
     args = _args(BALL_HOLD)
@@ -273,9 +260,8 @@ def test_newton_blocks_with_held_weakening_equal_jacfwd(ball_mode):
     (as with Coulomb, test_bodies_friction.py).
     The slip distances matter: the residual differs from the one at delta0 = 0."""
     ns = 9
-    model = SheetModel(make_mesh(ns, 2.4), MAT, PEN,
-                       bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),
-                                    _weakening(0.9, 0.0, 0.01)),))
+    model = small_model(ns, bodies=(Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2),
+                                         _weakening(0.9, 0.0, 0.01)),))
     rho, z = _small_state()
     args = _args(ball_mode)
     q = jnp.stack([jnp.asarray(rho), jnp.asarray(z) - 0.02], axis=1)

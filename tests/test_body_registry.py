@@ -19,6 +19,7 @@ from dynslip.api import run
 from dynslip.errors import InputError
 from dynslip.schema.base import validate_data
 from dynslip.schema.bodies import BODY_KINDS, ShapeSpec
+from helpers import registered
 
 INNER_MM, OUTER_MM, Z_MM = 40.0, 76.0, -8.0
 R = 20.0  # ball_radius_mm at the defaults
@@ -40,9 +41,8 @@ class WasherSpec(ShapeSpec):
 
 @pytest.fixture
 def washer():
-    BODY_KINDS.register(WasherSpec)
-    yield WasherSpec
-    BODY_KINDS.unregister(WasherSpec)
+    with registered(BODY_KINDS, WasherSpec):
+        yield WasherSpec
 
 
 def _scenario(body: dict) -> dict:

@@ -18,7 +18,6 @@ from dynslip.physics import conditions as bc
 from dynslip.physics import increment as ni
 from dynslip.physics.field import Layout, StageArgs, evaluate
 from dynslip.physics.friction import Coulomb
-from dynslip.physics.materials import make_material
 from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
@@ -29,13 +28,12 @@ from dynslip.physics.protocols import (
     Duration,
     Stage,
 )
-from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
+from dynslip.physics.sheet import Penalty, penalty_pressure
 from dynslip.physics.terms import forces
+from helpers import small_model
 
 N = 9
-MODEL = SheetModel(
-    make_mesh(N, 2.4), make_material("gent", jm=50.0), Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
-)
+MODEL = small_model(N)
 LAYOUT = Layout(N)
 T = 0.7  # inside the stage's ramp (t0 = 0, ramp 2 s)
 CLAMPS = (CLAMP_POSITION, CLAMP_FORCE, CLAMP_BAND)

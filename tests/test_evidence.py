@@ -17,27 +17,17 @@ from conftest import SCENARIOS, assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
 from dynslip.schema.base import load
+from helpers import run_sheet
 from test_forming import MAT, NODES, PRE, RIM, Z0, push_protocol
 
 
 def _penalty_run(k):
     model = SheetModel(make_mesh(NODES, RIM / PRE), MAT, Penalty(jnp.asarray(k), jnp.asarray(1e-3)))
-    res = simulate(
-        model,
-        push_protocol(),
-        friction=Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3)),
-        eps=1e-3,
-        drag=0.1,
-        ball_drag=0.1 * 4 * math.pi,
-        pre_stretch=PRE,
-        z_sheet=Z0,
-        settings=Settings(rtol=1e-6, atol=1e-8, save_interval=1.0),
-    )
-    assert res.failed is None, res.failed
-    return res.frames[-1]
+    friction = Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3))
+    settings = Settings(rtol=1e-6, atol=1e-8, save_interval=1.0)
+    return run_sheet(model, push_protocol(), friction, settings, pre=PRE, z_sheet=Z0).frames[-1]
 
 
 @pytest.mark.slow

@@ -25,6 +25,7 @@ from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.simulate import simulate
 from dynslip.physics.solvers import Settings
 from dynslip.schema.base import validate_data
+from helpers import run_sheet
 
 NODES = 40
 RIM = 2.54
@@ -422,18 +423,9 @@ def test_mesh_convergence_of_the_end_state():
         model = SheetModel(
             make_mesh(n, RIM / PRE), MAT, Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
         )
-        res = simulate(
-            model,
-            push_protocol(),
-            friction=Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3)),
-            eps=1e-3,
-            drag=0.1,
-            ball_drag=0.1 * 4 * math.pi,
-            pre_stretch=PRE,
-            z_sheet=Z0,
-            settings=Settings(save_interval=1.0),
-        )
-        assert res.failed is None
+        friction = Coulomb(mu=jnp.asarray(0.8), eps=jnp.asarray(1e-3))
+        res = run_sheet(model, push_protocol(), friction, Settings(save_interval=1.0), pre=PRE,
+                        z_sheet=Z0)
         step = (n - 1) // 16
         thetas.append(np.asarray(res.frames[-1]["theta"])[::step])
     both = np.isfinite(thetas[0]) & np.isfinite(thetas[1]) & np.isfinite(thetas[2])

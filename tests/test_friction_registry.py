@@ -15,6 +15,7 @@ from dynslip.data.trajectory import SLIP_EQUATOR, SLIP_POLE, STUCK
 from dynslip.physics.friction import AbstractFriction
 from dynslip.schema.base import validate_data
 from dynslip.schema.friction import FRICTION_SPECS, FrictionSpec
+from helpers import registered
 
 MU = 0.9
 
@@ -48,9 +49,8 @@ class ConstantMuSpec(FrictionSpec):
 
 @pytest.fixture
 def constant_mu():
-    FRICTION_SPECS.register(ConstantMuSpec)
-    yield ConstantMuSpec
-    FRICTION_SPECS.unregister(ConstantMuSpec)
+    with registered(FRICTION_SPECS, ConstantMuSpec):
+        yield ConstantMuSpec
 
 
 def _scenario(friction: dict, post_friction: dict) -> dict:

@@ -22,17 +22,13 @@ from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Torus
 from dynslip.physics.bodies.held import Held
 from dynslip.physics.friction import Coulomb, SlipWeakening
-from dynslip.physics.materials import make_material
 from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Duration, Stage
-from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.terms import forces, held_projections
-from helpers import check_newton_matrix
+from helpers import check_newton_matrix, small_model
 from test_bodies_friction import _args, _small_state
 
 NS = 9
-MAT = make_material("gent", jm=50.0)
-PEN = Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
 EPS = 1e-3
 ZB = 0.02
 
@@ -41,10 +37,8 @@ def _model():
     coulomb = Coulomb(mu=jnp.asarray(0.7), eps=jnp.asarray(EPS))
     weak = SlipWeakening(mu_s=jnp.asarray(0.9), mu_k=jnp.asarray(0.1), d_c=jnp.asarray(0.01),
                          eps=jnp.asarray(EPS))
-    return SheetModel(
-        make_mesh(NS, 2.4),
-        MAT,
-        PEN,
+    return small_model(
+        NS,
         bodies=(
             Held(Torus(ring_radius=1.4, minor_radius=0.3, centre_z=0.2), coulomb),
             # the same ring carried with the ball: at the ball's height ZB it sits where the

@@ -23,37 +23,14 @@ friction law or the tensions the run computed.
 
 from __future__ import annotations
 
-import copy
 import math
 
 import numpy as np
 import pytest
-import yaml
 
-from dynslip import api
+from helpers import capstan_tube, load_data, run_kept
 
 GRIP_N_PER_MM, WALL_RADIUS_MM = 0.005, 48.0
-CAPSTAN = {
-    "name": "capstan",
-    "kind": "forming",
-    "physics": {
-        "material": {"model": "gent", "jm": 50.0},
-        "friction": {"law": "coulomb", "mu": 0.5},
-        "rim_radius_mm": WALL_RADIUS_MM,
-        "pre_stretch": 0.8,
-        "sheet_gap_mm": 1.0,
-        "tube": {"wall_mm": 16.0, "height_mm": 80.0, "rim_gap_mm": 1.0, "mu": 0.5},
-        "band_grip_N_per_mm": GRIP_N_PER_MM,
-        "stages": [
-            {"name": "fold", "clamp_to_z_mm": 36.0, "clamp_speed_mm_s": 4.0},
-            {"name": "push", "clamp": "band", "ball": "hold", "tube_velocity_mm_s": -0.4,
-             "duration_s": 66.0},
-        ],
-    },
-    # a slow push and a short drag time: the sheet's drag on the nodes resting on the rim
-    # (eta v, relative to the ball) is a regularisation's share of the pull (docs/bodies.md)
-    "numerics": {"nodes": 32, "save_interval_s": 1.0, "drag_time_s": 0.02},
-}
 #: the bisection's bracket and width; the tolerance on mu_c: the capstan ratio at N = 32 agrees
 #: with exp(mu phi) to 3% (tests/test_bodies_band.py), ln(1.03) / phi (2.2 rad) = 0.0135 in mu,
 #: plus the bracket's half-width, rounded up
@@ -62,14 +39,10 @@ TOL = 0.02
 
 
 def _run(tmp, mu):
-    data = copy.deepcopy(CAPSTAN)
-    data["physics"]["tube"]["mu"] = float(mu)
-    path = tmp / f"capstan_{mu:.6f}.yaml"
-    path.write_text(yaml.safe_dump(data))
-    try:
-        res = api.run(api.load(path))
-    except api.ComputationError as err:  # the rim unresolved or the like: what ran is kept
-        res = err.partial
+    """The capstan's path (helpers.capstan_tube, frames every 1 s) with ``mu`` on the rim; where
+    its verdict has no answer (the rim unresolved or the like) what ran is kept."""
+    data = capstan_tube("capstan", float(mu), 1.0, GRIP_N_PER_MM, WALL_RADIUS_MM)
+    res = run_kept(load_data(tmp, data, f"capstan_{mu:.6f}"))
     ds = res.trajectory
     assert res.summary["status"] == "ok", res.summary.get("failure")
     return ds

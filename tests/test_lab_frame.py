@@ -17,31 +17,27 @@ import yaml
 from dynslip import api
 from dynslip.analysis.summary import summarize, unknown_reasons
 from dynslip.errors import ComputationError
+from helpers import banded_tube, load_data, run_kept
 
 ROOT = Path(__file__).resolve().parents[1]
 
 # the sheet over the tube's rim and banded on its outer wall (method2_band.yaml, shortened):
 # the tube pushed 20 mm down over the ball, held, raised 5 mm
-BAND = {
-    "name": "lab frame",
-    "kind": "forming",
-    "physics": {
-        "material": {"model": "gent", "jm": 50.0},
-        "friction": {"law": "coulomb", "mu": 1.0},
-        "rim_radius_mm": 50.8,
-        "pre_stretch": 0.864,
-        "tube": {"wall_mm": 3.0, "height_mm": 101.6, "rim_gap_mm": 0.2, "mu": 0.5},
-        "band_grip_N_per_mm": 0.1,
-        "stages": [
-            {"name": "fold", "clamp_to_z_mm": 25.6, "clamp_speed_mm_s": 2.0},
-            {"name": "push_down", "clamp": "band", "tube_velocity_mm_s": -2.0,
-             "duration_s": 10.0},
-            {"name": "hold", "clamp": "band", "duration_s": 2.0},
-            {"name": "raise", "clamp": "band", "tube_velocity_mm_s": 1.0, "duration_s": 5.0},
-        ],
-    },
-    "numerics": {"nodes": 30, "save_interval_s": 1.0},
-}
+BAND = banded_tube(
+    "lab frame",
+    mu=1.0,
+    rim_radius_mm=50.8,
+    pre_stretch=0.864,
+    tube={"wall_mm": 3.0, "height_mm": 101.6, "rim_gap_mm": 0.2, "mu": 0.5},
+    grip=0.1,
+    stages=[
+        {"name": "fold", "clamp_to_z_mm": 25.6, "clamp_speed_mm_s": 2.0},
+        {"name": "push_down", "clamp": "band", "tube_velocity_mm_s": -2.0, "duration_s": 10.0},
+        {"name": "hold", "clamp": "band", "duration_s": 2.0},
+        {"name": "raise", "clamp": "band", "tube_velocity_mm_s": 1.0, "duration_s": 5.0},
+    ],
+    numerics={"nodes": 30, "save_interval_s": 1.0},
+)
 #: increments small enough that the two frames' paths agree to round-off: load stepping picks
 #: its increments by Newton's iteration count, which differs between the frames, and its
 #: first-order error (2e-4 R at the default bound of 20 drag times) then differs too
@@ -58,19 +54,13 @@ def _trajectory(scn):
         return err.partial.trajectory
 
 
-def _scenario(tmp_path, data, name="s.yaml", **sets):
-    path = tmp_path / name
-    path.write_text(yaml.safe_dump(data))
-    return api.load(path, set=sets or None)
-
-
 @pytest.mark.slow
 def test_the_lab_frame_and_the_tubes_frame_agree_while_the_ball_is_held(tmp_path):
     """The model is Galilean: the sheet's drag is relative to the ball, friction relative to
     each body. So moving the tube down (lab) or the ball and the bottle up (the tube's frame)
     gives one path, shifted by the ball's height in the tube's frame."""
-    lab = _trajectory(_scenario(tmp_path, BAND, **FINE))
-    tube = _trajectory(_scenario(tmp_path, BAND, **FINE, **{"physics.frame": "tube"}))
+    lab = _trajectory(load_data(tmp_path, BAND, "s", **FINE))
+    tube = _trajectory(load_data(tmp_path, BAND, "s", **FINE, **{"physics.frame": "tube"}))
     assert lab.sizes["time"] == tube.sizes["time"]
     np.testing.assert_allclose(lab["time"], tube["time"], rtol=0, atol=1e-12)
     assert np.all(lab["ball_z"].values == 0.0)  # the ball stays on its support in the lab
@@ -123,7 +113,7 @@ def away(tmp_path_factory):
     """One run of AWAY through the command line's rules: it ends with no answer (a stage
     timed out), exit 3's error, its files kept as an incomplete run."""
     tmp = tmp_path_factory.mktemp("away")
-    scn = _scenario(tmp, AWAY)
+    scn = load_data(tmp, AWAY, "s")
     out = tmp / "run"
     with pytest.raises(ComputationError) as err:
         api.run(scn, out=out)
@@ -231,18 +221,12 @@ def _on_the_bottle(tmp_path, max_increment):
          "ball": "support"},
         {"name": "hold", "duration_s": 20.0, "ball": "support"},
     ]
-    path = tmp_path / f"bottle_{max_increment:g}.yaml"
     data = yaml.safe_load((ROOT / "scenarios" / "method2_pinned.yaml").read_text())
     data["physics"]["bottle"] = {}
     data["physics"]["stages"] = stages
     data["numerics"].update(nodes=30, max_increment=max_increment,
                             max_increment_free=max_increment)
-    path.write_text(yaml.safe_dump(data))
-    scn = api.load(path)
-    try:
-        r = api.run(scn)
-    except ComputationError as err:
-        r = err.partial
+    r = run_kept(load_data(tmp_path, data, f"bottle_{max_increment:g}"))
     return r.trajectory, r.summary
 
 

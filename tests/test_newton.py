@@ -18,23 +18,16 @@ from dynslip.physics.field import Layout, vector_field
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.linalg import bordered_solve, cyclic_reduction
 from dynslip.physics.loadstep import load_step_solver
-from dynslip.physics.materials import make_material
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
     CLAMP_FORCE,
     CLAMP_POSITION,
-    Duration,
-    Stage,
 )
-from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from helpers import dense_blocks, dense_tridiagonal
+from helpers import dense_blocks, dense_tridiagonal, draped, increment_args, small_model
 
 N = 9
-MODEL = SheetModel(
-    make_mesh(N, 2.4), make_material("gent", jm=50.0), Penalty(jnp.asarray(1e4), jnp.asarray(1e-3))
-)
+MODEL = small_model(N)
 WEAK = SlipWeakening(mu_s=1.5, mu_k=1.2, d_c=0.02, eps=1e-3)
 MODES = [(BALL_HOLD, CLAMP_POSITION), (BALL_FORCE, CLAMP_POSITION), (BALL_FORCE, CLAMP_FORCE)]
 
@@ -42,38 +35,9 @@ MODES = [(BALL_HOLD, CLAMP_POSITION), (BALL_FORCE, CLAMP_POSITION), (BALL_FORCE,
 def _state(layout, seed=0):
     """A sheet draped over the ball (nodes near its surface, some pressed in), perturbed."""
     rng = np.random.default_rng(seed)
-    rbar = np.asarray(MODEL.mesh.rbar)
-    th = np.minimum(1.05 * rbar, 1.5)
-    rho = 0.999 * np.sin(th) + 0.1 * rbar
-    z = 0.999 * np.cos(th) + 0.01 * rng.normal(size=N)
-    rho[0] = 0.0
+    rho, z = draped(MODEL.mesh.rbar, rng)
     internal = jnp.asarray(rng.uniform(0.0, 0.03, N)) if layout.n_int else None
     return layout.pack(jnp.asarray(rho), jnp.asarray(z), jnp.asarray(0.0), jnp.zeros(4), internal)
-
-
-def _args(friction, ball_mode, clamp_mode):
-    stage = Stage(
-        "s",
-        Duration(duration=5.0),
-        clamp_vz=-0.2,
-        ball_mode=ball_mode,
-        clamp_mode=clamp_mode,
-        ball_force_end=0.0,
-    )
-    return stage_args(
-        stage,
-        0.0,
-        0.0,
-        0.3,
-        (0.1, -0.2),
-        friction,
-        1e-3,
-        0.1,
-        0.4,
-        0.05,
-        support_z=-0.01,
-        support_k=1e3,
-    )
 
 
 def _increment(layout, y0, args, h):
@@ -106,7 +70,7 @@ def test_blocks_from_element_derivatives_equal_jacfwd(modes):
     tangent, the ball's border) is the derivative of the increment's residual, to rounding."""
     layout = Layout(N, 1)
     y0 = _state(layout)
-    inc = _increment(layout, y0, _args(WEAK, *modes), 0.5)
+    inc = _increment(layout, y0, increment_args(WEAK, *modes), 0.5)
     rng = np.random.default_rng(1)
     q = inc.q0 + 1e-3 * rng.normal(size=inc.q0.shape)
     q = q.at[0, 0].set(0.0)
@@ -152,7 +116,7 @@ def test_motion_newton_increment_is_the_full_state_increment(modes):
     coulomb = Coulomb(mu=1.2, eps=1e-3)
     layout = Layout(N, 0)
     y0 = _state(layout, seed=2)
-    args = _args(coulomb, *modes)
+    args = increment_args(coulomb, *modes)
     h = jnp.asarray(0.05)
     full = load_step_solver(layout, 1e-12, 1e-12, max_iter=40)
     term = diffrax.ODETerm(vector_field(MODEL, layout))
@@ -227,7 +191,7 @@ def test_node_force_jacobian_equals_jacfwd(law):
     friction = WEAK if law == "slip_weakening" else Coulomb(mu=0.3, eps=1e-3)
     layout = Layout(N, friction.n_internal())
     y0 = _state(layout)
-    inc = _increment(layout, y0, _args(friction, BALL_HOLD, CLAMP_POSITION), 0.5)
+    inc = _increment(layout, y0, increment_args(friction, BALL_HOLD, CLAMP_POSITION), 0.5)
     g = 50.0 * nt.forces(MODEL, inc.q0, inc.zb0)[0]  # the forces scaled: some nodes slip
     idx = jnp.arange(N)
     d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(N)
@@ -261,7 +225,7 @@ def test_residual_floor_accepts_the_motion_resolved_to_the_step_tolerance(modes)
     reaches with an ``atol`` above the floor."""
     layout = Layout(N, 1)
     y0 = _state(layout, seed=3)
-    args = _args(WEAK, *modes)
+    args = increment_args(WEAK, *modes)
     zero = (jnp.zeros((N, 2)), jnp.zeros(()))
 
     def solve(atol, **kw):
@@ -323,7 +287,7 @@ def test_a_zero_length_segment_keeps_the_state_and_gives_its_forces():
 
     layout = Layout(N, 1)
     y0 = _state(layout, seed=4)
-    args = _args(WEAK, BALL_FORCE, CLAMP_POSITION)
+    args = increment_args(WEAK, BALL_FORCE, CLAMP_POSITION)
     rate = (jnp.full((N, 2), 0.3), jnp.asarray(0.2))
     t = jnp.asarray(0.7)
     segment = eqx.filter_jit(nw.MotionNewton().segment)

@@ -12,6 +12,7 @@ from pydantic import Field
 from dynslip.physics.protocols import AbstractStop
 from dynslip.schema.base import validate_data
 from dynslip.schema.stages import STOP_SPECS, StopSpec
+from helpers import registered
 
 SPEED_MM_S = 4.0  # the clamp's descent
 TARGET_MM = 0.0  # the height at which the stage ends: the ball's centre
@@ -54,9 +55,8 @@ class ClampBelowSpec(StopSpec):
 
 @pytest.fixture
 def clamp_below():
-    STOP_SPECS.register(ClampBelowSpec)
-    yield ClampBelowSpec
-    STOP_SPECS.unregister(ClampBelowSpec)
+    with registered(STOP_SPECS, ClampBelowSpec):
+        yield ClampBelowSpec
 
 
 def _scenario(velocity: float) -> dict:

@@ -16,9 +16,8 @@ from dynslip.physics import newton_matrix as nm
 from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout
 from dynslip.physics.friction import soft_threshold, weighted_form
-from dynslip.physics.sheet import SheetModel, make_mesh
-from helpers import dense_blocks
-from test_newton import MODEL, MODES, WEAK, N, _args, _increment, _state, residual_jacobian
+from helpers import dense_blocks, increment_args, small_model
+from test_newton import MODEL, MODES, WEAK, N, _increment, _state, residual_jacobian
 
 C, EPS = 2.0, 0.3  # threshold and smoothing: e = 0.261, a wide band to sample
 
@@ -74,7 +73,7 @@ def test_weighted_newton_ends_on_the_laws_own_root(modes):
     iterations: 11 against 12 here; the let-go path's counts are in docs/speed.md)."""
     layout = Layout(N, 1)
     y0 = _state(layout, seed=3)
-    args = _args(WEAK, *modes)
+    args = increment_args(WEAK, *modes)
     y_law, ok, it_law = _solve(layout, y0, args)
     assert ok
     y_w, ok_w, it_w = _solve(layout, y0, args, weight=1e3)
@@ -102,7 +101,7 @@ def test_weighted_node_force_jacobian_equals_jacfwd():
     slope: :func:`test_weighted_form_is_continuously_differentiable_across_the_band`)."""
     layout = Layout(N, 1)
     y0 = _state(layout)
-    inc, q = _weighted(_increment(layout, y0, _args(WEAK, *MODES[0]), 0.5),
+    inc, q = _weighted(_increment(layout, y0, increment_args(WEAK, *MODES[0]), 0.5),
                        1e3)
     g = 5.0 * nt.forces(MODEL, q, inc.zb0)[0]
     idx = jnp.arange(N)
@@ -133,7 +132,7 @@ def test_weighted_blocks_equal_jacfwd(modes):
     derivative included) is jacfwd of that residual, to rounding."""
     layout = Layout(N, 1)
     y0 = _state(layout)
-    inc, q = _weighted(_increment(layout, y0, _args(WEAK, *modes), 0.5), 1e3)
+    inc, q = _weighted(_increment(layout, y0, increment_args(WEAK, *modes), 0.5), 1e3)
     zb = inc.zb0 + 1e-3
     jac, _ = residual_jacobian(inc, q, zb)
     blocks = nm.newton_blocks(MODEL, WEAK, inc, q, zb)
@@ -148,13 +147,13 @@ def _pinched():
     from dynslip.physics.bodies import Torus
     from dynslip.physics.bodies.held import Held
     from dynslip.physics.friction import Coulomb
-    from test_held_friction_jacobian import MAT, NS, PEN, ZB, _setup
+    from test_held_friction_jacobian import NS, ZB, _setup
 
     args, inc, q, zb = _setup(MODES[0][0], memory=False)
     x1 = np.asarray(q[1]) + np.array([0.0, ZB])
     ring = Torus(ring_radius=float(x1[0]), minor_radius=0.3, centre_z=float(x1[1]) + 0.2995)
-    model = SheetModel(make_mesh(NS, 2.4), MAT, PEN,
-                       bodies=(Held(ring, Coulomb(mu=jnp.asarray(0.7), eps=jnp.asarray(1e-3))),))
+    coulomb = Coulomb(mu=jnp.asarray(0.7), eps=jnp.asarray(1e-3))
+    model = small_model(NS, bodies=(Held(ring, coulomb),))
     return model, args, inc, q, zb
 
 
