@@ -749,8 +749,9 @@ def sweep_rows(runs: list[Path]) -> list[list[str]]:
 
 def lockstep_rows(runs: list[Path]) -> list[list[str]]:
     out = []
-    for label, run in zip(("sequential", "batched, one process, lockstep batch of 4",
-                           "batched, one process, one member per batch", "dask, 2 workers"),
+    for label, run in zip(("sequential", "batched, 2 worker processes, lockstep batches of 2",
+                           "batched, 2 worker processes, one member per batch",
+                           "dask, 2 workers"),
                           runs, strict=True):
         s = _sweep_summary(run)
         recs = [json.loads(f.read_text()) for f in sorted((run / "members").glob("*.json"))]
