@@ -22,16 +22,31 @@ import sys
 import time
 from pathlib import Path
 
+from rich.console import Console
+
+from dynslip import _version
+from dynslip._jaxconfig import configure_runtime
+from dynslip.analysis.windows import MAX_COARSE
+from dynslip.app import sizes
+from dynslip.app.compare import run_compare
+from dynslip.app.drawn import drawn_bodies_at
+from dynslip.app.export import run_export
+from dynslip.app.fronts import run_fronts
+from dynslip.app.kinds import run_into
+from dynslip.app.sweep import run_sweep, validate_sweep
+from dynslip.app.window import parse_nodes, run_window, run_window_nodes
+from dynslip.data.folders import INCOMPLETE, signal_name, sigterm_raises
 from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import ComputationError, InputError, MaterialRangeError
+from dynslip.plot.animate import animate, parse_size
+from dynslip.schema import base as sc
+from dynslip.schema.sweep import Linspace, SweepSpec, WindowSpec, is_sweep_file
 
 __all__ = ["build_parser", "main"]
 
 
 def _kept(err) -> str:
     """Where the partial results of a failed or interrupted run are (from the exception)."""
-    from dynslip.data.folders import INCOMPLETE
-
     kept = getattr(err, "dynslip_kept", None)
     if kept is None:
         return ""
@@ -43,11 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     # the platform, XLA's flags, equinox's error mode and the compilation cache: set before
     # any JAX computation (``import dynslip`` sets none of them)
-    from dynslip._jaxconfig import configure_runtime
-
     configure_runtime()
-    from dynslip.data.folders import signal_name, sigterm_raises
-
     try:
         with sigterm_raises():  # SIGTERM raises like SIGINT: partial results kept and marked
             return args.fn(args)
@@ -107,9 +118,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from dynslip._version import describe
-
-        print(describe())
+        print(_version.describe())
         parser.exit(0)
 
 
@@ -270,8 +279,6 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
     w.set_defaults(fn=cmd_sweep)
 
-    from dynslip.schema.sweep import WindowSpec
-
     d = {k: f.default for k, f in WindowSpec.model_fields.items()}  # a sweep window's defaults
     n = _sub(sub, "window", "find the trapping windows of mu for a scenario")
     n.add_argument("scenario", help="scenario file (YAML)")
@@ -340,8 +347,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _console():
-    from rich.console import Console
-
     return Console(stderr=False, highlight=False)
 
 
@@ -377,9 +382,6 @@ def _check_file_out(out: str | None) -> None:
 
 
 def cmd_run(args) -> int:
-    from dynslip.app.kinds import run_into
-    from dynslip.schema import base as sc
-
     scn = sc.load(args.scenario, args.set or [])
     out = _default_out(args.scenario, args.out)
     console = _console()
@@ -390,9 +392,6 @@ def cmd_run(args) -> int:
     if getattr(args, "animate", False):
         traj = out / TRAJECTORY_FILE
         if traj.exists():
-            from dynslip.app.drawn import drawn_bodies_at
-            from dynslip.plot.animate import animate
-
             path = animate(traj, bodies=drawn_bodies_at(traj))
             console.print(f"animation: {path}")
         else:
@@ -403,10 +402,6 @@ def cmd_run(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from dynslip.app.sweep import validate_sweep
-    from dynslip.schema import base as sc
-    from dynslip.schema.sweep import is_sweep_file
-
     if is_sweep_file(args.scenario):
         if args.set:
             raise InputError(
@@ -422,10 +417,6 @@ def cmd_validate(args) -> int:
 
 
 def cmd_schema(args) -> int:
-    from dynslip.analysis.windows import MAX_COARSE
-    from dynslip.schema import base as sc
-    from dynslip.schema.sweep import Linspace, SweepSpec, WindowSpec
-
     print(
         sc.schema_reference(
             {
@@ -437,15 +428,12 @@ def cmd_schema(args) -> int:
     )
     print(f"dynslip window: --coarse 2..{MAX_COARSE}; --tol finite, >= 1e-9 max(1, |lo|, |hi|); "
           "lo, hi finite with lo < hi, each a valid value of the friction field")
-    from dynslip.app.sizes import describe
 
-    print(describe())
+    print(sizes.describe())
     return 0
 
 
 def cmd_animate(args) -> int:
-    from dynslip.plot.animate import animate, parse_size
-
     kw = {
         "fps": args.fps,
         "fmt": args.format,
@@ -457,7 +445,6 @@ def cmd_animate(args) -> int:
     if args.size:
         kw["size"] = parse_size(args.size)
     _check_file_out(args.out)
-    from dynslip.app.drawn import drawn_bodies_at
 
     kw["bodies"] = drawn_bodies_at(Path(args.trajectory))
     path = animate(Path(args.trajectory), Path(args.out) if args.out else None, **kw)
@@ -466,8 +453,6 @@ def cmd_animate(args) -> int:
 
 
 def cmd_fronts(args) -> int:
-    from dynslip.app.fronts import run_fronts
-
     _check_dir_out(args.out)
     paths = run_fronts(
         Path(args.trajectory), Path(args.out) if args.out else None, rest_speed=args.rest_speed,
@@ -479,8 +464,6 @@ def cmd_fronts(args) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from dynslip.app.sweep import run_sweep
-
     run_sweep(
         Path(args.sweep),
         out=Path(args.out) if args.out else None,
@@ -494,8 +477,6 @@ def cmd_sweep(args) -> int:
 
 
 def cmd_window(args) -> int:
-    from dynslip.app.window import parse_nodes, run_window, run_window_nodes
-
     kw = dict(overrides=args.set or [], lo=args.lo, hi=args.hi, coarse=args.coarse, tol=args.tol,
               out=Path(args.out) if args.out else None, console=_console(), force=args.force)
     if args.nodes:
@@ -506,8 +487,6 @@ def cmd_window(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from dynslip.app.compare import run_compare
-
     _check_dir_out(args.out)
     run_compare(
         [Path(p) for p in args.runs], out=Path(args.out) if args.out else None, console=_console()
@@ -516,8 +495,6 @@ def cmd_compare(args) -> int:
 
 
 def cmd_export(args) -> int:
-    from dynslip.app.export import run_export
-
     _check_dir_out(args.out)
     print(run_export(Path(args.trajectory), Path(args.out) if args.out else None, fmt=args.format,
                      force=args.force))
