@@ -1574,6 +1574,10 @@ REFERENCE: dict[tuple[str, str], str] = {
     ("docs/evidence.md", "| test | old tolerance | measured | new tolerance |"):
         "a record of each change to a test's tolerance, with the value the test measured when "
         "it was changed; the tests themselves assert today's values",
+    ("docs/evidence.md", "| test | what it compares | measured | tolerance |"):
+        "the tests' independent checks: each figure is measured by the test the row names "
+        "(``pytest -s`` prints it) and asserted there at the tolerance the row gives, so the "
+        "suite re-measures the table on every run",
     ("docs/evidence.md", "| variant | stick/slip | tear-out | critical mu | headline |"):
         "the tests' verdicts on defects planted in scratch copies: a record of an "
         "experiment on code that is not the package's",
