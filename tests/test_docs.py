@@ -34,15 +34,6 @@ def _figures_module():
 FIG = _figures_module()
 RES = FIG._results()  # docs/results.py, the tables' manifest and the key figures share
 
-#: False until the tables and figures are regenerated at the end of the session (issue 44),
-#: which sets it True: then every table of numbers must be under the manifest and no table
-#: or figure stale
-REGENERATED = False
-UNTIL_REGENERATED = pytest.mark.xfail(
-    not REGENERATED, strict=False, reason="regenerated at the end of the session: issue 44"
-)
-
-
 def _image_refs() -> dict[str, list[tuple[Path, int]]]:
     """Image name -> (doc, line of the reference's end) of every ``![...](.../img/NAME)`` in
     the docs (the alt text may run over lines)."""
@@ -169,7 +160,6 @@ def test_figures_script_makes_every_figure(tmp_path):
 # --- measured tables and figures with a key (docs/results.py, docs/figures.py) -----------
 
 
-@UNTIL_REGENERATED
 def test_every_table_of_numbers_is_under_the_results_manifest():
     """A table "holds numbers" when a body cell has a digit outside code spans and link
     targets; each is between results markers unless docs/results.py's REFERENCE lists it
@@ -250,7 +240,6 @@ def test_results_small_variant_runs(name, runs_dir):
     assert RES.PROVENANCE.search(RES.render(entry, rows, name, small=True))
 
 
-@UNTIL_REGENERATED
 def test_no_table_was_measured_before_a_change_to_its_code():
     stale = RES.stale()
     if stale:
@@ -258,7 +247,6 @@ def test_no_table_was_measured_before_a_change_to_its_code():
                     + "\n".join(f"{name}: {why}" for name, why in stale.items()))
 
 
-@UNTIL_REGENERATED
 def test_no_committed_figure_was_drawn_before_a_change_to_its_code():
     stale = FIG.stale_figures()
     if stale:
