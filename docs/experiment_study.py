@@ -11,7 +11,8 @@ tables is measured by a command this script runs and records beside the number.
 
 Usage: ``python docs/experiment_study.py {jm,depth,release,table} [--only NAME]``; results go
 to ``outputs/study/`` (each case in its own folder, rerun only when missing) and
-``docs/data/experiment_study.json`` (what the tables read); ``table`` prints the markdown
+``docs/data/experiment_study/{jm,depth,release}.json`` (what the tables read, a file per part,
+so that rerunning one part changes the key of its own tables only); ``table`` prints the markdown
 tables of docs/experiment.md.
 """
 
@@ -26,7 +27,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "outputs" / "study"
-DATA = ROOT / "docs" / "data" / "experiment_study.json"
+DATA = ROOT / "docs" / "data" / "experiment_study"  # a json file per part of the study
+PARTS = ("jm", "depth", "release")
 
 MATERIALS = {  # name: --set values
     "gent 30": ["physics.material.model=gent", "physics.material.jm=30"],
@@ -89,14 +91,19 @@ def _summary(folder: Path) -> dict | None:
 
 
 def _load() -> dict:
-    return json.loads(DATA.read_text()) if DATA.is_file() else {}
+    """The study's records, by part (the parts measured so far)."""
+    return {part: json.loads(f.read_text()) for part in PARTS
+            if (f := DATA / f"{part}.json").is_file()}
 
 
 def _save(data: dict) -> None:
-    DATA.parent.mkdir(parents=True, exist_ok=True)
-    tmp = DATA.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
-    tmp.replace(DATA)
+    """Each part of ``data`` written whole to its own file (write, then rename)."""
+    DATA.mkdir(parents=True, exist_ok=True)
+    for part in PARTS:
+        if part in data:
+            tmp = DATA / f"{part}.json.tmp"
+            tmp.write_text(json.dumps(data[part], indent=1, sort_keys=True) + "\n")
+            tmp.replace(DATA / f"{part}.json")
 
 
 def _commit() -> str:
