@@ -24,17 +24,15 @@ def scenarios_dir() -> Path:
 
 #: load stepping's energy residual at the default increments (fraction of the work): implicit
 #: Euler's own numerical dissipation, sum of 1/2 dx^T H dx >= 0 per increment, first order in
-#: the increment (tests/test_loadstep.py measures the order, 0.99); 2-4% on the shipped paths.
-#: Measured on abd10c6 + speed 0c23bc9: 3.1e-2 on the N = 40 push-down of test_forming
-#: (``python`` on test_forming.push_protocol with Settings(solver="load_step")), 8.6e-4 on the
-#: release pull (tests/test_release.py). This is the method's own first-order dissipation, so
-#: the bound cannot be 10x the measurement; runs that must detect a missing term use Kvaerno5.
-#: With the motion-only Newton's larger increments (after the accumulator fix e1eaaab):
-#: 5.27e-2 on the let-go path at N = 20 (tests/test_evidence.py), 4.9e-2 at N = 50, 9.4e-3 on
-#: the main job, 2.3e-2 on method 1 (``dynslip run scenarios/X.yaml``, summary.json
-#: energy_balance). Bound 8e-2: 1.5x the largest; the sign (>= 0) catches an over-counted
-#: dissipation, as it caught -4.1 before that fix.
-LOAD_STEP_ENERGY_RESIDUAL = 8e-2
+#: the increment (tests/test_loadstep.py measures the order, 0.99; tests/test_lab_frame.py 1.0
+#: on the bottle's shoulder: 6.1e-3 -> 1.24e-3 -> 2.5e-4 at 5 -> 1 -> 0.2 drag times).
+#: Measured on every run that asserts it (``pytest -m "slow or not slow" tests/test_evidence.py
+#: tests/test_shipped.py tests/test_methods.py tests/test_forming.py``, the residual of each
+#: call printed): 1.96e-2 on the let-go path at N = 20 (test_evidence), 1.80e-2 on the let-go
+#: path at N = 50 (test_forming, test_methods), 4.8e-3 on method 1. Bound 3e-2: 1.5x the
+#: largest; the sign (>= 0) catches an over-counted dissipation, as it caught -4.1 before the
+#: accumulators were fixed. Runs that must detect a missing term of the balance use Kvaerno5.
+LOAD_STEP_ENERGY_RESIDUAL = 3e-2
 
 #: Kvaerno5's energy residual (fraction of the work) at the default rtol 1e-5: measured 1.5e-8
 #: on the N = 40 push-down (``pytest -s tests/test_forming.py``), 8.1e-7 on the shipped let-go

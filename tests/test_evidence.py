@@ -130,7 +130,8 @@ def test_kvaerno5_energy_balance_on_the_let_go_path(let_go_pair):
 @pytest.mark.slow
 def test_load_stepping_energy_balance_on_the_let_go_path(let_go_pair):
     """Load stepping closes the energy balance on the let-go path to its stated bound
-    (conftest.LOAD_STEP_ENERGY_RESIDUAL): residual >= 0 (numerical dissipation) and below 5%.
+    (conftest.LOAD_STEP_ENERGY_RESIDUAL): residual >= 0 (numerical dissipation) and below 3%
+    (measured 1.96e-2).
     It caught the accumulators counting friction power at mu(delta1) while the motion used
     mu(delta0) (relative residual -4.1 on this path; fixed in what is now physics/increment.py
     slip_update)."""
