@@ -21,7 +21,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import xarray as xr
+import yaml
 
+from dynslip import api
+from dynslip.cli import main
 from dynslip.data.files import provenance, variable
 from dynslip.data.trajectory import FREE, SLIP_EQUATOR, SLIP_POLE, STATE_MEANINGS
 from dynslip.physics.materials import make_material
@@ -189,10 +192,6 @@ def set_field(dotted: str, value):
 def run_refused(tmp_path, capsys, scenario, edit, *words):
     """``dynslip run`` on ``scenario`` with ``edit`` applied to its data: exit 2, one line naming
     every one of ``words``, nothing written beside the bad file."""
-    import yaml
-
-    from dynslip.cli import main
-
     data = yaml.safe_load(scenario.read_text())
     edit(data)
     path = tmp_path / "bad.yaml"
@@ -393,10 +392,6 @@ def run_sheet(model, protocol, friction, settings, *, pre, z_sheet, tau=0.1, eps
 def load_data(tmp, data: dict, name: str, **sets):
     """The scenario ``data`` written to ``tmp/<name>.yaml`` and loaded, with the ``--set``
     values ``sets`` (dotted names as keywords: ``**{"numerics.nodes": 12}``)."""
-    import yaml
-
-    from dynslip import api
-
     path = tmp / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data))
     return api.load(path, set=sets or None)
@@ -406,8 +401,6 @@ def run_kept(scenario, **kw):
     """``api.run`` (its keywords in ``kw``), and where the run ends without an answer (a
     ``ComputationError``: the verdict unknown, the ball run away) what it computed, which is
     kept."""
-    from dynslip import api
-
     try:
         return api.run(scenario, **kw)
     except api.ComputationError as err:
