@@ -1,6 +1,6 @@
 """The cost of asking a body for the contact geometry (issue 21 phase 2), as ratios in one
 process: one Newton iteration of load stepping (increment residual + Newton matrix + bordered
-cyclic solve, :mod:`dynslip.physics.newton`) at the end state of the frozen let-go path
+cyclic solve, :mod:`dynslip.physics.solver.newton`) at the end state of the frozen let-go path
 (``benchmarks/method2_let_go.yaml``), for
 
 - ``inline``: today's closed form before the change, ``1 - |q|`` and ``q/|q|`` (a body whose
@@ -72,14 +72,14 @@ def _one(nodes: int) -> dict:
     import jax.numpy as jnp
 
     from dynslip.app.forming import build_core
-    from dynslip.physics import increment as ni
-    from dynslip.physics import newton_matrix as nm
     from dynslip.physics.bodies import Sphere, Torus
     from dynslip.physics.bodies.held import Held
+    from dynslip.physics.driver.member import MemberRun
+    from dynslip.physics.driver.simulate import simulate
     from dynslip.physics.friction import Coulomb
-    from dynslip.physics.linalg import bordered_solve
-    from dynslip.physics.member import MemberRun
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.solver import increment as ni
+    from dynslip.physics.solver import newton_matrix as nm
+    from dynslip.physics.solver.linalg import bordered_solve
     from dynslip.schema.base import load
 
     model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))

@@ -16,7 +16,7 @@ SCENARIO = Path(__file__).resolve().parent / "method2_let_go.yaml"
 
 def _one(nodes: int) -> dict:
     from dynslip.app.forming import build_core
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
     from dynslip.schema.base import load
 
     model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))

@@ -35,7 +35,7 @@ def _scenario(nodes: int, full: bool):
 
 def run_one(nodes: int, full: bool = False) -> dict:
     from dynslip.app.forming import build_core
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
 
     sc = _scenario(nodes, full)
     model, protocol, kw = build_core(sc)

@@ -28,8 +28,8 @@ import jax.numpy as jnp
 import numpy as np
 
 import dynslip
+from dynslip.physics.driver.member import MemberRun
 from dynslip.physics.field import evaluate, vector_field
-from dynslip.physics.member import MemberRun
 
 PATH = "benchmarks/method2_let_go.yaml"
 TOP_MM = 20.4  # the clamp's start height (ball radius + sheet gap)

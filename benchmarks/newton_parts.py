@@ -1,7 +1,9 @@
-"""The parts of one Newton iteration of load stepping (:mod:`dynslip.physics.newton`), each jitted
+"""The parts of one Newton iteration of load stepping (:mod:`dynslip.physics.solver.newton`), each
+jitted
 alone: one increment residual, the Newton matrix from element and node derivatives, and the
 bordered solve by block cyclic reduction (against the same reduction with ``jnp.linalg.solve``
-and batched ``@`` on the 2x2 blocks, as it was before :func:`dynslip.physics.linalg.small_matmul`:
+and batched ``@`` on the 2x2 blocks, as it was before
+:func:`dynslip.physics.solver.linalg.small_matmul`:
 the ratio in one process) and by block Thomas; at the end state of the frozen
 let-go path (``benchmarks/method2_let_go.yaml``) for N = 50, 200, 800
 (``DYNSLIP_BENCH_PARTS_NODES`` picks sizes). Times in ms per call, dispatch included (inside
@@ -77,11 +79,11 @@ def _one(nodes: int) -> dict:
     import jax.numpy as jnp
 
     from dynslip.app.forming import build_core
-    from dynslip.physics import increment as ni
-    from dynslip.physics import newton_matrix as nm
-    from dynslip.physics.linalg import bordered_solve
-    from dynslip.physics.member import MemberRun
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.member import MemberRun
+    from dynslip.physics.driver.simulate import simulate
+    from dynslip.physics.solver import increment as ni
+    from dynslip.physics.solver import newton_matrix as nm
+    from dynslip.physics.solver.linalg import bordered_solve
     from dynslip.schema.base import load
 
     model, protocol, kw = build_core(load(SCENARIO, [f"numerics.nodes={nodes}"]))

@@ -6,7 +6,7 @@ rest), run whole at N = 50, 100, 200, 400 nodes (``DYNSLIP_BENCH_SPEED_NODES=50,
 picks sizes; ``DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5`` picks the solvers run beside load_step) by:
 
 - ``load_step``: the default solver, implicit Euler load increments
-  (:mod:`dynslip.physics.loadstep`);
+  (:mod:`dynslip.physics.solver.loadstep`);
 - ``load_step_law``: the same with Newton on the friction law's own form
   (``numerics.newton_weight=0``), the baseline of the weighted form (``speedup_vs_load_step_law``,
   the end states compared in its ``vs_load_step``);
@@ -14,7 +14,8 @@ picks sizes; ``DYNSLIP_BENCH_SPEED_SOLVERS=kvaerno5`` picks the solvers run besi
 - ``scipy_bdf``: ``scipy.integrate.solve_ivp(method="BDF", jac_sparsity=...)`` on the same
   jitted vector field (:func:`dynslip.physics.field.vector_field`) with the same sparsity
   pattern, stage by stage over the *same* stage intervals the load_step run took
-  (``Result.stage_end``), in the same save segments as :func:`dynslip.physics.simulate.simulate`
+  (``Result.stage_end``), in the same save segments as
+  :func:`dynslip.physics.driver.simulate.simulate`
   (a restart and the friction law's healing at every segment end, the ball's and clamp's
   force start values carried between stages), so no stop rule is evaluated. Capped at
   ``DYNSLIP_BENCH_SPEED_SCIPY_CAP`` s of wall time per N (default 300): past it the rhs
@@ -86,13 +87,13 @@ def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
     import dataclasses
 
     from dynslip.app.forming import build_core
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
 
     base = solver in ("load_step_full", "load_step_law")
     sc = _scenario(nodes, "load_step" if base else solver)
     model, protocol, kw = build_core(sc)
     if solver == "load_step_full":
-        from dynslip.physics.loadstep import FullStateLoadStep
+        from dynslip.physics.solver.loadstep import FullStateLoadStep
 
         st = kw["settings"]
         full = FullStateLoadStep(
@@ -150,10 +151,11 @@ def _scipy(ref, core) -> tuple[dict, object]:
     import scipy.sparse as sp
     from scipy.integrate import solve_ivp
 
-    from dynslip.physics.field import Layout, _f, sheet_structure, vector_field
+    from dynslip.physics.driver.member import Result, stage_args
+    from dynslip.physics.field import Layout, vector_field
     from dynslip.physics.frames import frame_record, initial_state, reset_internal
-    from dynslip.physics.linalg import to_dense
-    from dynslip.physics.member import Result, stage_args
+    from dynslip.physics.layout import f64 as _f
+    from dynslip.physics.solver.linalg import sheet_structure, to_dense
 
     sc, model, protocol, kw = core
     settings = kw["settings"]

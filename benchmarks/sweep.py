@@ -16,7 +16,8 @@ processes and pay it again (with the persistent compilation cache warm). The fir
 member's time is reported apart (``first_member_s``) so that compilation is visible.
 
 "batched" runs members of one shape in lockstep through the vmapped solver
-(:mod:`dynslip.physics.batch`), ``BATCH_SIZE`` members at a time (:mod:`dynslip.app.sweep_runners`:
+(:mod:`dynslip.physics.driver.batch`), ``BATCH_SIZE`` members at a time
+(:mod:`dynslip.app.sweep_runners`:
 ``"auto"`` is one member per batch on the CPU, where lockstep pays for its slowest member's
 steps, and a worker's whole share on an accelerator), on the in-process or dask workers.
 """

@@ -38,7 +38,8 @@ jax.config.update("jax_enable_x64", True)
 #: are small and their compiles dominate, about a quarter shorter without the emitters
 #: (docs/speed.md has the timings), the answers the same to rounding. The segment step of a
 #: mesh of more than 200 nodes, whose run they shorten, asks for them
-#: (dynslip.physics.simulate.compile_step). An XLA_FLAGS that names the option wins. The pinned
+#: (dynslip.physics.driver.simulate.compile_step). An XLA_FLAGS that names the option wins. The
+#: pinned
 #: jaxlib knows it (constraints.txt); one that did not would refuse to start, and this is the
 #: line to change.
 XLA_FLAG = "--xla_cpu_use_fusion_emitters=false"

@@ -93,7 +93,7 @@ def _release_compiled_programs():
 
     import jax
 
-    from dynslip.physics import simulate
+    from dynslip.physics.driver import simulate
 
     _PEAK_MAPS[0] = max(_PEAK_MAPS[0], _maps())
     simulate._COMPILED.clear()

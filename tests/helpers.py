@@ -27,11 +27,11 @@ from dynslip import api
 from dynslip.cli import main
 from dynslip.data.files import provenance, variable
 from dynslip.data.trajectory import FREE, SLIP_EQUATOR, SLIP_POLE, STATE_MEANINGS
+from dynslip.physics.driver.member import stage_args
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.materials import make_material
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import CLAMP_POSITION, Duration, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
 
 
 def synthetic_trajectory(
@@ -240,7 +240,7 @@ def _jacfwd_residual(model, friction, inc, v):
     """``jax.jacfwd`` of the increment's residual flattened over ``v = (q, zb)``, compiled whole
     with the model and the increment traced (op by op, through the bodies' loops, it took 20-35 s
     a test; compiled per model it was 10 s a parameter): one compile per model structure."""
-    from dynslip.physics import increment as ni
+    from dynslip.physics.solver import increment as ni
 
     n = (v.shape[0] - 1) // 2
 
@@ -254,7 +254,7 @@ def _jacfwd_residual(model, friction, inc, v):
 @eqx.filter_jit
 def _newton_blocks(model, friction, inc, q, zb, exact):
     """``newton_blocks``, compiled as :func:`_jacfwd_residual`."""
-    from dynslip.physics import newton_matrix as nm
+    from dynslip.physics.solver import newton_matrix as nm
 
     return nm.newton_blocks(model, friction, inc, q, zb, exact=exact)
 

@@ -1,4 +1,5 @@
-"""Members in lockstep (dynslip.physics.batch.simulate_batch) against the same members run one
+"""Members in lockstep (dynslip.physics.driver.batch.simulate_batch) against the same members run
+one
 after another: the driver's results, and a sweep's member records in ``--mode batched``.
 
 Small on purpose (20 nodes, 2 members, short paths): the batched solve is compiled once per
@@ -16,7 +17,8 @@ import numpy as np
 import pytest
 import yaml
 
-from dynslip.physics.batch import simulate_batch
+from dynslip.physics.driver.batch import simulate_batch
+from dynslip.physics.driver.simulate import simulate, stack
 from dynslip.physics.friction import SlipWeakening
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import (
@@ -30,8 +32,7 @@ from dynslip.physics.protocols import (
     ThetaMaxBelow,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate, stack
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 
 NODES = 20
 RIM = 2.54

@@ -25,7 +25,7 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material, relaxed_tensions
 from dynslip.physics.protocols import CLAMP_BAND, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from helpers import run_sheet
 from test_forming import residual
 

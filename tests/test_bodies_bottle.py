@@ -29,7 +29,7 @@ from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from helpers import push_and_hold, run_refused, run_sheet, set_field
 
 # the quick loop (-m 'not slow') leaves these out: each test runs the sheet over the bottle (N = 24)

@@ -17,18 +17,18 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
-from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Cylinder
 from dynslip.physics.bodies.held import Held
+from dynslip.physics.driver.member import stage_args
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.field import free_body_rates
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver import increment as ni
+from dynslip.physics.solver import newton_matrix as nm
+from dynslip.physics.solver.methods import Settings
 from test_newton import _dense
 
 N = 24

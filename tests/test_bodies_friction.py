@@ -16,7 +16,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
 from dynslip.physics.bodies import Cylinder, Torus
 from dynslip.physics.bodies.held import Held, free_ball_velocity
 from dynslip.physics.friction import Coulomb, SlipWeakening
@@ -27,7 +26,8 @@ from dynslip.physics.protocols import (
     Protocol,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver import increment as ni
+from dynslip.physics.solver.methods import Settings
 from helpers import (
     check_newton_matrix,
     draped,

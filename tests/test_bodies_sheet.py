@@ -13,7 +13,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
 from dynslip.physics.bodies import Cylinder, Sphere, Torus
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
@@ -23,7 +22,8 @@ from dynslip.physics.protocols import (
     Protocol,
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver import increment as ni
+from dynslip.physics.solver.methods import Settings
 from helpers import (
     draped,
     increment_args,

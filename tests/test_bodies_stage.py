@@ -20,12 +20,12 @@ import pytest
 
 from dynslip.physics.bodies import Cylinder
 from dynslip.physics.bodies.held import Held
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 
 # the quick loop (-m 'not slow') leaves these out: two runs of the moving world (N = 24)
 pytestmark = pytest.mark.slow

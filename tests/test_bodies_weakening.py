@@ -18,13 +18,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
 from dynslip.physics.bodies import Torus
 from dynslip.physics.bodies.held import Held, held_frame, n_memory
 from dynslip.physics.field import N_ACC, Layout, heal
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD
 from dynslip.physics.sheet import SheetModel, make_mesh, penalty_pressure
+from dynslip.physics.solver import increment as ni
 from helpers import check_newton_matrix, small_model
 from test_bodies_friction import (
     EPS,

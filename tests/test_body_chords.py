@@ -1,5 +1,5 @@
 """The mesh check against every held body (issue 21 item 4; dynslip/physics/bodies/chords.py,
-dynslip/analysis/resolution.py, the run's stop rule in dynslip/physics/simulate.py;
+dynslip/analysis/resolution.py, the run's stop rule in dynslip/physics/driver/simulate.py;
 docs/bodies.md, "The mesh check against every body").
 
 A chord between two points of a circular arc of radius r, a half-angle a apart, dips r(1 - cos a)
@@ -33,7 +33,7 @@ from dynslip.physics.bodies.chords import (
     deepest_relative_chord_in,
     relative_chord_depths,
 )
-from dynslip.physics.failures import ContactUnresolved
+from dynslip.physics.driver.failures import ContactUnresolved
 
 EDGE = 0.25
 POST = Cylinder(radius=1.0, z_bottom=-3.0, z_top=-0.2, edge_radius=EDGE)
@@ -163,12 +163,12 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
     deepest chord into the post is the failure's depth, the frame before is within the limit.
     Where the failed frame is the last of a stage that another follows, the run still fails in
     that stage, at that frame, with the same counts (the check comes before the stop rule)."""
+    from dynslip.physics.driver.simulate import simulate
     from dynslip.physics.friction import Coulomb
     from dynslip.physics.materials import make_material
     from dynslip.physics.protocols import Duration, Protocol, Stage
     from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-    from dynslip.physics.simulate import simulate
-    from dynslip.physics.solvers import Settings
+    from dynslip.physics.solver.methods import Settings
 
     limit, tau, eps = 1e-3, 0.1, 1e-3
     model = SheetModel(make_mesh(24, 2.54 / 1.05), make_material("gent", jm=50.0),

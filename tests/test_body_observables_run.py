@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from dynslip.physics.bodies.observe import SLIP_BACK, SLIP_ON, STUCK
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.protocols import Duration, Protocol, Stage
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from test_bodies_friction import (
     EPS,
     FRICTIONAL,

@@ -35,7 +35,7 @@ def _push_and_hold(data, depth_mm, speed_mm_s, hold_s=4.0):
 
 def _run(data):
     from dynslip.app.forming import build_core
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
 
     sc = validate_data(data)
     model, protocol, kw = build_core(sc)

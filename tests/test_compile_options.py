@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import dynslip.physics.simulate as sim
+import dynslip.physics.driver.simulate as sim
 
 
 def _f(x):

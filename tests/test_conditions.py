@@ -1,7 +1,8 @@
 """The stage's boundary conditions (:mod:`dynslip.physics.conditions`): each clamp and ball mode
 obeys its own law at the clamped edge and the ball, read through the vector field
 (:func:`dynslip.physics.field.evaluate`) and the load increment's rates
-(:mod:`dynslip.physics.increment`) alike; one compile serves every mode; and a new mode is one
+(:mod:`dynslip.physics.solver.increment`) alike; one compile serves every mode; and a new mode is
+one
 class entered under a new integer."""
 
 from __future__ import annotations
@@ -15,10 +16,9 @@ import numpy as np
 import pytest
 
 from dynslip.physics import conditions as bc
-from dynslip.physics import increment as ni
+from dynslip.physics.driver.member import stage_args
 from dynslip.physics.field import Layout, StageArgs, evaluate
 from dynslip.physics.friction import Coulomb
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
@@ -29,6 +29,7 @@ from dynslip.physics.protocols import (
     Stage,
 )
 from dynslip.physics.sheet import Penalty, penalty_pressure
+from dynslip.physics.solver import increment as ni
 from dynslip.physics.terms import forces
 from helpers import small_model
 

@@ -17,7 +17,7 @@ from conftest import SCENARIOS, assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from dynslip.schema.base import load
 from helpers import run_sheet
 from test_forming import MAT, NODES, PRE, RIM, Z0, push_protocol
@@ -133,6 +133,7 @@ def test_load_stepping_energy_balance_on_the_let_go_path(let_go_pair):
     (conftest.LOAD_STEP_ENERGY_RESIDUAL): residual >= 0 (numerical dissipation) and below 3%
     (measured 1.96e-2).
     It caught the accumulators counting friction power at mu(delta1) while the motion used
-    mu(delta0) (relative residual -4.1 on this path; fixed in what is now physics/increment.py
+    mu(delta0) (relative residual -4.1 on this path; fixed in what is now
+    physics/solver/increment.py
     slip_update)."""
     assert_energy_closes(let_go_pair["load_step"][0])

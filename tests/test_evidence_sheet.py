@@ -18,9 +18,9 @@ import xarray as xr
 
 from conftest import SCENARIOS
 from dynslip.app.kinds import run as run_scenario
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.friction import SlipWeakening
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from dynslip.schema.base import load
 from test_forming import MODEL, PRE, Z0, push_protocol
 
@@ -60,7 +60,7 @@ def weakening_push():
     """The held push-down of test_forming (N = 40, Gent, the rim pushed from 1.02 R to -1.5 R
     at 0.2 R/s: the sheet loads the ball ever more as it wraps), with slip-distance weakening
     mu_s = 0.99, mu_k = 0.82, d_c = 0.02 R, by load stepping (the default solver: every node's
-    rate from physics/increment.py node_rate), frames every 0.1 s."""
+    rate from physics/solver/increment.py node_rate), frames every 0.1 s."""
     fr = SlipWeakening(
         mu_s=jnp.asarray(MU_S), mu_k=jnp.asarray(MU_K), d_c=jnp.asarray(D_C), eps=jnp.asarray(1e-3)
     )
@@ -138,7 +138,7 @@ def test_stick_slip_through_the_sheet_onset_at_mu_s_sliding_at_mu_k(weakening_pu
     (mu_s - 1.2e-3: the smoothing band); on 605 node-frames past 1.5 d_c, |friction / mu_k N
     - 1| at most 5.1e-4 (median 1e-5); on 598 weakening node-frames, |friction / N -
     mu(delta)| at most 0.012 (7% of mu_s - mu_k: the increment's first-order lag, mu taken at
-    the increment's start, physics/increment.py slip_update)."""
+    the increment's start, physics/solver/increment.py slip_update)."""
     stuck, onsets, kinetic, weakening = _stick_slip_record(weakening_push)
     onset_nodes = sorted({j for j, _ in onsets})
     first_onset = {j: f for j, f in reversed(onsets)}  # each node's first onset

@@ -18,12 +18,12 @@ from conftest import assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
 from dynslip.errors import ComputationError, InputError
 from dynslip.physics import static
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from dynslip.schema.base import validate_data
 from helpers import run_sheet
 

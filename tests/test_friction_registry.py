@@ -70,7 +70,7 @@ def _scenario(friction: dict, post_friction: dict) -> dict:
 
 def _frames(sc):
     from dynslip.app.forming import build_core
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
 
     model, protocol, kwargs = build_core(sc)
     res = simulate(model, protocol, **kwargs)

@@ -1,7 +1,8 @@
-"""The held friction's part of Newton's matrix in closed form (dynslip/physics/newton_matrix.py,
+"""The held friction's part of Newton's matrix in closed form
+(dynslip/physics/solver/newton_matrix.py,
 ``_held_node_terms``): each node's rate's derivatives in its position, its force, the ball's
 height and velocity, and those of its axial held friction (the ball's velocity reads them), are
-``jax.jacfwd``'s of the node's rate (:func:`dynslip.physics.increment.node_rate`) and of its
+``jax.jacfwd``'s of the node's rate (:func:`dynslip.physics.solver.increment.node_rate`) and of its
 axial friction, to rounding: with several frictional bodies at once (one at rest, one that
 moves with the ball with a slip-weakening law, one moved by the stages), the ball's law
 weakening, nodes stuck and slipping on each; and the blocks equal ``jacfwd`` of the residual
@@ -17,13 +18,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
-from dynslip.physics import newton_matrix as nm
 from dynslip.physics.bodies import Torus
 from dynslip.physics.bodies.held import Held
+from dynslip.physics.driver.member import stage_args
 from dynslip.physics.friction import Coulomb, SlipWeakening
-from dynslip.physics.member import stage_args
 from dynslip.physics.protocols import BALL_FORCE, BALL_HOLD, CLAMP_POSITION, Duration, Stage
+from dynslip.physics.solver import increment as ni
+from dynslip.physics.solver import newton_matrix as nm
 from dynslip.physics.terms import forces, held_projections
 from helpers import check_newton_matrix, small_model
 from test_bodies_friction import _args, _small_state

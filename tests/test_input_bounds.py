@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from dynslip.cli import main
-from dynslip.schema.base import _classes, parse_override, schema_reference, validate_data
+from dynslip.schema.base import kind_classes, parse_override, schema_reference, validate_data
 from helpers import one_line
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -250,7 +250,7 @@ def _json_props(schema: dict, defs: dict, prefix: str = ""):
 def test_every_number_of_every_kind_has_a_stated_range():
     """Every numeric field: a lower and an upper bound in the schema (shown by `dynslip schema`)."""
     unbounded = []
-    for kind, cls in _classes().items():
+    for kind, cls in kind_classes().items():
         sch = cls.model_json_schema()
         for name, p in _json_props(sch, sch.get("$defs", {})):
             lo = "minimum" in p or "exclusiveMinimum" in p

@@ -26,7 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dynslip.cli import main
-from dynslip.schema.base import _classes, load
+from dynslip.schema.base import kind_classes, load
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ROOT / "scenarios"
@@ -84,7 +84,7 @@ def _branch(node: dict, defs: dict, key, data) -> dict:
 
 def leaf_schema(kind: str, path: tuple, data: dict) -> dict:
     """The JSON schema of the number, string, ... at ``path`` of scenario ``data``."""
-    sch = _classes()[kind].model_json_schema()
+    sch = kind_classes()[kind].model_json_schema()
     defs = sch.get("$defs", {})
     node, d = sch, data
     for k in path:
@@ -194,7 +194,7 @@ def stubbed(monkeypatch):
         monkeypatch.setitem(kinds.RUNNERS, k, _boom)
     for k in list(kinds.PREFLIGHTS):
         monkeypatch.setitem(kinds.PREFLIGHTS, k, _boom)
-    for cls in _classes().values():
+    for cls in kind_classes().values():
         monkeypatch.setattr(cls, "run", _boom, raising=False)
         if hasattr(cls, "preflight"):
             monkeypatch.setattr(cls, "preflight", _boom)

@@ -7,11 +7,15 @@ A layer may import the layers below it (transitively); nothing imports ``app`` b
 and ``api``; ``data`` imports neither ``schema`` nor ``physics``. ``errors``,
 ``_version`` and ``_jaxconfig`` are the base every layer may import. Imports inside
 functions count: a lazy import is still a dependency. The upstream-fix subclasses of
-``physics/upstream.py`` (diffrax, optimistix internals) are physics importing third-party
+``physics/solver/upstream.py`` (diffrax, optimistix internals) are physics importing third-party
 code, which these rules do not constrain.
 
-No cycle is allowed (the one between the load-stepping solver and the driver went when the
-state and vector field moved to ``physics/field.py``, imported by both).
+No cycle is allowed. Inside ``physics`` the folders are layers too:
+
+    physics.driver -> physics.solver -> the model (physics.*, bodies, static)
+
+the solvers never import the driver, and the model (the sheet, its laws, the vector field, the
+bodies, the static model) imports neither.
 """
 
 import ast
@@ -97,6 +101,33 @@ def test_every_import_follows_the_layers():
             elif to not in ALLOWED[layer]:
                 bad.append(f"{name} -> {t} ({layer} may import {sorted(ALLOWED[layer])})")
     assert not bad, "imports against the layers:\n" + "\n".join(sorted(bad))
+
+
+#: physics' inner layers: each may import itself and those after it
+PHYSICS_ROLES = ("driver", "solver", "model")
+
+
+def _role(module: str) -> str:
+    parts = module.split(".")
+    return parts[2] if len(parts) > 2 and parts[2] in PHYSICS_ROLES[:-1] else "model"
+
+
+def test_physics_folders_import_downward():
+    bad = []
+    for name, targets in _graph().items():
+        if _layer(name) != "physics":
+            continue
+        mine = PHYSICS_ROLES.index(_role(name))
+        for t in targets:
+            if _layer(t) == "physics" and PHYSICS_ROLES.index(_role(t)) < mine:
+                bad.append(f"{name} -> {t}")
+    assert not bad, "physics folders imported upward:\n" + "\n".join(sorted(bad))
+
+
+def test_physics_roles_are_read_from_the_folder():
+    assert _role("dynslip.physics.solver.newton") == "solver"
+    assert _role("dynslip.physics.driver") == "driver"
+    assert _role("dynslip.physics.field") == _role("dynslip.physics.bodies.held") == "model"
 
 
 def _cycles() -> list[list[str]]:

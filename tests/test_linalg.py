@@ -7,7 +7,12 @@ import lineax as lx
 import numpy as np
 import pytest
 
-from dynslip.physics.linalg import BorderedBlockTridiagonal, Structure, extract_blocks, to_dense
+from dynslip.physics.solver.linalg import (
+    BorderedBlockTridiagonal,
+    Structure,
+    extract_blocks,
+    to_dense,
+)
 
 S = Structure(n=13, b=2, m=3)
 
@@ -128,7 +133,7 @@ def test_small_block_ops_equal_numpy(b):
     """The written-out block products, inverses and solves (2x2 closed form; LU for 3x3) equal
     numpy's on random stacks, including ill-conditioned blocks (Cramer's rule for 2x2 is forward
     stable: the error bound is the condition number times the round-off)."""
-    from dynslip.physics.linalg import small_inverse, small_matmul, small_solve
+    from dynslip.physics.solver.linalg import small_inverse, small_matmul, small_solve
 
     rng = np.random.default_rng(b)
     a = rng.normal(size=(64, b, b))

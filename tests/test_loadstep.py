@@ -1,4 +1,4 @@
-"""Quasi-static load stepping (issue 10 section 2, :mod:`dynslip.physics.loadstep`).
+"""Quasi-static load stepping (issue 10 section 2, :mod:`dynslip.physics.solver.loadstep`).
 
 The local ImplicitEuler fix (diffrax PR #753) against the pinned class; load stepping
 against Kvaerno5 on a short push-down path; the one-node friction ramp under load
@@ -17,15 +17,20 @@ import numpy as np
 import optimistix as optx
 import pytest
 
+from dynslip.physics.driver.member import stage_args
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.frames import initial_state
 from dynslip.physics.friction import Coulomb, SlipWeakening
 from dynslip.physics.layout import Layout
-from dynslip.physics.loadstep import DampedNewton, FullStateLoadStep, LoadStepEuler, increments
-from dynslip.physics.member import stage_args
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
-from dynslip.physics.upstream import ImplicitEuler
+from dynslip.physics.solver.loadstep import (
+    DampedNewton,
+    FullStateLoadStep,
+    LoadStepEuler,
+    increments,
+)
+from dynslip.physics.solver.methods import Settings
+from dynslip.physics.solver.upstream import ImplicitEuler
 from test_forming import MAT, PRE, RIM, Z0, push_protocol
 
 N = 24
@@ -72,7 +77,7 @@ def test_failed_newton_solve_is_rejected():
 
 def test_pinned_implicit_euler_still_accepts_a_failed_solve():
     """diffrax 0.7.2 returns a finite error estimate with a failed solve (issue #752): when this
-    fails, a release with PR #753 is pinned: drop dynslip.physics.upstream.ImplicitEuler."""
+    fails, a release with PR #753 is pinned: drop dynslip.physics.solver.upstream.ImplicitEuler."""
     _, y_err, _, _, result = _failing_step(diffrax.ImplicitEuler)
     assert result != diffrax.RESULTS.successful
     assert np.all(np.isfinite(np.asarray(y_err)))

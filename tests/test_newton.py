@@ -1,4 +1,4 @@
-"""Newton on the motion alone (:mod:`dynslip.physics.newton`): its blocks against jax.jacfwd,
+"""Newton on the motion alone (:mod:`dynslip.physics.solver.newton`): its blocks against jax.jacfwd,
 cyclic reduction against a dense solve, and its increment against the full-state one."""
 
 from __future__ import annotations
@@ -10,20 +10,20 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
-from dynslip.physics import newton as nw
-from dynslip.physics import newton_matrix as nm
 from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout, vector_field
 from dynslip.physics.friction import Coulomb, SlipWeakening
-from dynslip.physics.linalg import bordered_solve, cyclic_reduction
-from dynslip.physics.loadstep import load_step_solver
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
     CLAMP_FORCE,
     CLAMP_POSITION,
 )
+from dynslip.physics.solver import increment as ni
+from dynslip.physics.solver import newton as nw
+from dynslip.physics.solver import newton_matrix as nm
+from dynslip.physics.solver.linalg import bordered_solve, cyclic_reduction
+from dynslip.physics.solver.loadstep import load_step_solver
 from helpers import dense_blocks, dense_tridiagonal, draped, increment_args, small_model
 
 N = 9
@@ -154,9 +154,9 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
     Newton's, whose slip distance is implicit, and the slip distances agree where they are large."""
     import math
 
-    from dynslip.physics.loadstep import FullStateLoadStep
-    from dynslip.physics.simulate import simulate
-    from dynslip.physics.solvers import Settings
+    from dynslip.physics.driver.simulate import simulate
+    from dynslip.physics.solver.loadstep import FullStateLoadStep
+    from dynslip.physics.solver.methods import Settings
     from test_forming import MODEL as SHEET
     from test_forming import PRE, Z0, push_protocol
 

@@ -11,12 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
 from dynslip.physics.field import Layout, StageArgs
 from dynslip.physics.friction import PressureDependent, soft_threshold
 from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, node_stretches
+from dynslip.physics.solver import increment as ni
 from dynslip.physics.terms import forces
 
 N = 17

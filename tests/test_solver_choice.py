@@ -1,5 +1,5 @@
 """The segment solver named by the schema's ``numerics.solver``: each name maps to a class that
-builds itself from :class:`~dynslip.physics.solvers.Settings`, taking each setting it runs on
+builds itself from :class:`~dynslip.physics.solver.methods.Settings`, taking each setting it runs on
 from its own field (no copy by matching names), and every other parameter at its default."""
 
 from __future__ import annotations
@@ -10,8 +10,14 @@ import typing
 import diffrax
 import pytest
 
-from dynslip.physics.newton import MotionNewton
-from dynslip.physics.solvers import DIFFRAX_METHODS, SOLVERS, Settings, TimeStepping, solver_for
+from dynslip.physics.solver.methods import (
+    DIFFRAX_METHODS,
+    SOLVERS,
+    Settings,
+    TimeStepping,
+    solver_for,
+)
+from dynslip.physics.solver.newton import MotionNewton
 from dynslip.schema.forming import FormingNumerics
 
 # every setting a solver reads, away from its default (``linear_solver`` by solver family)

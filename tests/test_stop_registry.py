@@ -76,7 +76,7 @@ def test_a_rule_registered_from_outside_stops_the_run_where_its_physics_says(cla
     the first save after that (the rule is read at each save), its condition met, the clamp
     within one save interval's travel below the target."""
     from dynslip.app.forming import build_core
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
 
     sc = validate_data(_scenario(-SPEED_MM_S))
     assert isinstance(sc.physics.stages[0].until, ClampBelowSpec)

@@ -7,13 +7,13 @@ import pytest
 
 from conftest import SCENARIOS
 from dynslip.app.forming import build_core
-from dynslip.physics.field import Layout, sheet_structure, vector_field
+from dynslip.physics.driver.member import stage_args
+from dynslip.physics.driver.simulate import segment_step
+from dynslip.physics.field import Layout, vector_field
 from dynslip.physics.frames import initial_state
-from dynslip.physics.linalg import extract_blocks, to_dense
-from dynslip.physics.member import stage_args
-from dynslip.physics.newton import zero_rate
-from dynslip.physics.simulate import segment_step
-from dynslip.physics.solvers import solver_for
+from dynslip.physics.solver.linalg import extract_blocks, sheet_structure, to_dense
+from dynslip.physics.solver.methods import solver_for
+from dynslip.physics.solver.newton import zero_rate
 from dynslip.schema.base import load
 
 N = 12

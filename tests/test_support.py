@@ -16,7 +16,7 @@ import pytest
 from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import Coulomb
 from dynslip.physics.protocols import BALL_FORCE, Duration, Protocol, Stage
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from helpers import run_sheet
 from test_forming import MODEL, PRE, RIM, Z0, residual
 

@@ -2,7 +2,8 @@
 
 The first test fails on the unpatched class; the second records that the pinned
 diffrax still has the bug (when it fails, upstream has released the fix: drop
-:class:`dynslip.physics.upstream.VeryChord`); the third shows the effect on a stiff ODE against
+:class:`dynslip.physics.solver.upstream.VeryChord`); the third shows the effect on a stiff ODE
+against
 scipy's Radau.
 """
 
@@ -13,7 +14,7 @@ import optimistix as optx
 import pytest
 from scipy.integrate import solve_ivp
 
-from dynslip.physics.upstream import VeryChord
+from dynslip.physics.solver.upstream import VeryChord
 
 
 def _kepler(y, args):

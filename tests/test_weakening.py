@@ -14,9 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.friction import Coulomb, SlipWeakening
-from dynslip.physics.simulate import simulate
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from test_forming import MAT, MODEL, PRE, Z0, push_protocol, residual
 
 MU_S, MU_K, D_C = 0.99, 0.82, 0.02

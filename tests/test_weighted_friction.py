@@ -1,5 +1,6 @@
 """The friction law's weighted form, in which Newton on the motion iterates
-(:func:`dynslip.physics.friction.weighted_form`, :func:`dynslip.physics.increment.weighted_slip`,
+(:func:`dynslip.physics.friction.weighted_form`,
+:func:`dynslip.physics.solver.increment.weighted_slip`,
 ``MotionNewton.weight``): the same curve, so the same roots, and the derivatives Newton reads."""
 
 from __future__ import annotations
@@ -10,12 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics import increment as ni
-from dynslip.physics import newton as nw
-from dynslip.physics import newton_matrix as nm
 from dynslip.physics import terms as nt
 from dynslip.physics.field import Layout
 from dynslip.physics.friction import soft_threshold, weighted_form
+from dynslip.physics.solver import increment as ni
+from dynslip.physics.solver import newton as nw
+from dynslip.physics.solver import newton_matrix as nm
 from helpers import dense_blocks, increment_args, small_model
 from test_newton import MODEL, MODES, WEAK, N, _increment, _state, residual_jacobian
 

@@ -13,7 +13,7 @@ from pydantic import BaseModel
 
 import dynslip.schema.forming as schema_forming
 from dynslip.app import kinds
-from dynslip.physics.solvers import Settings
+from dynslip.physics.solver.methods import Settings
 from dynslip.schema.base import load
 from dynslip.schema.world import World
 

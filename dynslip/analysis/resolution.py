@@ -97,7 +97,7 @@ def body_chord_check(ds: xr.Dataset, entries, limit: float, length_mm: float) ->
     ``resolved``: every *relative* depth at most ``limit``, the scale-free form of the ball's
     test (an element spans at most 2 arccos(1 - limit) of any arc): a rim thinner than twice
     the limit is judged on its own radius. Reported, not enforced: the run's stop rule
-    (:func:`dynslip.physics.meshcheck.held_unresolved`) stays on the absolute depth, because
+    (:func:`dynslip.physics.driver.meshcheck.held_unresolved`) stays on the absolute depth, because
     the main job at its default mesh (N = 50) crosses the tube's rounded rim with one element
     (relative depth 1) and would stop (docs/bodies.md, "The mesh check against every body").
     No pole crossing: that is the ball's (:func:`chord_check`)."""

@@ -20,7 +20,7 @@ from dynslip.errors import ComputationError
 SAT_REL = 0.02  # |F_m| = mu F_N within 2% counts as saturated
 
 
-def _rule_text(sel) -> str:
+def rule_text(sel) -> str:
     if sel.rule == "switch_radius":
         return f"fully mobilised member whose F_m changes sign at rbar_s = {sel.value:g} R"
     return (f"fully mobilised member whose F_m changes sign (and lambda_theta peaks) at "
@@ -44,7 +44,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
     t_bvp = time.perf_counter() - t0
     out: dict = {"model": model, "rbar": rbar, "h": h, "member": member, "t_bvp_s": t_bvp,
                  "fv_tol": num.fv_tolerance(),
-                 "rule": _rule_text(selection), "paper_mu": paper_mu(model, jm)}
+                 "rule": rule_text(selection), "paper_mu": paper_mu(model, jm)}
     if member.converged:
         th_m, _ = S.sample_member(material, member, rbar_max, rbar, rtol=num.ode_rtol)
     else:
@@ -152,7 +152,7 @@ def _add_fields(out, material, theta, h, mu, num):
     }
 
 
-def _summary(res: dict) -> dict:
+def static_summary(res: dict) -> dict:
     member = res["member"]
     s = {
         "status": res["status"],
@@ -256,11 +256,11 @@ def family_summary(cols: dict, selected: list, models: list[str], jm, selection)
                 "paper_mu": pm,
                 "mu_vs_paper_percent": 100 * (selected[i].mu / pm - 1) if pm else None,
                 "status": "ok" if selected[i].converged else "failed",
-                "selection_rule": _rule_text(selection),
+                "selection_rule": rule_text(selection),
                 "members_converged": int(np.isfinite(cols["mu"][i]).sum()),
             }
         )
-    summary = {"status": "ok", "selection_rule": _rule_text(selection), "selected": rows,
+    summary = {"status": "ok", "selection_rule": rule_text(selection), "selected": rows,
                "mu_range": {m: [float(np.nanmin(cols["mu"][i])), float(np.nanmax(cols["mu"][i]))]
                             for i, m in enumerate(models)}}
     return rows, summary

@@ -31,7 +31,7 @@ FLUSH_FRAMES = 25
 def build_core(sc):
     """(model, protocol, simulate kwargs) of a validated scenario's world
     (:meth:`~dynslip.schema.forming.FormingScenario.world`), for a caller that drives
-    :func:`dynslip.physics.simulate.simulate` itself."""
+    :func:`dynslip.physics.driver.simulate.simulate` itself."""
     world = sc.world()
     return world.model, world.protocol, world.simulate_kwargs()
 
@@ -98,7 +98,7 @@ def run_forming(sc, out, console=None, world=None) -> dict:
     ``world``: the scenario's world as :func:`prepare` made it (made here when None)."""
     from rich.console import Console
 
-    from dynslip.physics.simulate import simulate
+    from dynslip.physics.driver.simulate import simulate
 
     console = console or Console(stderr=True)
     outs = Outputs.of(out)

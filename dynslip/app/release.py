@@ -98,7 +98,8 @@ def _start_dataset(sc, console, run) -> tuple:
 
 
 def load_start(sc, console=None, run=None) -> tuple[dict, dict]:
-    """(start state for :func:`dynslip.physics.simulate.simulate`, provenance) of ``sc.start_from``;
+    """(start state for :func:`dynslip.physics.driver.simulate.simulate`, provenance) of
+    ``sc.start_from``;
     ``run(scenario, out, console)`` runs a start scenario that has no reusable result (needed
     only when ``start_from`` names a scenario)."""
     ds, src = _start_dataset(sc, console, run)

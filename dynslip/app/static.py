@@ -17,12 +17,12 @@ from dynslip.analysis.cylinder import cylinder_study, cylinder_summary
 from dynslip.analysis.paper import PAPER_MU, paper_mu
 from dynslip.analysis.static import (
     FIGURE4_MODELS,
-    _rule_text,
-    _summary,
     compute_static,
     family,
     family_summary,
     figure4_summary,
+    rule_text,
+    static_summary,
 )
 from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
@@ -93,7 +93,7 @@ def run_static(sc, out, console) -> dict:
                          jm=getattr(p.material, "jm", None))
     ds = static_dataset(res, sc.to_json(), "static", _scales(p))
     outs.netcdf(ds, "result.nc")
-    summary = _summary(res)
+    summary = static_summary(res)
     outs.json(summary)
     if "lambda_theta" in res and outs.writes:
         save_figure4_row(ds, outs.folder / "figure4_row.png")
@@ -122,7 +122,7 @@ def run_figure4(sc, out, console) -> dict:
             jm=p.jm if model == "gent" else None,
         )
         results.append(res)
-        sums.append(_summary(res))
+        sums.append(static_summary(res))
         dss.append(static_dataset(res, sc.to_json(), "figure4", _scales(p)))
     ds = figure4_dataset(
         dss, FIGURE4_MODELS, sc.to_json(), all(r["status"] == "ok" for r in results)
@@ -160,7 +160,7 @@ def run_family(sc, out, console) -> dict:
         cols, selected, values, models, [paper_mu(m, p.jm) or np.nan for m in models], p.switch_by
     )
     ds.attrs.update(io.provenance(sc.to_json(), "family"), **_scales(p), switch_by=p.switch_by,
-                    selection_rule=_rule_text(p.selection), complete=1)
+                    selection_rule=rule_text(p.selection), complete=1)
     io.check_units(ds)
     outs.netcdf(ds, "result.nc")
     rows, summary = family_summary(cols, selected, models, p.jm, p.selection)

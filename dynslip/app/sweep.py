@@ -44,11 +44,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 from dynslip.app.members import Member, default_member_fn, resolve
-from dynslip.app.sweep_runners import MODES, _connect, _run_members
+from dynslip.app.sweep_runners import MODES, connect_client, run_members
 from dynslip.data.sweep import assemble
 from dynslip.errors import ComputationError, InputError
 from dynslip.schema.paths import get_path, set_path
-from dynslip.schema.sweep import BASE_KEY, SweepSpec, _unit_of_field, load_spec
+from dynslip.schema.sweep import BASE_KEY, SweepSpec, load_spec, unit_of_field
 
 #: The default runner: the fastest in ``benchmarks/sweep.py`` on the 2-core machine.
 DEFAULT_MODE = "sequential"
@@ -220,7 +220,7 @@ def run_sweep(
     with contextlib.ExitStack() as stack:
         client = None
         if mode == "dask" and pending:  # before anything is printed: unreachable is bad input
-            client, cluster = _connect(scheduler, connect_timeout)
+            client, cluster = connect_client(scheduler, connect_timeout)
             stack.callback(client.close)
             if cluster is not None:
                 stack.callback(cluster.close)
@@ -265,7 +265,7 @@ def run_sweep(
                     f"[yellow]member {m.label}: {rec['status']}: {rec['error'][:200]}[/yellow]"
                 )
 
-        note = _run_members(
+        note = run_members(
             pending,
             mode=mode,
             client=client,
@@ -287,7 +287,7 @@ def run_sweep(
         else list(dict.fromkeys(k for m in members for k in m.assign))
     )
     ds = assemble(spec, members, records, attrs, base_value=_base_value,
-                  unit_of=lambda k: "1" if k == BASE_KEY else _unit_of_field(k, members))
+                  unit_of=lambda k: "1" if k == BASE_KEY else unit_of_field(k, members))
     write_netcdf(ds, out / "sweep.nc")
     statuses = [records[m.fingerprint]["status"] for m in members]
     summary = {

@@ -6,7 +6,7 @@ Runners (``mode``):
 - ``batched``: members grouped by shape (same structure, integers and strings of the
   resolved scenario; only floats differ, so members differing in the mesh, the material
   model or the friction law fall in different groups). A group of forming members runs
-  through :func:`dynslip.physics.batch.simulate_batch` (:func:`run_forming_batch`):
+  through :func:`dynslip.physics.driver.batch.simulate_batch` (:func:`run_forming_batch`):
   members in lockstep, one ``jax.vmap``-ed call of the load-stepping segment solve per save
   segment for the whole batch, each member with its own stage, time and stop rule. A group
   of at least 4 is split over :data:`BATCH_WORKERS` (2) spawned worker processes, one half
@@ -124,7 +124,7 @@ def _shape_key(resolved: Any) -> Any:
 # Runners
 
 
-def _connect(scheduler: str | None, timeout: float | None = None):
+def connect_client(scheduler: str | None, timeout: float | None = None):
     """A dask client: to ``scheduler`` (waiting ``timeout`` s for it, default
     :data:`CONNECT_TIMEOUT_S`), or to a new LocalCluster on loopback."""
     from distributed import Client, LocalCluster
@@ -150,7 +150,7 @@ def _connect(scheduler: str | None, timeout: float | None = None):
         ) from None
 
 
-def _run_members(
+def run_members(
     pending: list[Member],
     *,
     mode: str,
@@ -220,7 +220,7 @@ def _run_members(
 
 
 # ---------------------------------------------------------------------------------------
-# The batched runner: forming members in lockstep (dynslip.physics.batch.simulate_batch)
+# The batched runner: forming members in lockstep (dynslip.physics.driver.batch.simulate_batch)
 
 #: worker processes of the batched runner (each runs part of every group; "spawn": JAX and fork
 #: do not mix). 1 runs every batch in this process. docs/sweeps.md has the measurement.
@@ -276,7 +276,7 @@ def run_forming_batch(
     as :func:`execute_member` writes it (module level: it travels to worker processes).
     Members whose compiled solves differ (a float setting of the increment control, say)
     form separate batches, each of at most ``batch_size`` members (None: all)."""
-    from dynslip.physics.batch import batch_key, simulate_batch
+    from dynslip.physics.driver.batch import batch_key, simulate_batch
     from dynslip.schema.base import validate_data
 
     t0 = time.perf_counter()

@@ -5,8 +5,8 @@ Both solvers read them through the functions at the end (:func:`clamp_force`,
 :func:`edge_motion`, :func:`edge_carried`, :func:`ball_load`, :func:`ball_velocity`,
 :func:`ball_compliance`, :func:`ball_reaction`): the vector field
 (:func:`dynslip.physics.field.evaluate`) and the load increment's residual
-(:mod:`dynslip.physics.increment`) call the same ones, and the Newton matrix
-(:mod:`dynslip.physics.newton_matrix`) differentiates them.
+(:mod:`dynslip.physics.solver.increment`) call the same ones, and the Newton matrix
+(:mod:`dynslip.physics.solver.newton_matrix`) differentiates them.
 
 The mode is a traced integer of :class:`~dynslip.physics.field.StageArgs` (``clamp_mode``,
 ``ball_mode``; the constants of :mod:`dynslip.physics.protocols`), so that one compiled step

@@ -2,10 +2,11 @@ r"""The whole sheet's state vector and vector field (the physics the solvers int
 
 :class:`Layout` (:mod:`dynslip.physics.layout`) names the slices of the flat state,
 :class:`StageArgs` carries a stage's loads, :func:`evaluate` is the overdamped law with the
-clamp and the ball (see :mod:`dynslip.physics.simulate` for the state's contents and the
-energy accumulators), :func:`vector_field` its diffrax form, and :func:`sheet_structure` the
-sparsity that :class:`dynslip.physics.linalg.BorderedBlockTridiagonal` exploits. Both solvers
-(:mod:`dynslip.physics.simulate`'s time stepping and :mod:`dynslip.physics.loadstep`)
+clamp and the ball (see :mod:`dynslip.physics.driver.simulate` for the state's contents and the
+energy accumulators), :func:`vector_field` its diffrax form; the sparsity that
+:class:`dynslip.physics.solver.linalg.BorderedBlockTridiagonal` exploits is
+:func:`dynslip.physics.solver.linalg.sheet_structure`. Both solvers
+(:mod:`dynslip.physics.driver.simulate`'s time stepping and :mod:`dynslip.physics.solver.loadstep`)
 import from here, and nothing here imports a solver.
 """
 
@@ -20,10 +21,11 @@ from dynslip.physics.bodies.held import held_entries, place_bodies, place_free
 from dynslip.physics.conditions import Edge
 from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.layout import N_ACC, N_ACC_MOVED, Layout
-from dynslip.physics.linalg import Structure
 from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 
-EDGE_NODES = 2  # nodes of the clamped edge's element, in the dense border (see sheet_structure)
+# nodes of the clamped edge's element, in the dense border
+# (dynslip.physics.solver.linalg.sheet_structure)
+EDGE_NODES = 2
 
 __all__ = [
     "N_ACC",
@@ -33,7 +35,6 @@ __all__ = [
     "StageArgs",
     "evaluate",
     "vector_field",
-    "sheet_structure",
     "heal",
 ]
 
@@ -81,10 +82,6 @@ class StageArgs(eqx.Module):
         of :func:`dynslip.physics.sheet.penalty_pressure` (width 1e-3 R); zero off the support
         (unilateral: the pocket may lift the ball off) and where ``support`` is 0."""
         return self.support * penalty_pressure(Penalty(self.support_k, 1e-3), self.support_z - zb)
-
-
-def _f(x):
-    return jnp.asarray(x, dtype=jnp.float64)
 
 
 def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, forces=None):
@@ -285,43 +282,6 @@ def vector_field(model: SheetModel, layout: Layout):
 
     return vf
 
-
-def sheet_structure(layout: Layout) -> Structure:
-    r"""Sparsity of the state for :class:`dynslip.physics.linalg.BorderedBlockTridiagonal`.
-
-    Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
-    relative to the ball depends only on its neighbours (element energies, the hoop
-    stretch at element midpoints, the node's own contact frame), so those blocks are
-    tridiagonal. A friction law's per-node state (slip distance) joins its node's block
-    (``b = 3``): its rate depends on the node's slip, i.e. on the node and its neighbours.
-
-    The dense border holds the ball height, the accumulators, and the last
-    :data:`EDGE_NODES` nodes (the clamped edge and its neighbour). Every node moves with the
-    ball (``v = u + v_b e_z``), and a force-controlled ball's velocity
-    $v_b = (F_b + C_z + F_g)/\eta_b$ depends on the clamp's force $C_z = \partial E/\partial
-    z_{n-1}$,
-    i.e. on the last element's two nodes: every row depends on them, so they belong in the
-    border (with a held ball the coupling vanishes and the border simply holds a few zeros).
-    ``tests/test_structured.py`` checks the pattern against ``jax.jacfwd`` with the ball
-    held and force-controlled.
-    """
-    n = layout.n
-    n_core = n - EDGE_NODES
-
-    def node(i):
-        return (
-            [-1 if i == 0 else i - 1, n - 1 + i]
-            + ([layout.internal_start + i] if layout.n_int else [])
-            + [layout.held_start + k * n + i for k in range(layout.n_held_int)]
-        )
-
-    core = [j for i in range(n_core) for j in node(i)]
-    edge = [j for i in range(n_core, n) for j in node(i)]
-    border = tuple(edge + list(range(2 * n - 1, 2 * n + N_ACC)))
-    return Structure(
-        n=n_core, b=2 + layout.n_int + layout.n_held_int, m=len(border), core_index=tuple(core),
-        border_index=border,
-    )
 
 
 def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=None, vb=None,

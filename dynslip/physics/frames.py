@@ -13,12 +13,12 @@ from dynslip.physics.field import (
     N_ACC,
     Layout,
     StageArgs,
-    _f,
     evaluate,
     heal,
     place_free_moving,
     place_state,
 )
+from dynslip.physics.layout import f64
 from dynslip.physics.sheet import SheetModel
 
 __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
@@ -30,7 +30,8 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     """Everything saved per frame: per-node fields and per-time scalars (jnp), and per held
     body (:mod:`dynslip.physics.bodies.observe`). ``forces``, ``vb``: the energy gradient, held
     load and held bodies' projections at ``y``, and the ball's velocity, where the solver has them
-    (:class:`~dynslip.physics.newton.SegmentOutput`), else computed here. ``vb`` is taken only
+    (:class:`~dynslip.physics.solver.newton.SegmentOutput`), else computed here. ``vb`` is taken
+    only
     where the state has no held slip distances and no free bodies: there the solver's velocity
     is the state's (load stepping takes it at the increment's start slip distances, and at the
     free bodies' velocity over the increment, where the frame solves the state's own)."""
@@ -95,8 +96,8 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
 def initial_state(model: SheetModel, layout: Layout, pre_stretch: float, z_sheet: float, zb: float):
     """Flat sheet at height ``z_sheet``, uniformly pre-stretched radially (rho = lambda rbar)."""
     rho = pre_stretch * model.mesh.rbar
-    z = jnp.full(layout.n, _f(z_sheet))
-    return layout.pack(rho, z, _f(zb), jnp.zeros(layout.n_acc))
+    z = jnp.full(layout.n, f64(z_sheet))
+    return layout.pack(rho, z, f64(zb), jnp.zeros(layout.n_acc))
 
 
 def state_from(layout: Layout, start: dict):
@@ -107,7 +108,7 @@ def state_from(layout: Layout, start: dict):
         internal = jnp.asarray(start.get("slip_distance", np.zeros(layout.n)), dtype=jnp.float64)
         internal = jnp.where(jnp.isfinite(internal), internal, 0.0)
     return layout.pack(
-        _f(start["rho"]), _f(start["z"]), _f(start["zb"]), jnp.zeros(layout.n_acc), internal
+        f64(start["rho"]), f64(start["z"]), f64(start["zb"]), jnp.zeros(layout.n_acc), internal
     )
 
 

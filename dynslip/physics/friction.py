@@ -30,7 +30,7 @@ friction limit approaches $S = 0$ only asymptotically (its slip rate decays like
 $e^{-Kt/\eta}$), so the force criterion $S = 0$ alone ($v_h = 0$) never heals it and it
 stays weakened at $\mu_k$ for ever; with $v_h > 0$ it heals once it has all but stopped.
 The reset is a jump: the time-stepped driver applies it at every restart (the end of each
-save segment, :func:`dynslip.physics.simulate.simulate`), so its time resolution is the
+save segment, :func:`dynslip.physics.driver.simulate.simulate`), so its time resolution is the
 save interval.
 Slip-distance weakening is rate independent (no time scale enters $\mu$) and well
 posed for $d_c > 0$; velocity weakening is neither and is not offered.
@@ -121,7 +121,7 @@ def weighted_form(y, c, eps, weight):
     $0 < b < (\gamma + 1)\,e$; past it $v = (|y| - c)/\gamma$. So $\gamma\Psi_\gamma$ is
     $S_\epsilon$ at $\gamma = 1$ and the ideal threshold of $y$ at $\epsilon = 0$, and a
     node's row $\eta A u_t = \gamma\Psi_\gamma(y) - (\gamma - 1)\eta A u_t$ has exactly
-    the law's roots (:func:`dynslip.physics.increment.weighted_slip`)."""
+    the law's roots (:func:`dynslip.physics.solver.increment.weighted_slip`)."""
     y = jnp.asarray(y)
     c = jnp.asarray(c)
     r = jnp.abs(y)

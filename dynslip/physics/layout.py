@@ -6,7 +6,13 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-__all__ = ["N_ACC", "N_ACC_MOVED", "Layout"]
+__all__ = ["N_ACC", "N_ACC_MOVED", "Layout", "f64"]
+
+
+def f64(x):
+    """A float64 JAX array (the package computes in double precision)."""
+    return jnp.asarray(x, dtype=jnp.float64)
+
 
 N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction
 #: with bodies moved by the stages, a fifth: work_bodies, their work on the sheet

@@ -61,7 +61,7 @@ class AbstractStop(eqx.Module):
 
     A stage runs in save segments up to ``duration`` (s, its maximum length). After every
     segment the driver calls :meth:`check` with the frame just recorded (the dict of
-    :func:`dynslip.physics.simulate.frame_record`, numpy values), the time and the rule's
+    :func:`dynslip.physics.driver.simulate.frame_record`, numpy values), the time and the rule's
     carried state (from :meth:`init` at the stage's start); it returns whether the stage
     ends now and the new state. Reaching ``duration`` ends the stage in any case; whether
     that meets the rule is :attr:`met_at_duration` (a duration rule: yes; a condition

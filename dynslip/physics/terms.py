@@ -1,4 +1,4 @@
-r"""The increment's element and node terms (:mod:`dynslip.physics.newton`): the elastic
+r"""The increment's element and node terms (:mod:`dynslip.physics.solver.newton`): the elastic
 energy of one element, the contact gap against a body, the penalties, and the energy's
 gradient and Hessian blocks from them (``vmap`` of ``jacfwd`` of ``grad`` per element; the
 penalties' in closed form from one projection per body; no pass over the whole field).

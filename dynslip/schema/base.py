@@ -124,14 +124,14 @@ class ScenarioBase(Strict):
         return self.model_dump_json()
 
 
-def _classes() -> dict[str, type]:
+def kind_classes() -> dict[str, type]:
     """kind -> scenario class. An import error of a schema module propagates: it is a bug,
     not an unknown kind."""
     return {kind: getattr(importlib.import_module(mod), cls) for kind, (mod, cls) in KINDS.items()}
 
 
 def _adapter():
-    classes = list(_classes().values())
+    classes = list(kind_classes().values())
     if not classes:
         raise InputError("no scenario kinds are installed")
     if len(classes) == 1:
@@ -282,8 +282,8 @@ def format_validation_error(err: ValidationError, source: str, data=None) -> str
     if data is not None:
         loc = _field_path(eloc, data)
     else:
-        loc = ".".join(str(p) for p in eloc if not (isinstance(p, str) and p in _classes()))
-    if len(eloc) == 1 and loc in _classes():  # a check of the whole scenario (its kind's tag)
+        loc = ".".join(str(p) for p in eloc if not (isinstance(p, str) and p in kind_classes()))
+    if len(eloc) == 1 and loc in kind_classes():  # a check of the whole scenario (its kind's tag)
         loc = ""
     value = e.get("input")
     msg = " ".join(str(e["msg"]).split()).removeprefix("Value error, ")
@@ -295,7 +295,7 @@ def format_validation_error(err: ValidationError, source: str, data=None) -> str
         loc = f"{loc}.{disc}" if loc else disc
         value = value.get(disc) if isinstance(value, dict) else ctx.get("tag", value)
         what = "kind" if disc == "kind" else disc
-        msg = f"unknown {what}; allowed: {ctx.get('expected_tags') or ', '.join(_classes())}"
+        msg = f"unknown {what}; allowed: {ctx.get('expected_tags') or ', '.join(kind_classes())}"
     if e["type"] == NUMBER_AS_TEXT:
         ctx = e.get("ctx") or {}
         value, msg = ctx.get("value"), str(ctx.get("why"))
@@ -319,8 +319,8 @@ def validate_data(data: Any, source: str = "<scenario>"):
             f"{source}: a scenario must be a mapping of sections, got {type(data).__name__}"
         )
     if "kind" not in data:
-        raise InputError(f"{source}: field 'kind' missing; allowed: {', '.join(_classes())}")
-    if not isinstance(data["kind"], str) or data["kind"] not in _classes():
+        raise InputError(f"{source}: field 'kind' missing; allowed: {', '.join(kind_classes())}")
+    if not isinstance(data["kind"], str) or data["kind"] not in kind_classes():
         kind = data["kind"]
         shown = (
             json.dumps(kind)
@@ -328,7 +328,8 @@ def validate_data(data: Any, source: str = "<scenario>"):
             else type(kind).__name__
         )
         raise InputError(
-            f"{source}: field 'kind' = {shown[:80]}: unknown kind; allowed: {', '.join(_classes())}"
+            f"{source}: field 'kind' = {shown[:80]}: unknown kind; "
+            f"allowed: {', '.join(kind_classes())}"
         )
     try:
         return _adapter().validate_python(data)
@@ -466,7 +467,7 @@ def schema_reference(extra: dict[str, type] | None = None) -> str:
     """A plain-text reference of every field of every scenario kind (and of the models in
     ``extra``, title -> pydantic class: the sweep file)."""
     lines = []
-    sections = [(f"kind: {kind}", cls) for kind, cls in _classes().items()] + list(
+    sections = [(f"kind: {kind}", cls) for kind, cls in kind_classes().items()] + list(
         (extra or {}).items()
     )
     for title, cls in sections:

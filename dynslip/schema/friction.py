@@ -15,6 +15,7 @@ from typing import Annotated, Literal
 
 from pydantic import model_validator
 
+from dynslip.physics.layout import f64
 from dynslip.physics.reference import MEASURED_MU_K, MEASURED_MU_S
 from dynslip.schema.base import F, Strict
 from dynslip.schema.registry import Registry
@@ -48,12 +49,6 @@ def capstan_reference_pressure_kPa(exponent: float, test: dict = CAPSTAN_TEST) -
 #: law); a friction section without ``law`` is Coulomb's, and another law's parameters in it are
 #: ignored (``--set physics.friction.law=coulomb`` on a file that states mu_s), as the material's
 FRICTION_SPECS = Registry("law", default="coulomb", others_ignored=True)
-
-
-def _f(x):
-    import jax.numpy as jnp
-
-    return jnp.asarray(x, dtype=float)
 
 
 class FrictionSpec(Strict):
@@ -108,7 +103,7 @@ class CoulombSpec(FrictionSpec):
     def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
         from dynslip.physics.friction import Coulomb
 
-        return Coulomb(mu=_f(self.mu), eps=_f(eps))
+        return Coulomb(mu=f64(self.mu), eps=f64(eps))
 
     @property
     def nominal_mu(self) -> float:
@@ -142,8 +137,8 @@ class SlipWeakeningSpec(FrictionSpec):
     def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
         from dynslip.physics.friction import SlipWeakening
 
-        return SlipWeakening(mu_s=_f(self.mu_s), mu_k=_f(self.mu_k),
-                             d_c=_f(self.d_c_mm / ball_radius_mm), eps=_f(eps))
+        return SlipWeakening(mu_s=f64(self.mu_s), mu_k=f64(self.mu_k),
+                             d_c=f64(self.d_c_mm / ball_radius_mm), eps=f64(eps))
 
     @property
     def nominal_mu(self) -> float:
@@ -199,10 +194,10 @@ class PressureSpec(FrictionSpec):
         if pressure_scale_kPa is None or not pressure_scale_kPa > 0:
             raise ValueError("law: pressure needs the pressure scale G h0 / R (kPa) > 0, got "
                              f"{pressure_scale_kPa}")
-        return PressureDependent(mu_ref=_f(self.mu_ref), p_ref=_f(self.p_ref_kPa /
+        return PressureDependent(mu_ref=f64(self.mu_ref), p_ref=f64(self.p_ref_kPa /
                                                                   pressure_scale_kPa),
-                                 a=_f(self.exponent), mu_max=_f(self.mu_max),
-                                 blend=_f(CAP_BLEND), eps=_f(eps),
+                                 a=f64(self.exponent), mu_max=f64(self.mu_max),
+                                 blend=f64(CAP_BLEND), eps=f64(eps),
                                  deformed_area=self.pressure_on == "deformed")
 
     @property

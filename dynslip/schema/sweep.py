@@ -17,7 +17,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from dynslip.errors import InputError
-from dynslip.schema.base import _classes, read_yaml
+from dynslip.schema.base import kind_classes, read_yaml
 from dynslip.schema.paths import get_path, set_path
 
 BASE_KEY = "base"
@@ -146,11 +146,11 @@ def load_spec(path) -> SweepSpec:
         raise InputError(f"{path}: field '{loc or '<root>'}' = {shown}: {msg}") from None
 
 
-def _unit_of_field(dotted: str, members: list) -> str:
+def unit_of_field(dotted: str, members: list) -> str:
     """The unit a scenario field declares in its schema metadata, or ``"1"``."""
     try:
         kind = members[0].resolved.get("kind")
-        cls = _classes().get(kind)
+        cls = kind_classes().get(kind)
         if cls is None:
             return "1"
         schema = cls.model_json_schema()

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 if TYPE_CHECKING:
     from dynslip.physics.protocols import Protocol
     from dynslip.physics.sheet import SheetModel
-    from dynslip.physics.solvers import Settings
+    from dynslip.physics.solver.methods import Settings
 
 __all__ = ["World", "Scales", "Limits", "build_world", "settings_of", "build_protocol",
            "clamp_enters_ball"]
@@ -112,7 +112,7 @@ class World:
         return next(rule for name, rule in self.stage_rules if name == stage_name)
 
     def simulate_kwargs(self) -> dict:
-        """The keyword arguments of :func:`dynslip.physics.simulate.simulate` (with the start
+        """The keyword arguments of :func:`dynslip.physics.driver.simulate.simulate` (with the start
         state where there is one)."""
         kw = dict(self.loads, settings=self.settings)
         if self.start is not None:
@@ -129,10 +129,10 @@ class World:
 
 
 def settings_of(nu, ball_radius_mm: float, body_names: tuple) -> Settings:
-    """The driver's :class:`~dynslip.physics.solvers.Settings` of the numerics spec ``nu``:
+    """The driver's :class:`~dynslip.physics.solver.methods.Settings` of the numerics spec ``nu``:
     every setting of the same name taken as it is, the four the spec states in its own units
     or words converted."""
-    from dynslip.physics.solvers import Settings
+    from dynslip.physics.solver.methods import Settings
 
     same = {f.name for f in dataclasses.fields(Settings)} & set(type(nu).model_fields)
     return Settings(

@@ -262,7 +262,7 @@ class HeldFrame(eqx.Module):
         ball's motion adds to $G$ per unit velocity ($\eta A\,t_{k,z}$; 0 on a body that moves
         with the ball). With them the friction force $f_k = S_k - G_k$ has the closed-form
         derivatives $\partial f_k/\partial G_k = S'_k - 1$ and $\partial f_k/\partial v_b =
-        (S'_k - 1)\,\partial G_k/\partial v_b$ (:func:`dynslip.physics.newton_matrix.
+        (S'_k - 1)\,\partial G_k/\partial v_b$ (:func:`dynslip.physics.solver.newton_matrix.
         blocks_with_held_friction`)."""
         g, dg = jax.jvp(self._drive, (vb,), (jnp.ones_like(vb),))
         s, ds = jax.jvp(self._slip_of, (g,), (jnp.ones_like(g),))

@@ -130,7 +130,7 @@ class Projection(eqx.Module):
         $dt = -\kappa\tau\,n$, $d\kappa = -\kappa^2\,dd$; ``s`` is kept, its factor not being
         carried). With ``dx = x - stop_gradient(x)`` its value is this projection and its first
         derivative in x the projection's own: a projection computed once serves a derivative
-        taken later (the held friction's, :mod:`dynslip.physics.newton_matrix`). Needs
+        taken later (the held friction's, :mod:`dynslip.physics.solver.newton_matrix`). Needs
         ``curvature``."""
         dd = jnp.sum(self.normal * dx, axis=-1)
         kt = (self.curvature * jnp.sum(self.tangent * dx, axis=-1))[..., None]

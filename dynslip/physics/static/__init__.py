@@ -38,7 +38,7 @@ from dynslip.physics.static.checks import (
     sign_change_index,
 )
 from dynslip.physics.static.family import (
-    Member,
+    FamilyMember,
     sample_member,
     solve_family,
     solve_member,
@@ -83,7 +83,7 @@ __all__ = [
     "march",
     "SearchResult",
     "search_mu",
-    "Member",
+    "FamilyMember",
     "solve_member",
     "solve_family",
     "sample_member",

@@ -83,7 +83,7 @@ def _shoot(material, p, theta_s, rbar_max, rtol, by_radius=0.0):
     return jnp.stack([switch, ye[0], _tt_scalar(material, ye[1], lp_e)]), ys[0]
 
 
-class Member(NamedTuple):
+class FamilyMember(NamedTuple):
     """A member of the fully mobilised family."""
 
     lam0: float  # stretch at the pole
@@ -107,7 +107,7 @@ def _solve_member_jit(material, value, by_radius, theta_max, rbar_max, guess, rt
 
 
 def solve_member(material, value, theta_max, rbar_max, guess=(2.0, 1.0, 0.25), *,
-                 by: str = "switch_angle", rtol=1e-10, atol=1e-9) -> Member:
+                 by: str = "switch_angle", rtol=1e-10, atol=1e-9) -> FamilyMember:
     r"""The fully mobilised member whose switch point is ``value``: shooting from the pole
     ($\theta = \lambda_0\bar r$, $\lambda_\theta = \lambda_0$ at $\bar r = 10^{-5}$) with Newton on
     $(\lambda_0, \mu, \bar r_s)$ so that $\theta(\bar r_{max}) = \theta_{max}$,
@@ -127,7 +127,7 @@ def solve_member(material, value, theta_max, rbar_max, guess=(2.0, 1.0, 0.25), *
     res = float(res)
     ok = bool(np.isfinite(res) and res < 1e-6 and p[0] > 0 and 0 < p[2] < rbar_max and p[1] > 0)
     theta_s = float(theta_s) if ok else float("nan")
-    return Member(float(p[0]), float(p[1]), float(p[2]), theta_s, res, ok)
+    return FamilyMember(float(p[0]), float(p[1]), float(p[2]), theta_s, res, ok)
 
 
 def solve_family(material, values, theta_max, rbar_max, guess=(2.0, 1.0, 0.25), **kw):
@@ -158,7 +158,7 @@ def _sample_jit(material, lam0, mu, rs, rbar_max, rgrid, rtol):
     return th, lt
 
 
-def sample_member(material, member: Member, rbar_max, rbar, rtol=1e-10):
+def sample_member(material, member: FamilyMember, rbar_max, rbar, rtol=1e-10):
     """theta and lambda_theta of a member at the radii ``rbar`` (from the ODE, not the grid)."""
     rbar = np.asarray(rbar, float)
     # Pad to a fixed length (a power of two, at least 1024) so that every grid size up to it

@@ -107,7 +107,7 @@ def vertical_force(material: AbstractMaterial, theta, h):
 
 
 # F_v compiled once per material and grid size (eagerly it costs more than a march near rest)
-_vertical_force_jit = eqx.filter_jit(vertical_force)
+vertical_force_jit = eqx.filter_jit(vertical_force)
 
 
 def vertical_force_identity(material: AbstractMaterial, theta, h):

@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from dynslip.errors import ComputationError
-from dynslip.physics.static.grid import _vertical_force_jit
+from dynslip.physics.static.grid import vertical_force_jit
 from dynslip.physics.static.march import MarchResult, march, stable_dt
 
 
@@ -47,7 +47,7 @@ def search_mu(material, theta0, h, mu_lo, mu_hi, *, method="explicit", mu_tol=1e
 
     def fv_of(mu):
         res = march(material, theta0, h, mu, method=method, **march_kw)
-        fv = float(_vertical_force_jit(material, res.theta, jnp.asarray(h, float)))
+        fv = float(vertical_force_jit(material, res.theta, jnp.asarray(h, float)))
         cache[mu] = (fv, res)
         return fv
 

@@ -1,6 +1,6 @@
 r"""One member's run through its protocol, on the host (:class:`MemberRun`): stage set-up,
 save segments, recording and the stop rules, between the compiled segment steps that the driver
-(:func:`dynslip.physics.simulate.drive`) runs for one member or many in lockstep; the run's
+(:func:`dynslip.physics.driver.simulate.drive`) runs for one member or many in lockstep; the run's
 result (:class:`Result`) and the stage loads (:func:`stage_args`).
 """
 
@@ -18,15 +18,16 @@ import numpy as np
 
 from dynslip.physics.bodies.held import held_entries, n_free, n_memory, stage_moved
 from dynslip.physics.conditions import BALLS, CLAMPS
-from dynslip.physics.failures import NonFinite, RunFailure, StepLimit
-from dynslip.physics.field import N_ACC, N_ACC_MOVED, Layout, StageArgs, _f
+from dynslip.physics.driver.failures import NonFinite, RunFailure, StepLimit
+from dynslip.physics.driver.meshcheck import ball_unresolved, held_unresolved
+from dynslip.physics.field import StageArgs
 from dynslip.physics.frames import initial_state, state_from
 from dynslip.physics.friction import AbstractFriction
-from dynslip.physics.meshcheck import ball_unresolved, held_unresolved
-from dynslip.physics.newton import zero_rate
+from dynslip.physics.layout import N_ACC, N_ACC_MOVED, Layout, f64
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
-from dynslip.physics.solvers import Settings, _counts_newton, solver_for
+from dynslip.physics.solver.methods import Settings, counts_newton, solver_for
+from dynslip.physics.solver.newton import zero_rate
 
 __all__ = ["MemberRun", "Result", "Segment", "stage_args", "static_key"]
 
@@ -65,29 +66,29 @@ def stage_args(
     moved = {}
     if body_z0 is not None:
         v = np.zeros(len(body_z0)) if not stage.body_vz else np.asarray(stage.body_vz, float)
-        moved = {"body_z0": _f(body_z0), "body_v": _f(v)}
+        moved = {"body_z0": f64(body_z0), "body_v": f64(v)}
     f0 = f_start if stage.ball_force_start is None else stage.ball_force_start
     fc0 = fc_start if stage.clamp_force_start is None else stage.clamp_force_start
     return StageArgs(
-        t0=_f(t0),
+        t0=f64(t0),
         clamp_mode=jnp.asarray(stage.clamp_mode, jnp.int32),
-        vzc=_f(stage.clamp_vz),
-        vrhoc=_f(stage.clamp_vrho),
-        fc0=_f(fc0),
-        fc1=_f(stage.clamp_force_end),
+        vzc=f64(stage.clamp_vz),
+        vrhoc=f64(stage.clamp_vrho),
+        fc0=f64(fc0),
+        fc1=f64(stage.clamp_force_end),
         ball_mode=jnp.asarray(stage.ball_mode, jnp.int32),
-        vzb=_f(stage.ball_vz),
-        f0=_f(f0),
-        f1=_f(stage.ball_force_end),
-        ramp=_f(dur),
+        vzb=f64(stage.ball_vz),
+        f0=f64(f0),
+        f1=f64(stage.ball_force_end),
+        ramp=f64(dur),
         friction=friction,
-        eps=_f(eps),
-        drag=_f(drag),
-        ball_drag=_f(ball_drag),
-        weight=_f(weight),
-        support=_f(1.0 if stage.support else 0.0),
-        support_z=_f(support_z),
-        support_k=_f(support_k),
+        eps=f64(eps),
+        drag=f64(drag),
+        ball_drag=f64(ball_drag),
+        weight=f64(weight),
+        support=f64(1.0 if stage.support else 0.0),
+        support_z=f64(support_z),
+        support_k=f64(support_k),
         **moved,
     )
 
@@ -180,7 +181,7 @@ class MemberRun:
         self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf,
                              n_memory(model.bodies))
         self.solver = solver_for(settings)
-        if nf and not _counts_newton(self.solver):
+        if nf and not counts_newton(self.solver):
             raise ValueError(
                 "a held body free along the axis needs load stepping (solver load_step): its "
                 "height is a border unknown of Newton's system"
@@ -189,7 +190,7 @@ class MemberRun:
             self.y = initial_state(model, self.layout, pre_stretch, z_sheet, protocol.ball_z0)
         else:
             self.y = state_from(self.layout, start)
-        self.rtol, self.atol = _f(settings.rtol), _f(settings.atol)
+        self.rtol, self.atol = f64(settings.rtol), f64(settings.atol)
         self.t = 0.0
         self.frames: list = []
         self.stage_end: list = []
@@ -203,7 +204,7 @@ class MemberRun:
             "method": settings.solver
             if isinstance(settings.solver, str)
             else type(settings.solver).__name__,
-            "newton_iterations": 0 if _counts_newton(self.solver) else None,
+            "newton_iterations": 0 if counts_newton(self.solver) else None,
         }
         self.dt_guess = 1e-3 * settings.save_interval
         self.reaction = 0.0
@@ -251,11 +252,12 @@ class MemberRun:
         )
 
     def advance(self, seg: Segment, out, run_s: float) -> bool:
-        """Take a segment's solve output (:class:`dynslip.physics.newton.SegmentOutput`); False
+        """Take a segment's solve output (:class:`dynslip.physics.solver.newton.SegmentOutput`);
+        False
         (and the run done, with ``failed`` set) where the solver did not reach the segment's
         end."""
         y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
-        if _counts_newton(self.solver):
+        if counts_newton(self.solver):
             self.stats["newton_iterations"] += int(out.newton_iterations)
         ok = bool(ok)
         self.stats["run_s"] += run_s
@@ -322,12 +324,13 @@ class MemberRun:
 
     def _mesh_check(self, rec: dict) -> RunFailure | None:
         """Why the frame ``rec`` is past what the mesh resolves (a
-        :class:`~dynslip.physics.failures.ContactUnresolved`), or None; never checked where
+        :class:`~dynslip.physics.driver.failures.ContactUnresolved`), or None; never checked where
         ``Settings.max_chord_depth`` is None. Against the ball: a chord deeper than that limit
         inside the ball, or the pole through it
-        (:func:`~dynslip.physics.meshcheck.ball_unresolved`). Against a held body: a chord
+        (:func:`~dynslip.physics.driver.meshcheck.ball_unresolved`). Against a held body: a chord
         deeper than the limit inside it, at its height in the frame
-        (:func:`~dynslip.physics.meshcheck.held_unresolved`). The pole's crossing is the ball's
+        (:func:`~dynslip.physics.driver.meshcheck.held_unresolved`). The pole's crossing is the
+        ball's
         only: a held body is off the axis or pressed by the pole from one side
         (docs/bodies.md, "The mesh check against every body"). One limit for every body, in R.
         No shipped scenario reaches it against a held body at its default mesh, nor the main

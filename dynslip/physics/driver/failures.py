@@ -1,5 +1,5 @@
 """Why a run stops as failed, in physics terms, with the quantities: the failures the driver
-(:mod:`dynslip.physics.simulate`) reports; the schema layer maps each kind to the settings a
+(:mod:`dynslip.physics.driver.simulate`) reports; the schema layer maps each kind to the settings a
 user can change."""
 
 from __future__ import annotations

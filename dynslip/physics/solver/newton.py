@@ -1,6 +1,6 @@
 r"""Load increments by Newton on the motion alone.
 
-The same implicit Euler increment as :mod:`dynslip.physics.loadstep`,
+The same implicit Euler increment as :mod:`dynslip.physics.solver.loadstep`,
 $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
 :func:`dynslip.physics.field.evaluate`, solved for fewer unknowns:
 
@@ -16,7 +16,7 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   give.
 - **Slip distance by a local return map.** Per node, given the trial forces,
   $\delta_1 = \delta_0 + \Delta t\,|S(F_t, \mu(\delta_0) N)|/(\eta A)$ in contact
-  ($\delta_1 = \delta_0$ out of contact): :func:`dynslip.physics.increment.slip_update`,
+  ($\delta_1 = \delta_0$ out of contact): :func:`dynslip.physics.solver.increment.slip_update`,
   which states why $\mu$ is taken at the increment's start. It is continuous in the motion,
   so its autodiff derivative is the map's consistent tangent.
 - **The ball friction's weighted form** (``weight``, the complementarity parameter $c$;
@@ -24,7 +24,7 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   row in the form $\lambda = P(\lambda + \gamma\,\eta A u_t)$ ($\lambda$ the friction
   force, $P$ the law's projection onto the friction disc, $\gamma = \max(1, c\,\Delta t/
   (\eta A))$) in place of the law's own $\eta A u_t = S(F_t)$ ($\gamma = 1$):
-  :func:`dynslip.physics.increment.weighted_slip`. The roots are the law's, smoothing band
+  :func:`dynslip.physics.solver.increment.weighted_slip`. The roots are the law's, smoothing band
   included (:func:`dynslip.physics.friction.weighted_form` reads the same curve), so the
   converged increment is the law's; what changes is how a Newton step decides stick or slip: by
   the node's trial force *plus* $c$ times its tangential displacement, the primal-dual
@@ -34,20 +34,20 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   iterations 2x at N = 50 and 5-6x at N = 200-800 (docs/speed.md).
 - **Energy accumulators by quadrature.** After an increment is accepted, the work and
   dissipation rates of :func:`dynslip.physics.field.evaluate` at $x_1$ times $\Delta t$ (the
-  rectangle rule at the increment's end: exactly what :mod:`dynslip.physics.loadstep`'s
+  rectangle rule at the increment's end: exactly what :mod:`dynslip.physics.solver.loadstep`'s
   implicit accumulators give).
 - **Jacobian from element and node derivatives.** Per element, the value, gradient and
   Hessian of its energy in its four coordinates (``vmap`` of ``jacfwd`` of ``grad``); per
   node, the penalty's, and the Jacobian of the node's rate in its own position (``vmap`` of
   ``jacfwd``) and force (closed form,
-  :func:`dynslip.physics.increment.node_force_jacobian`; ``jacfwd`` with held friction); the
+  :func:`dynslip.physics.solver.increment.node_force_jacobian`; ``jacfwd`` with held friction); the
   chain rule assembles the $2\times 2$ blocks
   $\partial u_i/\partial q_j = L^q_i\delta_{ij} + L^g_i H_{ij}$. No pass over the whole field.
-- **Backtracking** as :class:`dynslip.physics.loadstep.DampedNewton` (a correction that
+- **Backtracking** as :class:`dynslip.physics.solver.loadstep.DampedNewton` (a correction that
   raises the residual's max norm is halved, at most ``backtrack`` times); the residual of
   the accepted trial is the next iteration's residual (one evaluation per trial), and its
   energy gradient, ball velocity and slip distances are the converged state's (not evaluated
-  again after the loop; :func:`dynslip.physics.increment.residual_and_state`).
+  again after the loop; :func:`dynslip.physics.solver.increment.residual_and_state`).
 - **Predictor.** Newton starts from the last accepted increment's rate extrapolated over
   the new increment (zero at a segment's start).
 - **Convergence.** The last correction below ``atol + rtol |x|`` and the residual's max norm
@@ -55,7 +55,7 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   ``atol + rtol |x|`` for ``floor_count`` iterations running and the residual below
   ``floor_factor atol``. For a Newton matrix that is not exact: on the main job with the free
   ball's coupling to the rest of the sheet left out of it (exact in
-  :func:`dynslip.physics.newton_matrix.blocks_with_held_friction`), in the z rows of the
+  :func:`dynslip.physics.solver.newton_matrix.blocks_with_held_friction`), in the z rows of the
   sheet's edge nodes on the tube and the band, Newton's corrections fall far below the step
   tolerance while the residual stays at 2-10 ``atol``, until the increment is cut. A bounded
   relaxation of the test: the let-go end states move by at most 1.2e-7 rad (docs/speed.md);
@@ -65,7 +65,7 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   failure within a segment are held to at most ``fail_cap`` times the failed size, a bound
   relaxed by ``fail_relax`` per accepted increment (0: no memory of the failure).
 
-The linear solve is :func:`dynslip.physics.linalg.block_solve` (block cyclic reduction or
+The linear solve is :func:`dynslip.physics.solver.linalg.block_solve` (block cyclic reduction or
 block Thomas, with the one-unknown border by a Schur complement).
 
 **Bodies.** The contact geometry is asked of the model's bodies through
@@ -75,8 +75,8 @@ with its own friction law or none: :mod:`dynslip.physics.bodies.held`, docs/bodi
 
 Where the parts live: the element and node terms (energy, penalties, their gradient and
 Hessian blocks) in :mod:`dynslip.physics.terms`; the increment's data and residual in
-:mod:`dynslip.physics.increment`; its Newton matrix (and the free held bodies' system) in
-:mod:`dynslip.physics.newton_matrix`; here the increment's loop and the segment's.
+:mod:`dynslip.physics.solver.increment`; its Newton matrix (and the free held bodies' system) in
+:mod:`dynslip.physics.solver.newton_matrix`; here the increment's loop and the segment's.
 
 The increment's Newton loop (predictor, one residual call site, backtracking, the residual
 floor) and the segment's loop with its increment controller are one algorithm, documented here
@@ -93,15 +93,15 @@ import jax.numpy as jnp
 
 from dynslip.physics.bodies.held import place_bodies
 from dynslip.physics.field import Layout, evaluate, heal
-from dynslip.physics.increment import (
+from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.solver.increment import (
     Increment,
     increment_rates,
     residual_and_state,
     sheet_held_frame,
 )
-from dynslip.physics.linalg import bordered_solve
-from dynslip.physics.newton_matrix import free_system, newton_blocks
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
+from dynslip.physics.solver.linalg import bordered_solve
+from dynslip.physics.solver.newton_matrix import free_system, newton_blocks
 from dynslip.physics.terms import forces, held_projections
 
 __all__ = [
@@ -155,7 +155,7 @@ class Forces(NamedTuple):
 
 class EndState(NamedTuple):
     """What the increment's end reads from the residual's evaluation at an iterate
-    (:func:`dynslip.physics.increment.residual_and_state`'s third output, in its order): the
+    (:func:`dynslip.physics.solver.increment.residual_and_state`'s third output, in its order): the
     energy gradient, the ball's velocity, the slip distances after the return map (None
     without a memory law), the held load and the held bodies' projections."""
 
@@ -263,14 +263,14 @@ class MotionNewton(eqx.Module):
     ``atol + rtol |x|`` and the residual below ``atol``), at most ``max_iter`` corrections
     per increment, ``backtrack`` halvings of a correction that raises the residual,
     ``linear``: ``"auto"`` (block Thomas up to 64 nodes, block cyclic reduction above:
-    :func:`dynslip.physics.linalg.block_tridiagonal_solve`), ``"cyclic"`` or ``"thomas"``.
+    :func:`dynslip.physics.solver.linalg.block_tridiagonal_solve`), ``"cyclic"`` or ``"thomas"``.
     Increments grow by 1.5
     after at most ``grow_below`` iterations and shrink by 0.7 after at least ``shrink_above``.
     ``floor_factor``, ``floor_count``: the residual
     floor (module docstring; 0: off); ``fail_cap``, ``fail_relax``: the memory of a failed
     increment's size within a segment (module docstring; 0: off). ``weight``: the
     complementarity parameter $c$ of the ball friction's weighted form in which Newton iterates
-    (:func:`dynslip.physics.increment.weighted_slip`; the law's roots for every $c$; 0: the
+    (:func:`dynslip.physics.solver.increment.weighted_slip`; the law's roots for every $c$; 0: the
     law's own form; not with free bodies).
     """
 
@@ -292,7 +292,7 @@ class MotionNewton(eqx.Module):
     @classmethod
     def from_settings(cls, s) -> MotionNewton:
         """The solver of the driver's numerics ``s`` (a
-        :class:`dynslip.physics.solvers.Settings`): its Newton iteration limit, backtracking,
+        :class:`dynslip.physics.solver.methods.Settings`): its Newton iteration limit, backtracking,
         weight, increment bounds, step limit and healing rate; the linear solver ``s``
         names where it is ``"thomas"`` or ``"cyclic"``, else (the schema's ``"structured"``,
         the default) by the mesh's size. The increment controller and the residual floor keep

@@ -37,6 +37,9 @@ from lineax._solver.misc import (  # the helpers lineax's own solvers use
     unravel_solution,
 )
 
+from dynslip.physics.field import EDGE_NODES
+from dynslip.physics.layout import N_ACC, Layout
+
 
 class Structure(eqx.Module):
     """Sparsity of the state: ``n`` nodes of ``b`` values each, then ``m`` border values.
@@ -414,7 +417,7 @@ def bordered_solve(lower, diag, upper, B, C, D, f, g, method: str = "cyclic"):
     for m = 1: one block-tridiagonal solve for $[f, B]$ together, then the Schur complement
     $S = D - C A^{-1} B$. Returns ``(x, y)`` shaped as ``(f, g)``. A ``g`` of fewer than m
     entries is the first of them, the rest 0 (auxiliary unknowns, such as the ball's velocity
-    change in :func:`dynslip.physics.newton_matrix.blocks_with_held_friction`), and ``y`` its
+    change in :func:`dynslip.physics.solver.newton_matrix.blocks_with_held_friction`), and ``y`` its
     first entries."""
     n, b = f.shape
     m = D.shape[0]
@@ -430,3 +433,41 @@ def bordered_solve(lower, diag, upper, B, C, D, f, g, method: str = "cyclic"):
     y = jnp.linalg.solve(schur, gv - cflat @ ainv_f.reshape(n * b))
     x = ainv_f - ainv_b @ y
     return x, jnp.reshape(y[:k], jnp.shape(g))
+
+
+def sheet_structure(layout: Layout) -> Structure:
+    r"""Sparsity of the state for :class:`BorderedBlockTridiagonal`.
+
+    Node ``i`` is the block ``(rho_i, z_i)`` (``rho_0`` fixed: padding); a node's rate
+    relative to the ball depends only on its neighbours (element energies, the hoop
+    stretch at element midpoints, the node's own contact frame), so those blocks are
+    tridiagonal. A friction law's per-node state (slip distance) joins its node's block
+    (``b = 3``): its rate depends on the node's slip, i.e. on the node and its neighbours.
+
+    The dense border holds the ball height, the accumulators, and the last
+    :data:`EDGE_NODES` nodes (the clamped edge and its neighbour). Every node moves with the
+    ball (``v = u + v_b e_z``), and a force-controlled ball's velocity
+    $v_b = (F_b + C_z + F_g)/\eta_b$ depends on the clamp's force $C_z = \partial E/\partial
+    z_{n-1}$,
+    i.e. on the last element's two nodes: every row depends on them, so they belong in the
+    border (with a held ball the coupling vanishes and the border simply holds a few zeros).
+    ``tests/test_structured.py`` checks the pattern against ``jax.jacfwd`` with the ball
+    held and force-controlled.
+    """
+    n = layout.n
+    n_core = n - EDGE_NODES
+
+    def node(i):
+        return (
+            [-1 if i == 0 else i - 1, n - 1 + i]
+            + ([layout.internal_start + i] if layout.n_int else [])
+            + [layout.held_start + k * n + i for k in range(layout.n_held_int)]
+        )
+
+    core = [j for i in range(n_core) for j in node(i)]
+    edge = [j for i in range(n_core, n) for j in node(i)]
+    border = tuple(edge + list(range(2 * n - 1, 2 * n + N_ACC)))
+    return Structure(
+        n=n_core, b=2 + layout.n_int + layout.n_held_int, m=len(border), core_index=tuple(core),
+        border_index=border,
+    )

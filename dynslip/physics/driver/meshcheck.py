@@ -1,7 +1,7 @@
 r"""The run's mesh check (``Settings.max_chord_depth``), frame by frame: how deep an element
 chord dips into the ball (:func:`ball_unresolved`, closed form, on the host) and into each held
 body (:func:`held_unresolved`, a search per body, about 1 ms each at 50 nodes), checked in line
-as each frame is recorded (:meth:`dynslip.physics.member.MemberRun.record`): a failed check
+as each frame is recorded (:meth:`dynslip.physics.driver.member.MemberRun.record`): a failed check
 fails the run at that frame, which is kept.
 """
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from dynslip.physics.bodies.chords import deepest_chord_in
 from dynslip.physics.bodies.held import held_entries
-from dynslip.physics.failures import ContactUnresolved
+from dynslip.physics.driver.failures import ContactUnresolved
 from dynslip.physics.sheet import deepest_chord
 
 __all__ = ["ball_unresolved", "held_unresolved"]

@@ -20,7 +20,7 @@ with the sheet's drag taken relative to the ball (:mod:`dynslip.physics.sheet`).
 Energy balance: $W_c + W_b = \Delta(E_{el} + E_{pen}) + D_{drag} + D_{fric}$, with the
 initial (pre-stretch) energy counted in $E(0)$.
 
-Integration: load stepping (:mod:`dynslip.physics.newton`, the schema default) or a
+Integration: load stepping (:mod:`dynslip.physics.solver.newton`, the schema default) or a
 stiff diffrax solver (Kvaerno5, the reference) with a PID controller, one stage at a time
 (a restart at every stage boundary: the protocol's kinks), each stage run in save segments;
 condition stops (clamp force below a threshold, rest) are
@@ -29,10 +29,11 @@ and the segment step are jitted once per solver and shared by every run
 (:func:`segment_step`), and compiled once per static key (:func:`_compiled`).
 
 One driver for both solver families (:func:`drive`); the run's state machine
-(:class:`~dynslip.physics.member.MemberRun`: stage set-up, segments, recording and stop rules),
-which :mod:`dynslip.physics.batch` steps in lockstep, lives in :mod:`dynslip.physics.member`. The
-field, the solvers, the frames and the failures live in :mod:`dynslip.physics.field`,
-:mod:`.solvers` (with :mod:`.loadstep` and :mod:`.newton`), :mod:`.frames` and
+(:class:`~dynslip.physics.driver.member.MemberRun`: stage set-up, segments, recording and stop
+rules), which :mod:`dynslip.physics.driver.batch` steps in lockstep, lives in
+:mod:`dynslip.physics.driver.member`. The field, the solvers, the frames and the failures live
+in :mod:`dynslip.physics.field`, :mod:`dynslip.physics.solver` (:mod:`~.solver.methods`,
+:mod:`~.solver.loadstep`, :mod:`~.solver.newton`), :mod:`dynslip.physics.frames` and
 :mod:`.failures`.
 """
 
@@ -47,12 +48,12 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from dynslip.physics.field import _f
+from dynslip.physics.driver.member import MemberRun, Result
 from dynslip.physics.frames import frame_record
-from dynslip.physics.member import MemberRun, Result
-from dynslip.physics.newton import SegmentOutput
+from dynslip.physics.layout import f64
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
+from dynslip.physics.solver.newton import SegmentOutput
 
 __all__ = [
     "COMPILER_OPTIONS",
@@ -101,7 +102,7 @@ def compile_step(lowered, nodes: int):
 
 
 #: The ahead-of-time compiled segment steps, least recently used first, keyed by
-#: :func:`~dynslip.physics.member.static_key` (and, for a batch, its size): at most
+#: :func:`~dynslip.physics.driver.member.static_key` (and, for a batch, its size): at most
 #: :data:`CACHE_SIZE`.
 _COMPILED: OrderedDict = OrderedDict()
 
@@ -167,11 +168,11 @@ def stack(trees):
 def drive(runs: list[MemberRun]) -> list[Result]:
     """The host loop of one run (``len(runs) == 1``: :func:`segment_step` as compiled) or of
     B members in lockstep (the step vmapped over them, one call per save segment for all:
-    :mod:`dynslip.physics.batch`). Each tick asks every member for its next segment, solves
+    :mod:`dynslip.physics.driver.batch`). Each tick asks every member for its next segment, solves
     them together, and hands each active member its output and frame
     (:meth:`MemberRun.advance`, :meth:`MemberRun.record`); the first tick is a zero-length
     segment per member, whose frame is the initial one. Raises ``ValueError`` when the
-    members need different compiled steps (:func:`~dynslip.physics.member.static_key`)."""
+    members need different compiled steps (:func:`~dynslip.physics.driver.member.static_key`)."""
     first = runs[0]
     if any(r.key != first.key for r in runs[1:]):
         raise ValueError(
@@ -190,7 +191,7 @@ def drive(runs: list[MemberRun]) -> list[Result]:
         model, tol, thr = (
             first.model,
             (first.rtol, first.atol),
-            _f(first.settings.contact_threshold),
+            f64(first.settings.contact_threshold),
         )
     while not all(r.done for r in runs):
         segs = [r.segment() for r in runs]
@@ -207,7 +208,7 @@ def drive(runs: list[MemberRun]) -> list[Result]:
             )
         else:
             s = segs[0]
-            seg, rate = (s.y, _f(s.t0), _f(s.t1), _f(s.dt0), s.args), s.rate
+            seg, rate = (s.y, f64(s.t0), f64(s.t1), f64(s.dt0), s.args), s.rate
         inputs = (model, layout, *seg, *tol, rate, thr)
         active = [b for b, r in enumerate(runs) if not r.done]
         compiled = _compiled(
@@ -240,11 +241,12 @@ def simulate(model: SheetModel, protocol: Protocol, **kwargs) -> Result:
 
     Keyword arguments: ``friction`` (an :class:`~dynslip.physics.friction.AbstractFriction`),
     ``eps``, ``drag``, ``ball_drag``, ``pre_stretch``, ``z_sheet``, and optionally ``weight``,
-    ``settings`` (:class:`~dynslip.physics.solvers.Settings`), ``on_frame`` (called with every
-    frame), ``start`` and ``support_stiffness`` (:class:`~dynslip.physics.member.MemberRun`).
+    ``settings`` (:class:`~dynslip.physics.solver.methods.Settings`), ``on_frame`` (called with
+    every
+    frame), ``start`` and ``support_stiffness`` (:class:`~dynslip.physics.driver.member.MemberRun`).
 
     Raises nothing on solver failure: the result's ``failed`` holds the message and
     ``frames`` what was computed before it (the runner turns it into exit 3). Many members
-    of the same shape run in lockstep with :func:`dynslip.physics.batch.simulate_batch`.
+    of the same shape run in lockstep with :func:`dynslip.physics.driver.batch.simulate_batch`.
     """
     return drive([MemberRun(model, protocol, **kwargs)])[0]

@@ -1,5 +1,5 @@
 r"""The residual of one implicit Euler load increment on the motion alone
-(:mod:`dynslip.physics.newton`, whose docstring states the method): the increment's data
+(:mod:`dynslip.physics.solver.newton`, whose docstring states the method): the increment's data
 (:class:`Increment`), each node's rate relative to the ball under the friction law with its
 return map for the slip distance (:func:`slip_update`, :func:`node_rate`), the node rate's
 force Jacobian in closed form (:func:`node_force_jacobian`), the ball's and the clamped edge's

@@ -1,7 +1,7 @@
 r"""Quasi-static load stepping on the whole state: implicit Euler increments controlled by Newton's
 iteration count.
 
-``numerics.solver: load_step`` runs :mod:`dynslip.physics.newton` (Newton on the motion
+``numerics.solver: load_step`` runs :mod:`dynslip.physics.solver.newton` (Newton on the motion
 alone). This module is Newton on the whole state: :class:`FullStateLoadStep`, a solver object
 given as ``Settings.solver`` (no schema choice names it; the baseline of the tests and of
 ``benchmarks/speed.py``), and its increment loop over any diffrax term (:func:`increments`).
@@ -31,12 +31,12 @@ advanced by the same rule, so
   $\tfrac12 \Delta x^T H \Delta x$ per increment, first order in $\Delta t$ overall
   (``tests/test_loadstep.py`` measures it).
 
-**Solver.** :class:`LoadStepEuler`, a :class:`dynslip.physics.upstream.ImplicitEuler`
+**Solver.** :class:`LoadStepEuler`, a :class:`dynslip.physics.solver.upstream.ImplicitEuler`
 (diffrax's, with the fix of diffrax PR #753: a failed Newton solve rejects the increment) with an
 :class:`optimistix.Newton` root finder (``rtol``, ``atol`` of the scenario's numerics,
 max norm, Cauchy termination: the last Newton correction below
 ``atol + rtol |dx|`` *and* the residual below ``atol``) whose linear solver is
-:class:`dynslip.physics.linalg.BorderedBlockTridiagonal`, safeguarded by backtracking
+:class:`dynslip.physics.solver.linalg.BorderedBlockTridiagonal`, safeguarded by backtracking
 (:class:`DampedNewton`, ``numerics.newton_backtrack`` halvings, default 4): a correction
 that would raise the residual's max norm (over the motion, not the energy accumulators)
 is halved. Without it Newton falls into stick/slip cycles at the contact edge, where the
@@ -83,10 +83,10 @@ import optimistix as optx
 from diffrax._solver.implicit_euler import _implicit_relation
 from equinox.internal import ω
 
-from dynslip.physics.field import heal, sheet_structure, vector_field
-from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.newton import SegmentOutput, increment_cap, zero_rate
-from dynslip.physics.upstream import ImplicitEuler, reject_failed
+from dynslip.physics.field import heal, vector_field
+from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
+from dynslip.physics.solver.newton import SegmentOutput, increment_cap, zero_rate
+from dynslip.physics.solver.upstream import ImplicitEuler, reject_failed
 
 __all__ = [
     "LoadStepEuler",
@@ -118,7 +118,7 @@ class IncrementState(eqx.Module):
 
 
 class LoadStepEuler(ImplicitEuler):
-    r"""Implicit Euler (:class:`dynslip.physics.upstream.ImplicitEuler`, diffrax PR #753's
+    r"""Implicit Euler (:class:`dynslip.physics.solver.upstream.ImplicitEuler`, diffrax PR #753's
     rejection of a failed solve) with Newton started from the previous increment.
 
     $x_1 = x_0 + \Delta t f(t_1, x_1)$ is solved for the increment $k = x_1 - x_0$ by the root
@@ -290,7 +290,8 @@ def increments(
     term, solver, y0, t0, t1, dt0, args, cap, max_steps: int, after=None
 ) -> SegmentOutput:
     """The increment loop over ``solver.step`` (a :class:`LoadStepEuler`) for any diffrax term:
-    a :class:`dynslip.physics.newton.SegmentOutput` (its ``rate``: the last accepted increment
+    a :class:`dynslip.physics.solver.newton.SegmentOutput` (its ``rate``: the last accepted
+    increment
     per unit time of the whole state); increments at most ``cap``.
     ``after(t, y)`` (e.g. the friction law's healing) maps each increment's end state."""
     dt_min = MIN_FRACTION * (t1 - t0)

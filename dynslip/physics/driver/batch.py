@@ -4,9 +4,9 @@ Members that differ only in floats (friction coefficients, speeds, pre-stretch, 
 durations, tolerances...) have identical array shapes: every leaf of
 :class:`dynslip.physics.field.StageArgs` and of the model's and friction law's parameters
 is an array. :func:`simulate_batch` runs B such members together through the one host
-driver, :func:`dynslip.physics.simulate.drive`, with the segment step vmapped
-(:func:`dynslip.physics.simulate.segment_step`). Each member keeps its own host state
-(:class:`dynslip.physics.member.MemberRun`: its stage, time, stop rule, frames); every
+driver, :func:`dynslip.physics.driver.simulate.drive`, with the segment step vmapped
+(:func:`dynslip.physics.driver.simulate.segment_step`). Each member keeps its own host state
+(:class:`dynslip.physics.driver.member.MemberRun`: its stage, time, stop rule, frames); every
 tick advances every member by one save segment, with one call of the step over the stacked
 member states and stacked stage loads, so members may be in different stages and at
 different times. A member that has finished (its last stage done, or failed) asks for a
@@ -22,7 +22,7 @@ small (tens of nodes) problems, shared by B members. ``docs/sweeps.md`` has the
 measurement.
 
 Compiled once per (static key of the members, B): the key of
-:func:`dynslip.physics.member.static_key` (the solver object, the layout, the non-array
+:func:`dynslip.physics.driver.member.static_key` (the solver object, the layout, the non-array
 parts of model and loads), which must be equal for every member.
 """
 
@@ -30,17 +30,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from dynslip.physics.member import MemberRun, Result
+from dynslip.physics.driver.member import MemberRun, Result
+from dynslip.physics.driver.simulate import drive
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
-from dynslip.physics.simulate import drive
 
 __all__ = ["simulate_batch", "batch_key"]
 
 
 def batch_key(model: SheetModel, protocol: Protocol, kwargs: dict) -> tuple:
     """Members with equal keys can run in one batch: the compiled step's static key
-    (:func:`dynslip.physics.member.static_key`: the solver object, the layout, the structure,
+    (:func:`dynslip.physics.driver.member.static_key`: the solver object, the layout, the structure,
     non-array leaves and array shapes of model and first stage's loads), a hashable value."""
     run = MemberRun(model, protocol, **{k: v for k, v in kwargs.items() if k != "on_frame"})
     return run.key
@@ -50,7 +50,7 @@ def simulate_batch(
     models: Sequence[SheetModel], protocols: Sequence[Protocol], kwargs: Sequence[dict]
 ) -> list[Result]:
     """Run B members in lockstep; ``kwargs[b]`` are member b's keyword arguments of
-    :func:`dynslip.physics.simulate.simulate` (``friction``, ``eps``, ``drag``, ``settings``,
+    :func:`dynslip.physics.driver.simulate.simulate` (``friction``, ``eps``, ``drag``, ``settings``,
     ``start``, ``on_frame``, ...). Returns one :class:`Result` per member, the same content as
     ``simulate`` returns for it alone (to rounding: the batched linear algebra may order
     sums differently). Raises ``ValueError`` when the members cannot share one compiled

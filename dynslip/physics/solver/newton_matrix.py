@@ -1,5 +1,6 @@
-r"""The Newton matrix of the increment's residual (:mod:`dynslip.physics.increment`) as the
-blocks of a bordered block-tridiagonal system (:func:`dynslip.physics.linalg.bordered_solve`):
+r"""The Newton matrix of the increment's residual (:mod:`dynslip.physics.solver.increment`) as the
+blocks of a bordered block-tridiagonal system
+(:func:`dynslip.physics.solver.linalg.bordered_solve`):
 the chain rule $\partial u_i/\partial q_j = L^q_i\delta_{ij} + L^g_i H_{ij}$ from the node
 rates' derivatives and the energy's Hessian blocks (:func:`newton_blocks`); with friction on the
 held bodies, the ball's velocity couples every node (:func:`blocks_with_held_friction`); with
@@ -15,7 +16,7 @@ import jax.numpy as jnp
 from dynslip.physics import conditions
 from dynslip.physics.bodies.held import frictional, held_entries, place_free
 from dynslip.physics.field import free_body_rates
-from dynslip.physics.increment import (
+from dynslip.physics.solver.increment import (
     Increment,
     ball_rate,
     ball_velocity,
@@ -27,7 +28,7 @@ from dynslip.physics.increment import (
     sheet_held_frame,
     untouched,
 )
-from dynslip.physics.linalg import small_matmul
+from dynslip.physics.solver.linalg import small_matmul
 from dynslip.physics.terms import forces, forces_and_hessians, held_projections
 
 __all__ = ["blocks_with_held_friction", "free_system", "newton_blocks"]
@@ -155,7 +156,7 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, e
     ``exact`` (the default): the coupling enters through a second border unknown, the ball's
     velocity change $w = \sum_j V_j\,dq_j + V_z\,dz_b$: the node rows read $-h\ell^v_i w$, the
     ball's row $dz_b - h w$, and $w$'s own row $\sum_j V_j\,dq_j + V_z\,dz_b - w = 0$ (right-hand
-    side 0: :func:`dynslip.physics.linalg.bordered_solve` pads it). Eliminating $w$ gives the
+    side 0: :func:`dynslip.physics.solver.linalg.bordered_solve` pads it). Eliminating $w$ gives the
     exact Newton matrix. ``exact=False``: the border of one, $z_b$, with the coupling kept
     where $|i - j| \le 1$ and the rest left out (an inexact matrix, the residual exact; what
     :func:`free_system` builds on). With the ball held $V = 0$ and both are exact.

@@ -1,13 +1,13 @@
 r"""The segment solvers, as objects built from the driver's :class:`Settings` (the schema's
 ``numerics``): load stepping by Newton on the motion alone
-(:class:`dynslip.physics.newton.MotionNewton`, the default) and stiff diffrax solvers
+(:class:`dynslip.physics.solver.newton.MotionNewton`, the default) and stiff diffrax solvers
 (:class:`TimeStepping`: Kvaerno5, the reference, and others). A solver object given as
 ``Settings.solver`` is used as it is (the full-state Newton baseline,
-:class:`dynslip.physics.loadstep.FullStateLoadStep`, in the tests). Every object has
+:class:`dynslip.physics.solver.loadstep.FullStateLoadStep`, in the tests). Every object has
 ``segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``;
-:mod:`dynslip.physics.simulate` drives them.
+:mod:`dynslip.physics.driver.simulate` drives them.
 
-diffrax (and :mod:`~dynslip.physics.upstream`, built on it) is imported where a solver that
+diffrax (and :mod:`~dynslip.physics.solver.upstream`, built on it) is imported where a solver that
 uses it is built or run: 0.2 s of every run's start that load stepping, the default, does not
 need.
 """
@@ -19,9 +19,9 @@ import dataclasses
 import equinox as eqx
 import jax.numpy as jnp
 
-from dynslip.physics.field import Layout, heal, sheet_structure, vector_field
-from dynslip.physics.linalg import BorderedBlockTridiagonal
-from dynslip.physics.newton import MotionNewton, SegmentOutput, zero_rate
+from dynslip.physics.field import Layout, heal, vector_field
+from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
+from dynslip.physics.solver.newton import MotionNewton, SegmentOutput, zero_rate
 
 __all__ = ["DIFFRAX_METHODS", "SOLVERS", "Settings", "TimeStepping", "solver_for"]
 
@@ -42,14 +42,16 @@ class Settings:
         0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
     )
     linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
-    # solver "load_step" (dynslip.physics.newton): Newton iteration limit per increment, and the
+    # solver "load_step" (dynslip.physics.solver.newton): Newton iteration limit per increment, and
+    # the
     # increment bound in drag times, driven stages / stages with the ball or clamp under a force
     newton_max_iter: int = 20
     newton_backtrack: int = (
         4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
     )
     # the complementarity parameter c (G h0) of the ball's friction law in its weighted form, in
-    # which Newton iterates (dynslip.physics.increment.weighted_slip: the law's roots for every
+    # which Newton iterates (dynslip.physics.solver.increment.weighted_slip: the law's roots for
+    # every
     # c; a node's weight max(1, c dt / (eta A)); 0: the law's own form)
     newton_weight: float = 1e3
     max_increment: float = 20.0
@@ -93,9 +95,10 @@ class TimeStepping(eqx.Module):
     def _diffrax_solver(self, layout: Layout):
         import diffrax
 
-        from dynslip.physics.upstream import VeryChord
+        from dynslip.physics.solver.upstream import VeryChord
 
-        # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.upstream), on
+        # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.solver.upstream),
+        # on
         # both paths: the dense path otherwise builds diffrax's own VeryChord.
         chord = diffrax.with_stepsize_controller_tols(VeryChord)
         if self.linear_solver == "dense":
@@ -158,7 +161,8 @@ SOLVERS: dict[str, type[MotionNewton] | type[TimeStepping]] = {
 def solver_for(settings: Settings):
     """The segment solver object of ``settings.solver``: the object itself, or the one
     class :data:`SOLVERS` names builds from ``settings`` (``load_step``, the default,
-    :class:`dynslip.physics.newton.MotionNewton`; a diffrax solver, :class:`TimeStepping`)."""
+    :class:`dynslip.physics.solver.newton.MotionNewton`; a diffrax solver,
+    :class:`TimeStepping`)."""
     if not isinstance(settings.solver, str):
         return settings.solver
     try:
@@ -171,6 +175,6 @@ def solver_for(settings: Settings):
     return cls.from_settings(settings)
 
 
-def _counts_newton(solver) -> bool:
+def counts_newton(solver) -> bool:
     """Whether the solver's ``newton_iterations`` count anything (load stepping)."""
     return not isinstance(solver, TimeStepping)
