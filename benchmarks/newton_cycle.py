@@ -113,7 +113,7 @@ def increment(n: int, t: float, dt: float, limit: float | None) -> None:
     res_fn, jac_fn = jax.jit(residual), jax.jit(jax.jacfwd(residual))
 
     def status(y):
-        kin = evaluate(model, lay, t1, y, args)[1]["kin"]
+        kin = evaluate(model, lay, t1, y, args)[1].kin
         return np.asarray(kin.normal > 0), np.asarray(kin.slip != 0)
 
     mech = 2 * n - 1  # rho_1..rho_{n-1}, z_0..z_{n-1}

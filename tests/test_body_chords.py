@@ -296,7 +296,7 @@ def test_a_chord_across_a_thin_rounded_wall_is_flagged_only_by_the_relative_test
 def test_on_the_unit_ball_the_relative_test_is_the_absolute_one(a):
     """Two nodes on the unit ball a half-angle a apart (either side of arccos(1 - 0.1) =
     0.451): relative depth = depth = 1 - cos a, the sheet's closed form, the same verdict."""
-    from dynslip.physics.sheet import chord_depths as sheet_chord_depths
+    from dynslip.physics.sheet import ball_chord_depths as sheet_chord_depths
 
     th = np.array([0.3, 0.3 + 2 * a])
     depth, radius, rel = relative_chord_depths(Sphere(), np.sin(th), np.cos(th), 0.0)

@@ -15,7 +15,7 @@ from dynslip.physics.bodies import Disc, Sphere, Torus, contact_energy_density, 
 from dynslip.physics.bodies.chords import chord_depths
 from dynslip.physics.materials import NeoHookean
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
-from dynslip.physics.sheet import chord_depths as sheet_chord_depths
+from dynslip.physics.sheet import ball_chord_depths as sheet_chord_depths
 
 PEN = Penalty(k=1.0e4, w=1.0e-3)
 MESH = make_mesh(30, 2.0)
@@ -135,7 +135,7 @@ def test_force_is_minus_the_gradient_of_the_energy_for_several_bodies():
 
 
 def test_chord_depths_against_every_body():
-    """The mesh check against any body: for the ball it is sheet.chord_depths (frames on a
+    """The mesh check against any body: for the ball it is sheet.ball_chord_depths (frames on a
     leading axis, one ball height per frame); across a torus's tube a horizontal chord at
     height h above the tube's centre dips r - h deep at the chord's middle; a chord inside the
     coin under its top face is as deep as it lies under it."""

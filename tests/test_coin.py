@@ -125,7 +125,7 @@ def test_held_cylinder_from_the_schema_shares_the_clamp_pull(post_run):
 def test_disc_trap_threshold_is_its_edge_mid_height_and_the_sphere_is_today():
     """The disc's threshold s* is the surface coordinate of its edge's mid-height point
     (a, z_c); the unit sphere's criterion is theta_max > pi/2 exactly, s_max = theta_max."""
-    from dynslip.analysis.summary import contact_extent, trap_criterion
+    from dynslip.analysis.summary import contact_reach, trap_criterion
     from dynslip.physics.bodies import Disc, Sphere
 
     coin = Disc(1.0, 1.75 / 12.13, 0.3 / 12.13)
@@ -135,4 +135,4 @@ def test_disc_trap_threshold_is_its_edge_mid_height_and_the_sphere_is_today():
     ball = trap_criterion(Sphere())
     assert ball.threshold() == math.pi / 2
     for theta in (1.2, math.pi / 2, 1.9):
-        assert contact_extent(Sphere(), None, theta) == theta
+        assert contact_reach(Sphere(), None, theta) == theta

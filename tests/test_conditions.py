@@ -105,7 +105,7 @@ def test_pinned_edge_moves_with_the_clamp_held_by_the_sheets_pull(ball_mode):
     np.testing.assert_allclose(v_edge, [0.03, -0.2], rtol=0, atol=1e-14)
     g = _edge_gradient(y)
     assert np.all(np.abs(g) > 1.0)  # the sheet pulls the clamp
-    np.testing.assert_allclose([aux["clamp_force_rho"], aux["clamp_force"]], g, rtol=1e-12)
+    np.testing.assert_allclose([aux.clamp_force_rho, aux.clamp_force], g, rtol=1e-12)
 
 
 @pytest.mark.parametrize("ball_mode", BALLS)
@@ -118,7 +118,7 @@ def test_force_clamp_balances_its_edge(ball_mode):
     f_c = _ramp([0.1, -0.2], [0.4, 0.3])
     eta_a = 0.1 * float(MODEL.mesh.area[-1])
     np.testing.assert_allclose(eta_a * (v_edge - [0.0, vb]), f_c - _edge_gradient(y), rtol=1e-12)
-    np.testing.assert_allclose([aux["clamp_force_rho"], aux["clamp_force"]], f_c, rtol=1e-14)
+    np.testing.assert_allclose([aux.clamp_force_rho, aux.clamp_force], f_c, rtol=1e-14)
 
 
 @pytest.mark.parametrize("grip", [5.0, 0.02])
@@ -144,7 +144,7 @@ def test_band_holds_below_its_grip_and_slides_past_it(grip):
     em = bc.Band().motion(model, _args(BALL_HOLD, CLAMP_BAND), edge, jnp.asarray(g), 0.05)
     assert float(em.friction) == pytest.approx(c * abs(expect), rel=1e-12)
     assert float(em.friction) >= 0.0
-    np.testing.assert_allclose(aux["clamp_force"], g[1], rtol=1e-12)
+    np.testing.assert_allclose(aux.clamp_force, g[1], rtol=1e-12)
 
 
 @pytest.mark.parametrize("clamp_mode", CLAMPS)
@@ -154,7 +154,7 @@ def test_held_ball_moves_as_prescribed_and_its_hold_closes_the_balance(clamp_mod
     y = _state()
     _, vb, aux = _edge_and_ball(MODEL, y, _args(BALL_HOLD, clamp_mode))
     assert vb == 0.05
-    balance = float(aux["ball_reaction"]) + float(aux["clamp_force"]) - 0.05
+    balance = float(aux.ball_reaction) + float(aux.clamp_force) - 0.05
     assert 0.4 * vb == pytest.approx(balance, rel=1e-13)
 
 
@@ -168,8 +168,8 @@ def test_forced_ball_moves_under_its_force_support_pull_and_weight(clamp_mode, z
     f_s = float(1e3 * penalty_pressure(Penalty(jnp.asarray(1.0), 1e-3), jnp.asarray(0.002 - zb)))
     assert (f_s > 0) == (zb == 0.0)
     f = float(_ramp(0.3, -0.5))
-    assert float(aux["ball_reaction"]) == pytest.approx(f + f_s, rel=1e-14)
-    expect = (f + f_s + float(aux["clamp_force"]) - 0.05) / 0.4
+    assert float(aux.ball_reaction) == pytest.approx(f + f_s, rel=1e-14)
+    expect = (f + f_s + float(aux.clamp_force) - 0.05) / 0.4
     assert vb == pytest.approx(expect, rel=1e-13)
 
 
@@ -236,7 +236,7 @@ def test_a_new_clamp_mode_is_one_class(monkeypatch):
         f_z = float(_ramp(-0.2, 0.3))
         assert v_edge[0] == pytest.approx(0.03, abs=1e-15)
         assert eta_a * (v_edge[1] - vb) == pytest.approx(f_z - g[1], rel=1e-12)
-        assert float(aux["clamp_force"]) == pytest.approx(f_z, rel=1e-14)
+        assert float(aux.clamp_force) == pytest.approx(f_z, rel=1e-14)
         v_edge_i, vb_i = _increment_edge_and_ball(MODEL, y, args)
         np.testing.assert_allclose(v_edge_i, v_edge, rtol=1e-13)
         assert vb_i == pytest.approx(vb, rel=1e-14)

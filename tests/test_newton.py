@@ -302,6 +302,6 @@ def test_a_zero_length_segment_keeps_the_state_and_gives_its_forces():
     np.testing.assert_allclose(np.asarray(out.forces[0]), np.asarray(g), rtol=0,
                                atol=1e-12 * scale)
     np.testing.assert_allclose(float(out.forces[1]), float(load), rtol=0, atol=1e-12 * scale)
-    vb = evaluate(MODEL, layout, t, y0, args)[1]["ball_v"]
+    vb = evaluate(MODEL, layout, t, y0, args)[1].ball_v
     assert abs(float(vb)) > 0
     np.testing.assert_allclose(float(out.ball_velocity), float(vb), rtol=1e-10)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from dynslip.analysis.resolution import chord_check, chord_depths
+from dynslip.analysis.resolution import ball_chord_depths, chord_check
 
 
 @pytest.mark.parametrize("zb", [0.0, -0.37])
@@ -18,7 +18,7 @@ def test_a_chord_between_two_surface_points_dips_one_minus_cos_half_angle(zb):
     a = rng.uniform(0.0, 1.5, 50)
     alpha = rng.uniform(1e-3, 1.6, 50)
     th = np.stack([a, a + alpha], axis=-1)
-    d = chord_depths(np.sin(th), zb + np.cos(th), np.full(50, zb))
+    d = ball_chord_depths(np.sin(th), zb + np.cos(th), np.full(50, zb))
     assert d.shape == (50, 1)
     np.testing.assert_allclose(d[:, 0], 1 - np.cos(alpha / 2), rtol=1e-10, atol=1e-14)
 
@@ -30,14 +30,14 @@ def test_cap_depth_falls_at_second_order_and_a_piercing_element_reads_near_one()
     depths = []
     for n in (11, 21, 41):
         th = np.linspace(0.0, 2.0, n)
-        depths.append(float(np.max(chord_depths(np.sin(th), np.cos(th), 0.0))))
+        depths.append(float(np.max(ball_chord_depths(np.sin(th), np.cos(th), 0.0))))
     order = np.log2(np.array(depths[:-1]) / np.array(depths[1:]))
     assert np.all(np.abs(order - 2.0) < 0.02), order
     th = np.array([0.0, 3.12, 3.13])
-    assert float(np.max(chord_depths(np.sin(th), np.cos(th), 0.0))) == pytest.approx(
+    assert float(np.max(ball_chord_depths(np.sin(th), np.cos(th), 0.0))) == pytest.approx(
         1 - np.sin(0.01), abs=1e-3
     )
-    flat = chord_depths(
+    flat = ball_chord_depths(
         np.linspace(0, 2, 5), np.full(5, 1.5), 0.0
     )  # a flat sheet 0.5 R above the ball
     assert np.all(flat <= -0.5 + 1e-12)

@@ -34,9 +34,9 @@ import xarray as xr
 
 from dynslip.data.trajectory import body_shift
 from dynslip.physics.bodies.chords import deepest_chords_in
-from dynslip.physics.sheet import chord_depths, deepest_chord
+from dynslip.physics.sheet import ball_chord_depths, deepest_chord
 
-__all__ = ["body_chord_check", "chord_check", "chord_depths", "span_of"]
+__all__ = ["body_chord_check", "chord_check", "ball_chord_depths", "span_of"]
 
 
 def chord_check(ds: xr.Dataset, limit: float, body=None) -> dict:

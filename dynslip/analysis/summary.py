@@ -302,7 +302,7 @@ def trap_criterion(ball):
     return PastWidest(body=ball)
 
 
-def contact_extent(ball, frame, theta_max: float) -> float:
+def contact_reach(ball, frame, theta_max: float) -> float:
     """How far the contact reaches along the ball's profile, s_max (units of R; NaN without
     contact): for a sphere about the origin its radius times theta_max (s = a theta, so for the
     unit ball exactly theta_max), else the largest surface coordinate of a node in contact."""
@@ -321,7 +321,7 @@ def trap_check(ball, frame, theta_max: float) -> dict:
     """Whether the end state's contact reaches past the ball's trapped threshold
     (:func:`trap_criterion`): for the unit ball exactly theta_max > pi/2."""
     crit = trap_criterion(ball)
-    s_max = contact_extent(ball, frame, theta_max)
+    s_max = contact_reach(ball, frame, theta_max)
     thr = float(crit.threshold())
     return {
         "criterion": type(crit).__name__,

@@ -126,7 +126,7 @@ def family_dataset(cols: dict, selected: list, values, models: list[str], mu_pap
 
 
 def cylinder_dataset(mu: float, angles, study: dict) -> xr.Dataset:
-    """The 2D cylinder study (:func:`dynslip.analysis.cylinder.cylinder_study`) with units."""
+    """The 2D cylinder study (:func:`dynslip.analysis.plane_strain.cylinder_study`) with units."""
     import xarray as xr
 
     v = io.variable

@@ -28,6 +28,7 @@ from dynslip.physics.sheet import Penalty, SheetModel, penalty_pressure
 EDGE_NODES = 2
 
 __all__ = [
+    "Observed",
     "N_ACC",
     "N_ACC_MOVED",
     "EDGE_NODES",
@@ -84,8 +85,30 @@ class StageArgs(eqx.Module):
         return self.support * penalty_pressure(Penalty(self.support_k, 1e-3), self.support_z - zb)
 
 
+class Observed(eqx.Module):
+    """What :func:`evaluate` derives on the way to the rates (forces in G h0 R per radian of
+    the axisymmetric sheet, as the frames record them): the clamp's force on the sheet
+    (``clamp_force`` along z, ``clamp_force_rho`` along rho) and its static part, the ball's
+    reaction and its static part, the ball's velocity ``ball_v``, the positions it read, the
+    sheet's per-node mechanics ``kin`` (:class:`dynslip.physics.sheet.Kinematics`) and the held
+    bodies' friction frame (None without held bodies)."""
+
+    clamp_force: jnp.ndarray
+    clamp_force_rho: jnp.ndarray
+    ball_reaction: jnp.ndarray
+    ball_reaction_static: jnp.ndarray
+    clamp_force_static: jnp.ndarray
+    ball_v: jnp.ndarray
+    rho: jnp.ndarray
+    z: jnp.ndarray
+    zb: jnp.ndarray
+    kin: object
+    held_frame: object
+
+
 def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, forces=None):
-    """Rates and the quantities derived on the way (shared by the vector field and frames).
+    """Rates and the quantities derived on the way (:class:`Observed`; shared by the vector field
+    and frames).
     ``vb``: the ball's velocity where the caller has solved for it at this state (the load
     step's converged increment), so the root search of a free ball with held friction is not
     run again (None: solved here). ``forces``: ``(g, load, projections)``, the energy gradient
@@ -158,21 +181,10 @@ def evaluate(model: SheetModel, layout: Layout, t, y, args: StageArgs, vb=None, 
         dint = jnp.where(last, 0.0, args.friction.internal_rate(k.slip / eta_a, k.normal, internal))
     dheld = None if hdelta is None else hf.internal_rates(vb)  # held slip distances' rates
     dy = layout.pack(v[0], v[1], vb, dacc, dint, v_free, dheld)
-    return dy, {
-        "clamp_force": cz,
-        "clamp_force_rho": crho,
-        "ball_reaction": f_hold,
-        "ball_reaction_static": f_static,
-        "clamp_force_static": cz_static,
-        "ball_v": vb,
-        "zc": z[-1],
-        "rhoc": rho[-1],
-        "rho": rho,
-        "z": z,
-        "zb": zb,
-        "kin": k,
-        "held_frame": hf,
-    }
+    return dy, Observed(
+        clamp_force=cz, clamp_force_rho=crho, ball_reaction=f_hold, ball_reaction_static=f_static,
+        clamp_force_static=cz_static, ball_v=vb, rho=rho, z=z, zb=zb, kin=k, held_frame=hf,
+    )
 
 
 def _grads(forces):
@@ -298,7 +310,7 @@ def heal(model: SheetModel, layout: Layout, y, args: StageArgs, heal_rate, t=Non
     if layout.n_int == 0 and layout.n_held_int == 0:
         return y
     if layout.n_held_int and vb is None:
-        vb = evaluate(model, layout, args.t0 if t is None else t, y, args)[1]["ball_v"]
+        vb = evaluate(model, layout, args.t0 if t is None else t, y, args)[1].ball_v
     if t is not None:
         model = place_state(model, layout, y, args, t)
     rho, z, zb, _ = layout.unpack(y)

@@ -41,10 +41,10 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     dy, aux = evaluate(model, layout, t, y, args, vb=vb, forces=forces)
     ps = None if forces is None else forces[2]
     model = place_state(model, layout, y, args, t)
-    rho, z, zb = aux["rho"], aux["z"], aux["zb"]
+    rho, z, zb = aux.rho, aux.z, aux.zb
     d = model.diagnostics(
         rho, z, zb, args.friction, args.eps, args.drag, contact_threshold, layout.internal(y),
-        kin=aux["kin"],
+        kin=aux.kin,
     )
     acc = layout.unpack(y)[3]
     contact = d["contact"]
@@ -56,23 +56,23 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
     slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
     # per held body (none without held bodies: the ball's fields alone)
-    g_rho, g_z, _ = aux["kin"].grads
-    per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux["ball_v"],
+    g_rho, g_z, _ = aux.kin.grads
+    per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux.ball_v,
                                 args.drag, args.eps, contact_threshold,
-                                layout.held_internal(y), hf=aux["held_frame"], projections=ps)
+                                layout.held_internal(y), hf=aux.held_frame, projections=ps)
     return {
         "rho": rho,
         "z": z,
         **{k: v for k, v in d.items() if k != "contact"},
-        "clamp_z": aux["zc"],
-        "clamp_rho": aux["rhoc"],
-        "clamp_force": aux["clamp_force"],
-        "clamp_force_rho": aux["clamp_force_rho"],
+        "clamp_z": aux.z[-1],
+        "clamp_rho": aux.rho[-1],
+        "clamp_force": aux.clamp_force,
+        "clamp_force_rho": aux.clamp_force_rho,
         "ball_z": zb,
-        "ball_reaction": aux["ball_reaction"],
-        "ball_reaction_static": aux["ball_reaction_static"],
-        "clamp_force_static": aux["clamp_force_static"],
-        "ball_velocity": aux["ball_v"],
+        "ball_reaction": aux.ball_reaction,
+        "ball_reaction_static": aux.ball_reaction_static,
+        "clamp_force_static": aux.clamp_force_static,
+        "ball_velocity": aux.ball_v,
         "theta_max": theta_max,
         "rbar_max": rbar_max,
         "work_clamp": acc[0],

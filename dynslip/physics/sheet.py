@@ -67,7 +67,7 @@ __all__ = [
     "Mesh",
     "Penalty",
     "SheetModel",
-    "chord_depths",
+    "ball_chord_depths",
     "deepest_chord",
     "make_mesh",
     "mesh_from_radii",
@@ -76,7 +76,7 @@ __all__ = [
 ]
 
 
-def chord_depths(rho, z, zb) -> np.ndarray:
+def ball_chord_depths(rho, z, zb) -> np.ndarray:
     """Depth inside the unit ball about ``(0, zb)`` of each element chord (positive inside),
     for node positions ``rho, z`` of shape (..., N) and ball heights ``zb`` of shape (...);
     returns shape (..., N-1). The penalty acts at nodes only, so nothing keeps a chord out of
@@ -87,7 +87,8 @@ def chord_depths(rho, z, zb) -> np.ndarray:
 
         >>> import numpy as np
         >>> th = np.array([0.0, 0.3])  # two nodes on the ball, 0.3 rad apart
-        >>> bool(abs(chord_depths(np.sin(th), np.cos(th), 0.0)[0] - (1 - np.cos(0.15))) < 1e-12)
+        >>> d = ball_chord_depths(np.sin(th), np.cos(th), 0.0)[0]
+        >>> bool(abs(d - (1 - np.cos(0.15))) < 1e-12)
         True
     """
     rho, z = np.asarray(rho, float), np.asarray(z, float)
@@ -106,7 +107,7 @@ def deepest_chord(rho, z, zb, pole_side: float, body=None) -> tuple[np.ndarray, 
     """Per frame (frames leading) ``(depth, element, pole crossed)`` of the deepest chord in the
     ball ``body`` (None: the unit ball); a pole on its other side from ``pole_side`` crossed."""
     unit = body is None or isinstance(body, Sphere) and body.is_unit
-    depth = chord_depths(rho, z, zb) if unit else body_chord_depths(body, rho, z, zb)
+    depth = ball_chord_depths(rho, z, zb) if unit else body_chord_depths(body, rho, z, zb)
     depth = np.where(np.isfinite(depth), depth, -np.inf)
     k = np.argmax(depth, axis=-1)
     worst = np.take_along_axis(depth, k[..., None], axis=-1)[..., 0]

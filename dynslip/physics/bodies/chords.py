@@ -2,7 +2,7 @@ r"""The mesh check against any body: how deep each element chord dips into it.
 
 The penalty acts at the nodes only, so nothing keeps an element's chord (the straight
 meridian of its conical frustum) out of a body; a deep chord means the mesh does not resolve
-the contact (:func:`dynslip.physics.sheet.chord_depths` does this for the unit ball in closed
+the contact (:func:`dynslip.physics.sheet.ball_chord_depths` does this for the unit ball in closed
 form). Here for any body: the depth $\max_{u\in[0,1]} -d(x_e + u(x_{e+1} - x_e))$ along each
 chord, from 17 samples and then golden-section search on the bracket of the deepest one
 (60 steps: the bracket shrinks to $10^{-13}$ of the chord), exact where the depth along the
@@ -187,7 +187,7 @@ def _per_frame(body: AbstractBody, rho, z, zpos):
 def chord_depths(body: AbstractBody, rho, z, zpos) -> np.ndarray:
     """Depth inside ``body`` (displaced by ``zpos``, shape (...)) of each element chord, for
     node positions ``rho, z`` of shape (..., N): shape (..., N-1), positive inside, as
-    :func:`dynslip.physics.sheet.chord_depths` for the unit ball."""
+    :func:`dynslip.physics.sheet.ball_chord_depths` for the unit ball."""
     return _per_frame(body, rho, z, zpos)[0]
 
 
