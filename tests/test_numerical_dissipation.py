@@ -1,13 +1,14 @@
 r"""Load stepping's energy balance with implicit Euler's numerical dissipation accounted.
 
 The accumulators gain each increment's work and dissipation by the rectangle rule at its end
-(:mod:`dynslip.physics.newton`, :mod:`dynslip.physics.loadstep`). On the push-down path (the
-clamp moved, the ball held) the increment $x_0 \to x_1$ of implicit Euler makes that exact in
-one sense: every node's drag law at $x_1$, $\eta A\,u = F_n n + S\,t$ with $F = -\nabla E(x_1)$
-and $u = \Delta x/h$, gives $F\cdot\Delta x = h\,(\eta A|u|^2 + (F_t - S)\,S/(\eta A))$, the
-increment's drag and friction dissipation as accumulated, and the clamped edge's
-$\nabla_{edge} E(x_1)\cdot\Delta x_{edge}$ is the clamp's work as accumulated (its force at
-$x_1$ times its prescribed displacement; the ball's work is zero). So, to Newton's tolerance,
+(:mod:`dynslip.physics.solver.newton`, :mod:`dynslip.physics.solver.loadstep`). On the
+push-down path (the clamp moved, the ball held) the increment $x_0 \to x_1$ of implicit Euler
+makes that exact in one sense: every node's drag law at $x_1$, $\eta A\,u = F_n n + S\,t$ with
+$F = -\nabla E(x_1)$ and $u = \Delta x/h$, gives $F\cdot\Delta x = h\,(\eta A|u|^2 + (F_t -
+S)\,S/(\eta A))$, the increment's drag and friction dissipation as accumulated, and the clamped
+edge's $\nabla_{edge} E(x_1)\cdot\Delta x_{edge}$ is the clamp's work as accumulated (its force
+at $x_1$ times its prescribed displacement; the ball's work is zero). So, to Newton's
+tolerance,
 
 $$W_k - D_k = \nabla E(x_1)\cdot\Delta x ,$$
 
@@ -39,12 +40,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from dynslip.physics.driver.member import stage_args
 from dynslip.physics.frames import initial_state
 from dynslip.physics.layout import Layout
-from dynslip.physics.loadstep import FullStateLoadStep
-from dynslip.physics.member import stage_args
-from dynslip.physics.newton import zero_rate
-from dynslip.physics.solvers import Settings, solver_for
+from dynslip.physics.solver.loadstep import FullStateLoadStep
+from dynslip.physics.solver.methods import Settings, solver_for
+from dynslip.physics.solver.newton import zero_rate
 from test_forming import PRE, Z0, push_protocol
 from test_loadstep import MODEL, TAU, N, _friction
 

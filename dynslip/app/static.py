@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dynslip.analysis.plane_strain import cylinder_study, cylinder_summary
 from dynslip.analysis.paper import PAPER_MU, paper_mu
+from dynslip.analysis.plane_strain import cylinder_study, cylinder_summary
 from dynslip.analysis.static import (
     FIGURE4_MODELS,
     compute_static,
