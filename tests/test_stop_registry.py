@@ -28,9 +28,6 @@ class ClampBelow(AbstractStop):
     kind: ClassVar[str] = "clamp_below"
     met_at_duration: ClassVar[bool] = False
 
-    def init(self):
-        return None
-
     def check(self, frame, t, state):
         return bool(float(frame["clamp_z"]) < self.z), state
 

@@ -91,6 +91,9 @@ class AbstractClamp(eqx.Module):
     #: the edge moves with the clamp (no constitutive drag of its own): the clamp's force is
     #: whatever holds it there, and its reaction net of drag is read (``clamp_force_static``)
     carried: ClassVar[bool]
+    #: the edge's motion is prescribed (load stepping bounds the increment by
+    #: ``max_increment``); else it moves under a force (``max_increment_free``)
+    driven: ClassVar[bool] = False
 
     @abc.abstractmethod
     def force(self, args, t, g) -> jax.Array:
@@ -108,6 +111,7 @@ class Pinned(AbstractClamp):
     $g$."""
 
     carried: ClassVar[bool] = True
+    driven: ClassVar[bool] = True
 
     def force(self, args, t, g):
         return g
@@ -155,6 +159,9 @@ class Band(AbstractClamp):
 class AbstractBall(eqx.Module):
     """A ball mode: the ball's velocity and the hold's reaction."""
 
+    #: the ball's motion is prescribed (as :attr:`AbstractClamp.driven`)
+    driven: ClassVar[bool] = False
+
     @abc.abstractmethod
     def velocity(self, args, t, zb, pull, frame: Callable[[], HeldFrame | None]) -> jax.Array:
         """The ball's velocity (R/s) under the sheet's ``pull`` on it by pressure, $C_z - L$
@@ -183,6 +190,8 @@ def ball_load(args, t, zb, pull):
 class HeldBall(AbstractBall):
     r"""The ball's centre moves at the prescribed $v_{zb}$; the hold carries
     $F = \eta_b v_b - C - F_g$."""
+
+    driven: ClassVar[bool] = True
 
     def velocity(self, args, t, zb, pull, frame):
         return jnp.asarray(args.vzb, dtype=jnp.result_type(float))
@@ -261,6 +270,13 @@ def edge_motion(model, args, edge: Edge, force, vb) -> EdgeMotion:
 def edge_carried(args):
     """Whether the stage's clamp carries the edge (:attr:`AbstractClamp.carried`)."""
     return dispatch(args.clamp_mode, CLAMPS, lambda m: jnp.asarray(m.carried))
+
+
+def driven(args):
+    """Whether the stage's clamp and ball are both driven (:attr:`AbstractClamp.driven`,
+    :attr:`AbstractBall.driven`): nothing in it moves under a force."""
+    return (dispatch(args.clamp_mode, CLAMPS, lambda m: jnp.asarray(m.driven))
+            & dispatch(args.ball_mode, BALLS, lambda m: jnp.asarray(m.driven)))
 
 
 def ball_velocity(args, t, zb, pull, frame: Callable[[], HeldFrame] | None = None):

@@ -76,9 +76,14 @@ class AbstractStop(eqx.Module):
     kind: eqx.AbstractClassVar[str]
     met_at_duration: eqx.AbstractClassVar[bool]
 
-    @abc.abstractmethod
+    def __check_init__(self):
+        # equinox runs every class's __check_init__: a subclass adds its own checks
+        if not self.duration > 0:
+            raise ValueError(f"stop rule: duration must be > 0, got {self.duration}")
+
     def init(self) -> Any:
-        """The carried state at the stage's start."""
+        """The carried state at the stage's start (None: a rule whose frames decide alone)."""
+        return None
 
     @abc.abstractmethod
     def check(self, frame: dict, t: float, state: Any) -> tuple[bool, Any]:
@@ -90,23 +95,12 @@ class AbstractStop(eqx.Module):
         factor)."""
 
 
-def _positive_duration(duration):
-    if not duration > 0:
-        raise ValueError(f"stop rule: duration must be > 0, got {duration}")
-
-
 class Duration(AbstractStop):
     """The stage lasts ``duration`` seconds."""
 
     duration: float
     kind: ClassVar[str] = "duration"
     met_at_duration: ClassVar[bool] = True
-
-    def __check_init__(self):
-        _positive_duration(self.duration)
-
-    def init(self):
-        return None
 
     def check(self, frame, t, state):
         return False, state
@@ -127,14 +121,10 @@ class ClampForceBelow(AbstractStop):
     met_at_duration: ClassVar[bool] = False
 
     def __check_init__(self):
-        _positive_duration(self.duration)
         if not self.force > 0:
             raise ValueError(
                 "stop rule clamp_force_below: the threshold must be > 0 (|force| < 0 never holds)"
             )
-
-    def init(self):
-        return None
 
     def check(self, frame, t, state):
         return bool(abs(float(frame["clamp_force_static"])) < self.force), state
@@ -153,14 +143,10 @@ class ThetaMaxBelow(AbstractStop):
     met_at_duration: ClassVar[bool] = False
 
     def __check_init__(self):
-        _positive_duration(self.duration)
         if not 0 < self.angle < 3.14159265:
             raise ValueError(
                 f"stop rule theta_max_below: the angle must be in (0, pi), got {self.angle}"
             )
-
-    def init(self):
-        return None
 
     def check(self, frame, t, state):
         return bool(not float(frame["theta_max"]) >= self.angle), state  # NaN (no contact) ends it
@@ -179,12 +165,8 @@ class BallSpeedAbove(AbstractStop):
     met_at_duration: ClassVar[bool] = False
 
     def __check_init__(self):
-        _positive_duration(self.duration)
         if not self.rate > 0:
             raise ValueError("stop rule ball_speed_above: the speed threshold must be > 0")
-
-    def init(self):
-        return None
 
     def check(self, frame, t, state):
         return bool(abs(float(frame["ball_velocity"])) > self.rate), state
@@ -205,12 +187,8 @@ class Rest(AbstractStop):
     met_at_duration: ClassVar[bool] = False
 
     def __check_init__(self):
-        _positive_duration(self.duration)
         if not (self.rate > 0 and 0 < self.hold < self.duration):
             raise ValueError("stop rule rest: need rate > 0 and 0 < hold < duration")
-
-    def init(self):
-        return None
 
     def check(self, frame, t, state):
         moving = max(float(frame["slip_max"]), abs(float(frame["ball_velocity"])))
@@ -240,12 +218,8 @@ class BallReactionBelow(AbstractStop):
     met_at_duration: ClassVar[bool] = False
 
     def __check_init__(self):
-        _positive_duration(self.duration)
         if not self.force > 0:
             raise ValueError("stop rule ball_reaction_below: the threshold must be > 0")
-
-    def init(self):
-        return None
 
     def check(self, frame, t, state):
         return bool(float(frame["ball_reaction_static"]) < self.force), state

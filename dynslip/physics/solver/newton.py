@@ -91,9 +91,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from dynslip.physics import conditions
 from dynslip.physics.bodies.held import place_bodies
 from dynslip.physics.field import Layout, evaluate, heal
-from dynslip.physics.protocols import BALL_HOLD, CLAMP_POSITION
 from dynslip.physics.solver.increment import (
     Increment,
     increment_rates,
@@ -129,8 +129,7 @@ FAIL_RELAX = 1.05
 def increment_cap(args, max_increment, max_increment_free):
     """$\\Delta t_{max}$ (s): ``max_increment`` drag times in driven stages, ``max_increment_free``
     where the ball or the clamp moves under a force (``args.drag`` is the drag time)."""
-    free = (args.ball_mode != BALL_HOLD) | (args.clamp_mode != CLAMP_POSITION)
-    return args.drag * jnp.where(free, max_increment_free, max_increment)
+    return args.drag * jnp.where(conditions.driven(args), max_increment, max_increment_free)
 
 
 class Rate(NamedTuple):
