@@ -30,8 +30,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from dynslip.app import kinds
+from dynslip.app.outputs import Outputs
+from dynslip.app.sweep import run_sweep
+from dynslip.app.window import run_window
 from dynslip.data.trajectory import TRAJECTORY_FILE
-from dynslip.errors import ComputationError, InputError
+from dynslip.errors import ComputationError, InputError, MaterialRangeError
+from dynslip.schema.base import load as load_scenario
 
 __all__ = ["RunResult", "load", "run", "sweep", "window", "InputError", "ComputationError"]
 
@@ -56,7 +61,6 @@ class RunResult:
 def load(path, set: dict[str, Any] | None = None):  # noqa: A002 - the documented keyword
     """Load and validate a scenario file; ``set``: ``{dotted path: value}`` overrides, the
     paths of ``--set`` (:mod:`dynslip.schema.paths`: lists by index or by name)."""
-    from dynslip.schema.base import load as load_scenario
 
     return load_scenario(path, values=set)
 
@@ -114,9 +118,6 @@ def run(scn, out=None, *, force: bool = False, console=None) -> RunResult:
     replaces a folder that is not a dynslip result). ``console``: a :class:`rich.console.Console`
     for the progress and the summary table (default: quiet).
     """
-    from dynslip.app import kinds
-    from dynslip.app.outputs import Outputs
-    from dynslip.errors import MaterialRangeError
 
     console = _console(console)
     if out is not None:
@@ -151,7 +152,6 @@ def sweep(path, out=None, *, mode: str | None = None, force: bool = False, conso
     """
     import xarray as xr
 
-    from dynslip.app.sweep import run_sweep
 
     console = _console(console)
 
@@ -179,7 +179,6 @@ def window(scn, *, lo: float | None = None, hi: float | None = None, coarse: int
     tied); ``lo``, ``hi``, ``coarse``, ``tol``: as ``dynslip window``. ``out``: also write
     ``window.json`` and ``window.png`` there.
     """
-    from dynslip.app.window import run_window
 
     console = _console(console)
     data = json.loads(scn.to_json())

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from dynslip.physics.static import plane_strain as C
+
 
 def cylinder_study(mu: float, angles, n_profiles: int, n_nodes: int, seed: int) -> dict:
     """``F_v`` and its closed form (angle, profile), the largest relative excess over the
@@ -16,7 +18,6 @@ def cylinder_study(mu: float, angles, n_profiles: int, n_nodes: int, seed: int) 
     import jax
     import jax.numpy as jnp
 
-    from dynslip.physics.static import plane_strain as C
 
     key = jax.random.PRNGKey(seed)
     fv = np.zeros((len(angles), n_profiles))

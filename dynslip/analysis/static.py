@@ -16,6 +16,7 @@ import numpy as np
 from dynslip.analysis.paper import MODEL_LABELS as LABEL
 from dynslip.analysis.paper import paper_mu
 from dynslip.errors import ComputationError
+from dynslip.physics import static as S
 
 SAT_REL = 0.02  # |F_m| = mu F_N within 2% counts as saturated
 
@@ -33,7 +34,6 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
     failed search the dict has ``status = "failed"`` and ``error`` (nothing is raised here)."""
     import jax.numpy as jnp
 
-    from dynslip.physics import static as S
 
     n = num.n_nodes
     rbar = S.grid(n, rbar_max)
@@ -117,7 +117,6 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
 def _add_fields(out, material, theta, h, mu, num):
     import jax.numpy as jnp
 
-    from dynslip.physics import static as S
 
     f = S.fields(material, jnp.asarray(theta), h)
     fm, fn = np.asarray(f.fm), np.asarray(f.fn)
@@ -218,7 +217,6 @@ def family(materials: dict, values, theta_max, rbar_max, guess, rtol, switch_by,
 
     Returns (``{"mu", "pole_stretch", "switch_rbar", "switch_theta"}`` arrays (model, member),
     NaN where a member did not converge; the selected members)."""
-    from dynslip.physics import static as S
 
     cols = {
         k: np.full((len(materials), len(values)), np.nan)

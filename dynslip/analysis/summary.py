@@ -20,8 +20,10 @@ import math
 import numpy as np
 import xarray as xr
 
+from dynslip.analysis.clearance import body_contacts, body_overlaps, overlap_tolerance
 from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.analysis.resolution import body_chord_check, chord_check
+from dynslip.physics.bodies import Disc, PastEdgeMidHeight, PastEquator, PastWidest, Sphere
 
 
 def summarize(world, ds: xr.Dataset, result) -> dict:
@@ -175,7 +177,6 @@ def summarize(world, ds: xr.Dataset, result) -> dict:
         "nodes": lim.nodes,
     }
     if entries:
-        from dynslip.analysis.clearance import body_contacts
 
         summary["bodies"] = body_contacts(ds, entries, r)
         summary["bodies_means"] = (
@@ -185,7 +186,6 @@ def summarize(world, ds: xr.Dataset, result) -> dict:
             "the profile's start) at the end and its longest over the path, and the fraction "
             "of the nodes in contact at the end stuck relative to the body (frictional bodies)"
         )
-        from dynslip.analysis.clearance import body_overlaps, overlap_tolerance
 
         tol = overlap_tolerance(world.thickness_R, lim.penalty_width)
         overlaps = body_overlaps(ds, entries, ball, r, tol)
@@ -293,7 +293,6 @@ def unknown_reasons(world, ds: xr.Dataset, result, mesh_check: dict, rel_resid: 
 def trap_criterion(ball):
     """The ball's trapped criterion (:mod:`dynslip.physics.bodies.trap`): past the equator for
     a sphere, past the edge's mid-height for a disc, past the widest part for any other body."""
-    from dynslip.physics.bodies import Disc, PastEdgeMidHeight, PastEquator, PastWidest, Sphere
 
     if isinstance(ball, Sphere):
         return PastEquator(radius=ball.radius)
@@ -306,7 +305,6 @@ def contact_reach(ball, frame, theta_max: float) -> float:
     """How far the contact reaches along the ball's profile, s_max (units of R; NaN without
     contact): for a sphere about the origin its radius times theta_max (s = a theta, so for the
     unit ball exactly theta_max), else the largest surface coordinate of a node in contact."""
-    from dynslip.physics.bodies import Sphere
 
     if isinstance(ball, Sphere) and ball.centre_z == 0.0:
         return ball.radius * theta_max

@@ -12,6 +12,9 @@ import json
 
 import numpy as np
 
+from dynslip.data.trajectory import body_shift, open_trajectory
+from dynslip.physics.bodies import Sphere
+
 __all__ = ["drawn_bodies", "drawn_bodies_at"]
 
 
@@ -23,8 +26,7 @@ def drawn_bodies(ds) -> dict | None:
     (:func:`~dynslip.data.trajectory.body_shift`: with the ball, by the stages or free; None
     for a body at rest). None when the trajectory
     carries no scenario this version validates (an older file: the unit sphere only)."""
-    from dynslip.data.trajectory import body_shift
-    from dynslip.physics.bodies import Sphere
+    # at call time: the tests replace it in its home module
     from dynslip.schema.base import validate_data
 
     try:
@@ -42,6 +44,5 @@ def drawn_bodies(ds) -> dict | None:
 def drawn_bodies_at(trajectory_path) -> dict | None:
     """:func:`drawn_bodies` of the trajectory file ``trajectory_path`` (an
     :class:`~dynslip.errors.InputError` for a file that is not one)."""
-    from dynslip.data.trajectory import open_trajectory
 
     return drawn_bodies(open_trajectory(trajectory_path))

@@ -18,6 +18,11 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from dynslip.app.drawn import drawn_bodies
+from dynslip.data.files import write_text
+from dynslip.data.folders import StagedRun
+from dynslip.data.trajectory import open_trajectory
+from dynslip.data.vtk import ball_mesh, revolved_mesh, scales, sheet_mesh
 from dynslip.errors import InputError
 
 FORMATS = ("vtu", "xdmf")
@@ -38,8 +43,6 @@ def _pvd(entries: list[tuple[float, int, str]], names=None) -> str:
 
 def _parts(ds) -> list[tuple[str, str, object]]:
     """``(file stem, name, make(ds, k))`` of every part: the sheet, the ball, each held body."""
-    from dynslip.app.drawn import drawn_bodies
-    from dynslip.data.vtk import ball_mesh, revolved_mesh, scales, sheet_mesh
 
     drawn = drawn_bodies(ds) or {"ball": None, "held": []}
     r = scales(ds)["R"]
@@ -56,7 +59,6 @@ def _parts(ds) -> list[tuple[str, str, object]]:
 def _write_vtu(ds, folder: Path) -> list[Path]:
     import meshio
 
-    from dynslip.data.files import write_text
 
     entries = []
     parts = _parts(ds)
@@ -92,8 +94,6 @@ def run_export(
 ) -> Path:
     """Export ``trajectory`` into the folder ``out`` (default ``<trajectory folder>/paraview``);
     return the file to open (``trajectory.pvd`` or ``sheet.xdmf``)."""
-    from dynslip.data.folders import StagedRun
-    from dynslip.data.trajectory import open_trajectory
 
     if fmt not in FORMATS:
         raise InputError(f"--format {fmt!r}: allowed: {', '.join(FORMATS)}")

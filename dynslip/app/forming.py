@@ -17,11 +17,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from dynslip.analysis.release import release_metrics
+from dynslip.analysis.summary import summarize
 from dynslip.app.endtable import print_end_table
 from dynslip.app.outputs import Outputs
+from dynslip.app.release import load_start
+from dynslip.app.sizes import check_forming
 from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import PARTIAL_KEPT, ComputationError
+from dynslip.physics.driver.simulate import simulate
+from dynslip.plot.forming import make_figures
+from dynslip.plot.release import plot_release
+from dynslip.plot.world import drawn_ball, world_figure
 
 __all__ = ["run_forming", "prepare", "build_core", "finish", "to_dataset", "FLUSH_FRAMES"]
 
@@ -82,8 +90,6 @@ def prepare(sc, console=None):
     before any output is written: a run that would not fit in memory is refused, and
     ``start_from`` is resolved (its scenario run first when needed) into the world's start;
     bad input raises :class:`dynslip.errors.InputError`."""
-    from dynslip.app.release import load_start
-    from dynslip.app.sizes import check_forming
 
     world = sc.world()
     check_forming(world)
@@ -98,7 +104,6 @@ def run_forming(sc, out, console=None, world=None) -> dict:
     ``world``: the scenario's world as :func:`prepare` made it (made here when None)."""
     from rich.console import Console
 
-    from dynslip.physics.driver.simulate import simulate
 
     console = console or Console(stderr=True)
     outs = Outputs.of(out)
@@ -149,7 +154,6 @@ def run_forming(sc, out, console=None, world=None) -> dict:
     if result.failed:
         ds = flush(result.frames)
         if ds is not None:
-            from dynslip.analysis.summary import summarize
 
             outs.json(summarize(world, ds, result))
         raise ComputationError(
@@ -165,17 +169,12 @@ def finish(world, result, outs: Outputs) -> dict:
     of a lockstep batch): the trajectory checked against its contract, the summary (with the
     release metrics of a ``start_from`` run), the figures where ``outs`` writes; returns the
     summary."""
-    from dynslip.analysis.summary import summarize
-    from dynslip.plot.forming import make_figures
-    from dynslip.plot.world import drawn_ball, world_figure
 
     ds = to_dataset(world, result.frames, result.e0, True)
     io.check_units(ds)
     outs.netcdf(ds, trajectory.TRAJECTORY_FILE)
     summary = summarize(world, ds, result)
     if world.start_info is not None:
-        from dynslip.analysis.release import release_metrics
-        from dynslip.plot.release import plot_release
 
         summary["start"] = world.start_info
         summary["release"] = release_metrics(ds, world.model)

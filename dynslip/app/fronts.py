@@ -8,7 +8,8 @@ from pathlib import Path
 
 from dynslip.analysis.front_summary import fronts_dataset
 from dynslip.data.files import write_json, write_netcdf
-from dynslip.data.trajectory import open_trajectory
+from dynslip.data.trajectory import body_index, open_trajectory
+from dynslip.plot.bodies import plot_body_state
 from dynslip.plot.fronts import plot_fronts
 
 __all__ = ["run_fronts", "summary_lines"]
@@ -30,8 +31,6 @@ def run_fronts(trajectory_path, out_dir=None, rest_speed: float | None = None,
     ds = open_trajectory(trajectory_path)
     out_dir = trajectory_path.parent if out_dir is None else Path(out_dir)
     if body is not None:
-        from dynslip.data.trajectory import body_index
-        from dynslip.plot.bodies import plot_body_state
 
         body_index(ds, body)  # InputError before anything is written
         slug = re.sub(r"[^A-Za-z0-9]+", "_", body).strip("_").lower() or "body"

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from dynslip.app import forming, static
 from dynslip.app.outputs import Outputs
+from dynslip.data.folders import StagedRun
 from dynslip.errors import ComputationError, InputError
 
 __all__ = ["RUNNERS", "PREFLIGHTS", "runner", "preflight", "run", "run_into"]
@@ -73,7 +74,6 @@ def run_into(
     folder that replaces ``out`` only on success; a failed or interrupted run is kept as
     ``<out>.incomplete-<UTC time>/``. ``source``: the scenario file, which ``out`` must not
     hold; ``header``: printed once the checks have passed."""
-    from dynslip.data.folders import StagedRun
 
     out = Path(out)
     staged = StagedRun(out, force=force)

@@ -36,6 +36,7 @@ class Member:
 def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dict:
     """Validate scenario data and return the resolved scenario (every default filled in)."""
     if validate_fn is None:
+        # at call time: the tests replace it in its home module
         from dynslip.schema.base import validate_data as validate_fn
     return json.loads(validate_fn(data, source).to_json())
 
@@ -44,6 +45,7 @@ def default_member_fn(data: dict, out_dir: Path, console=None) -> dict:
     """The real member: validate the scenario data and run it into ``out_dir``."""
     from rich.console import Console
 
+    # at call time: the tests replace it in its home module
     from dynslip.app.kinds import run
     from dynslip.schema.base import validate_data
 

@@ -22,7 +22,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from dynslip.data.folders import StagedRun
+from dynslip.data.trajectory import TRAJECTORY_FILE, open_trajectory
 from dynslip.errors import InputError
+from dynslip.schema import base as scn
 from dynslip.schema.paths import get_path
 
 __all__ = ["load_start", "GEOMETRY_FIELDS"]
@@ -50,7 +53,6 @@ def _resolve(path: str, base: Path | None) -> Path:
 
 
 def _start_dataset(sc, console, run) -> tuple:
-    from dynslip.data.trajectory import TRAJECTORY_FILE, open_trajectory
 
     src = _resolve(sc.start_from, getattr(sc, "_source_dir", None))
     if src.suffix == ".nc":
@@ -59,8 +61,6 @@ def _start_dataset(sc, console, run) -> tuple:
         raise InputError(
             f"start_from: {str(src)!r}: expected a {TRAJECTORY_FILE} or a scenario .yaml"
         )
-    from dynslip.data.folders import StagedRun
-    from dynslip.schema import base as scn
 
     start_sc = scn.load(src)
     if getattr(start_sc, "kind", None) != "forming":

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 
+from dynslip.data.trajectory import PER_NODE
 from dynslip.errors import InputError
 
 #: bytes held per node, frame and field (the records and the dataset: two copies of float64)
@@ -25,7 +26,6 @@ SOLVER_BYTES = 32
 
 
 def n_fields() -> int:
-    from dynslip.data.trajectory import PER_NODE
 
     return len(PER_NODE) + 1  # and state
 

@@ -28,8 +28,10 @@ from dynslip.app.outputs import Outputs
 from dynslip.data import files as io
 from dynslip.data.static import cylinder_dataset, family_dataset, figure4_dataset, static_dataset
 from dynslip.errors import ComputationError
+from dynslip.plot.static import save_cylinder, save_family, save_figure4, save_figure4_row
 from dynslip.plot.style import MODEL_LABELS as LABEL
 from dynslip.schema.materials import MaterialSpec
+from dynslip.schema.static import material_of
 
 __all__ = ["PAPER_MU", "run_static", "run_figure4", "run_family",
            "run_cylinder", "paper_mu"]
@@ -82,8 +84,6 @@ def _fail(res_list, outs: Outputs):
 
 def run_static(sc, out, console) -> dict:
     """``kind: static``: one material, Fig. 4 row."""
-    from dynslip.plot.static import save_figure4_row
-    from dynslip.schema.static import material_of
 
     outs = Outputs.of(out)
     p = sc.physics
@@ -104,7 +104,6 @@ def run_static(sc, out, console) -> dict:
 
 def run_figure4(sc, out, console) -> dict:
     """``kind: figure4``: Hookean, neo-Hookean, Gent in one 3x3 figure."""
-    from dynslip.plot.static import save_figure4
 
     outs = Outputs.of(out)
     p = sc.physics
@@ -139,7 +138,6 @@ def run_figure4(sc, out, console) -> dict:
 
 def run_family(sc, out, console) -> dict:
     """``kind: family``: mu along the fully mobilised family of the three models."""
-    from dynslip.plot.static import save_family
 
     outs = Outputs.of(out)
     p, num = sc.physics, sc.numerics
@@ -175,7 +173,6 @@ def run_cylinder(sc, out, console) -> dict:
     """``kind: cylinder``: capstan bounds and the vertical force in 2D (paper Section 5)."""
     from rich.table import Table
 
-    from dynslip.plot.static import save_cylinder
 
     outs = Outputs.of(out)
     p, num = sc.physics, sc.numerics

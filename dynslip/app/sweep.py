@@ -45,10 +45,15 @@ from pathlib import Path
 
 from dynslip.app.members import Member, default_member_fn, resolve
 from dynslip.app.sweep_runners import MODES, connect_client, run_members
+from dynslip.data.files import provenance, write_json, write_netcdf
+from dynslip.data.folders import RESULT_MARKER, check_out, kept_on_error, write_result_marker
+from dynslip.data.lock import out_lock
 from dynslip.data.sweep import assemble
 from dynslip.errors import ComputationError, InputError
+from dynslip.plot.sweep import plot_sweep
+from dynslip.schema.base import load_data
 from dynslip.schema.paths import get_path, set_path
-from dynslip.schema.sweep import BASE_KEY, SweepSpec, load_spec, unit_of_field
+from dynslip.schema.sweep import BASE_KEY, SweepSpec, friction_field, load_spec, unit_of_field
 
 #: The default runner: the fastest in ``benchmarks/sweep.py`` on the 2-core machine.
 DEFAULT_MODE = "sequential"
@@ -75,7 +80,6 @@ def _fingerprint(resolved: dict, window: dict | None) -> str:
 
 def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = None) -> list[Member]:
     """Every member of the sweep, resolved and validated (nothing runs)."""
-    from dynslip.schema.base import load_data
 
     root = Path(sweep_path).parent
     if spec.grid is not None:
@@ -114,7 +118,6 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
             except KeyError:
                 raise InputError(f"{src}: field '{k}' does not exist in the scenario") from None
         if window is not None:
-            from dynslip.schema.sweep import friction_field
 
             field_name, _ = friction_field(resolved, window["field"])
             if field_name in assign:
@@ -170,8 +173,6 @@ def run_sweep(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dynslip.data.files import provenance, write_json, write_netcdf
-    from dynslip.data.folders import RESULT_MARKER, check_out, kept_on_error, write_result_marker
 
     console = console or Console()
     sweep = Path(sweep)
@@ -225,7 +226,6 @@ def run_sweep(
             if cluster is not None:
                 stack.callback(cluster.close)
         # the folder is made only now that the input (and the scheduler) has been checked
-        from dynslip.data.lock import out_lock
 
         stack.enter_context(out_lock(out))  # one sweep per folder at a time
         mdir.mkdir(parents=True, exist_ok=True)
@@ -304,7 +304,6 @@ def run_sweep(
     }
     write_json(out / "summary.json", summary)
     if plot:
-        from dynslip.plot.sweep import plot_sweep
 
         plot_sweep(ds, out / "sweep.png")
     console.print(

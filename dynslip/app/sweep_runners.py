@@ -37,10 +37,18 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from dynslip.analysis.summary import summarize
+from dynslip.app.forming import finish, to_dataset
 from dynslip.app.members import Member
+from dynslip.app.outputs import Outputs
+from dynslip.app.window import scenario_window
+from dynslip.data import files as io
+from dynslip.data.files import jsonable
 from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import PARTIAL_KEPT, ComputationError, InputError
+from dynslip.physics.driver.batch import batch_key, simulate_batch
 from dynslip.schema.paths import get_path
+from dynslip.schema.sweep import friction_field
 
 MODES = ("sequential", "batched", "dask")
 #: seconds to wait for a dask scheduler given by address
@@ -52,7 +60,6 @@ CONNECT_TIMEOUT_S = 10.0
 
 
 def _jsonable_summary(summary: dict) -> dict:
-    from dynslip.data.files import jsonable
 
     return json.loads(json.dumps(jsonable(summary), default=str))
 
@@ -87,8 +94,6 @@ def execute_member(
         except Exception as err:  # noqa: BLE001 - a member's failure is data, not a crash of the sweep
             rec.update(status="error", error=f"{type(err).__name__}: {err}")
         if window is not None:
-            from dynslip.app.window import scenario_window
-            from dynslip.schema.sweep import friction_field
 
             field_name, tied = friction_field(resolved, window["field"])
             mu0 = float(get_path(resolved, field_name))
@@ -252,10 +257,6 @@ def _forming_outputs(world, result, out: Path | None) -> dict:
     """What :func:`dynslip.app.forming.finish` makes of a lockstep member's result: the
     summary (raises :class:`ComputationError` for a failed run), with its files in ``out``
     when given (``keep_runs``; the figures too)."""
-    from dynslip.analysis.summary import summarize
-    from dynslip.app.forming import finish, to_dataset
-    from dynslip.app.outputs import Outputs
-    from dynslip.data import files as io
 
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -276,7 +277,7 @@ def run_forming_batch(
     as :func:`execute_member` writes it (module level: it travels to worker processes).
     Members whose compiled solves differ (a float setting of the increment control, say)
     form separate batches, each of at most ``batch_size`` members (None: all)."""
-    from dynslip.physics.driver.batch import batch_key, simulate_batch
+    # at call time: the tests replace it in its home module
     from dynslip.schema.base import validate_data
 
     t0 = time.perf_counter()

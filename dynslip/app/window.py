@@ -16,10 +16,15 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from dynslip.analysis.convergence import critical_edge, richardson
 from dynslip.analysis.windows import WindowResult, check_search, find_windows
+from dynslip.data.evaluations import EvaluationLog, search_key
 from dynslip.data.files import write_json
 from dynslip.data.folders import check_out, write_result_marker
+from dynslip.data.lock import out_lock
 from dynslip.errors import ComputationError, InputError, run_not_kept
+from dynslip.plot.sweep import plot_critical_mu, plot_window
+from dynslip.schema import base as scen
 from dynslip.schema.paths import get_path
 from dynslip.schema.sweep import WindowSpec, friction_field, member_at
 
@@ -109,8 +114,8 @@ def run_window(
     """
     from rich.console import Console
 
+    # at call time: the tests replace it in its home module
     from dynslip.app.members import default_member_fn, resolve
-    from dynslip.schema import base as scen
 
     console = console or Console()
     member_fn = member_fn or default_member_fn
@@ -141,8 +146,6 @@ def run_window(
 
     out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_window"
     check_out(out, force=force, in_place=True)
-    from dynslip.data.evaluations import EvaluationLog, search_key
-    from dynslip.data.lock import out_lock
 
     with out_lock(out):  # one search per folder at a time
         return _search(out, path, overrides, data, resolved, member_fn, field_name, tied, lo, hi, coarse,  # noqa: E501
@@ -191,7 +194,6 @@ def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, l
     )
     for mu, err in known_errors.items():  # the reasons of failed points kept by an earlier attempt
         res.errors.setdefault(mu, err)
-    from dynslip.analysis.convergence import critical_edge
 
     result = {
         "scenario": str(path),
@@ -218,7 +220,6 @@ def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, l
         raise ComputationError(
             f"{path}: every run of the window search failed (see {out / 'window.json'})"
         )
-    from dynslip.plot.sweep import plot_window
 
     plot_window(result, out / "window.png")
     shown = ", ".join(f"[{w.lo.value:.4g}, {w.hi.value:.4g}]" for w in res.windows) or "none"
@@ -341,8 +342,6 @@ def run_window_nodes(
     (:func:`dynslip.analysis.convergence.richardson`) and ``<out>/critical_mu.png``."""
     from rich.console import Console
 
-    from dynslip.analysis.convergence import richardson
-    from dynslip.plot.sweep import plot_critical_mu
 
     console = console or Console()
     path = Path(scenario)

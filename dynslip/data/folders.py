@@ -34,6 +34,7 @@ from pathlib import Path
 
 from dynslip._version import FORMAT_VERSION, __version__
 from dynslip.data.files import write_json, write_text
+from dynslip.data.lock import out_lock
 from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import InputError
 
@@ -268,7 +269,6 @@ class StagedRun:
         return check_out(self.out, force=self.force, what=self.what, force_hint=self.force_hint)
 
     def __enter__(self) -> Path:
-        from dynslip.data.lock import out_lock
 
         self.check()
         self._lock.enter_context(out_lock(self.out, self.what))  # one run per --out at a time

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from dynslip.data.files import variable
+
 MEMBER_DIM = "member"
 
 
@@ -68,7 +70,6 @@ def assemble(
     unit_of: Callable[[str], str], base_value: Callable[[Any, str], Any],
 ) -> xr.Dataset:
     """One dataset from the member records: a dimension per swept field (grid) or ``member``."""
-    from dynslip.data.files import variable
 
     if spec.grid is not None:
         grid = spec.grid_values()
@@ -142,7 +143,6 @@ def assemble(
 
 
 def _window_vars(spec, members, records, dims, shape) -> dict:
-    from dynslip.data.files import variable
 
     n_max = max([1] + [len(records[m.fingerprint]["window"]["windows"]) for m in members])
     wdims = (*dims, WINDOW_DIM)

@@ -23,6 +23,7 @@ from dynslip.analysis.front_summary import fronts_dataset, rest_speed_of
 from dynslip.analysis.fronts import motion_state
 from dynslip.data.trajectory import open_trajectory, stage_names, time_indices
 from dynslip.errors import InputError
+from dynslip.plot.forming import outcome_title
 from dynslip.plot.fronts import draw_spacetime
 from dynslip.plot.style import STATE_COLORS, STATE_LABELS
 
@@ -164,7 +165,6 @@ class _Renderer:
         draw_spacetime(self.ax_map, ds.isel(time=mf), fronts.isel(time=mf), legend=False)
         import textwrap
 
-        from dynslip.plot.forming import outcome_title
 
         end = "\n".join(textwrap.wrap(outcome_title(ds, outcome), 60))
         self.ax_map.set_title(

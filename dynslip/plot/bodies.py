@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 
 from dynslip.data.files import save_figure
 from dynslip.data.trajectory import BODY_STATE_MEANINGS, body_index, stage_names
+from dynslip.plot.forming import outcome_title
 from dynslip.plot.style import STATE_COLORS
 
 __all__ = ["BODY_STATE_COLORS", "body_state_map", "plot_body_state"]
@@ -39,7 +40,6 @@ def body_state_map(ds: xr.Dataset, name: str, outcome: str | None = None) -> Fig
     from matplotlib.colors import BoundaryNorm, ListedColormap
     from matplotlib.patches import Patch
 
-    from dynslip.plot.forming import outcome_title
 
     k = body_index(ds, name)
     t = np.asarray(ds["time"].values, float)

@@ -14,6 +14,7 @@ from dynslip.analysis.front_summary import rest_speed_of
 from dynslip.analysis.fronts import BIRTH_EVENTS, DEATH_EVENTS, motion_state
 from dynslip.data.files import save_figure
 from dynslip.data.trajectory import stage_names
+from dynslip.plot.forming import outcome_title
 from dynslip.plot.style import STATE_COLORS, STATE_LABELS, state_colormap
 
 __all__ = ["draw_spacetime", "plot_fronts"]
@@ -101,7 +102,6 @@ def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path, outcome: str | None = 
     with the run's ``outcome`` (summary.json's, else where the contact ends)."""
     import matplotlib
 
-    from dynslip.plot.forming import outcome_title
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -15,6 +15,9 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from dynslip.analysis.paper import MEASURED_MU_S
+from dynslip.data.files import save_figure
+
 PANELS = [
     "trapped",
     "theta_max",
@@ -60,7 +63,6 @@ def _reduce(ds: xr.Dataset) -> tuple[xr.Dataset, str]:
 
 def plot_sweep(ds: xr.Dataset, path) -> Path:
     """The sweep's figure (see the module docstring); written atomically to ``path``."""
-    from dynslip.data.files import save_figure
 
     plt = _mpl()
     ds, note = _reduce(ds)
@@ -173,7 +175,6 @@ def _window_range(ds: xr.Dataset) -> tuple[float, float]:
 
 def plot_window(result: dict, path) -> Path:
     """trapped(mu) at every evaluated mu (failed runs as red crosses), windows shaded."""
-    from dynslip.data.files import save_figure
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(6, 3.4 if result.get("resolution_check") else 2.6))
@@ -205,7 +206,6 @@ def plot_window(result: dict, path) -> Path:
 def plot_critical_mu(result: dict, path) -> Path:
     """critical_mu.png: the path's critical mu (lowest window's lower edge, +- half its
     bracket) against the mesh size, with the Richardson value where extrapolable."""
-    from dynslip.data.files import save_figure
 
     plt = _mpl()
     fig, ax = plt.subplots(figsize=(5, 3.2))
@@ -255,7 +255,6 @@ def plot_critical_mu(result: dict, path) -> Path:
             alpha=0.2,
             label=f"extrapolated {ex['value']:.3f} (order {ex['order']:.2f})",
         )
-    from dynslip.analysis.paper import MEASURED_MU_S
 
     ax.axhline(MEASURED_MU_S, color="C3", ls=":", label=f"measured mu_s = {MEASURED_MU_S:g}")
     ax.set_xscale("log")

@@ -10,6 +10,9 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from dynslip.physics.bodies import Sphere
+from dynslip.physics.bodies.held import held_entries
+
 __all__ = ["plot_world", "world_figure", "drawn_ball"]
 
 
@@ -99,7 +102,6 @@ def _limits(ax, ds, frames, limits):
 
 def drawn_ball(ball):
     """The ball's body for the figures: None for the unit sphere (drawn as a circle)."""
-    from dynslip.physics.bodies import Sphere
 
     return None if isinstance(ball, Sphere) and ball.is_unit else ball
 
@@ -111,7 +113,6 @@ def world_figure(ds: xr.Dataset, world, outcome) -> Figure:
     and the end."""
     import textwrap
 
-    from dynslip.physics.bodies.held import held_entries
 
     entries = held_entries(world.model.bodies)
     moves = [e.moves_with_ball or e.stage or e.free for e in entries]

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pydantic import model_validator
 
+from dynslip.physics.bodies.apparatus import check_bottle_fillets
+from dynslip.physics.bodies.base import BodyGeometryError
 from dynslip.schema.base import F, Strict
 
 __all__ = ["BottleSpec", "TubeSpec"]
@@ -79,8 +81,6 @@ class BottleSpec(Strict):
 
     @model_validator(mode="after")
     def _fillets_fit(self):
-        from dynslip.physics.bodies.apparatus import check_bottle_fillets
-        from dynslip.physics.bodies.base import BodyGeometryError
 
         if not self.body_od_mm > self.neck_od_mm:
             return self  # refused where the ball is known (FormingPhysics), naming the neck

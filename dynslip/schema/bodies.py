@@ -28,6 +28,19 @@ from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import BaseModel, TypeAdapter, model_validator
 
+from dynslip.physics.bodies import (
+    BodyGeometryError,
+    Cone,
+    Cylinder,
+    Disc,
+    Profile,
+    Sphere,
+    Torus,
+    inside,
+    penetration,
+    shared_face,
+)
+from dynslip.physics.bodies.segments import Arc, Line
 from dynslip.schema.base import F, Strict
 from dynslip.schema.friction import FrictionLaw, FrictionlessSpec
 from dynslip.schema.registry import Registry
@@ -77,7 +90,6 @@ class SegmentSpec(Strict):
 
     def core(self, r: float):
         """The core segment (units of R)."""
-        from dynslip.physics.bodies.segments import Arc, Line
 
         if self.type == "line":
             return Line((self.start_mm[0] / r, self.start_mm[1] / r),
@@ -159,7 +171,6 @@ class SphereSpec(ShapeSpec):
         return r if self.radius_mm is None else self.radius_mm
 
     def core(self, r: float, z: float = 0.0):
-        from dynslip.physics.bodies import Sphere
 
         return Sphere(self.radius(r) / r, centre_z=z)
 
@@ -184,7 +195,6 @@ class DiscSpec(ShapeSpec):
     can_be_ball: ClassVar[bool] = True
 
     def core(self, r: float, z: float = 0.0):
-        from dynslip.physics.bodies import Disc
 
         return Disc(self.radius_mm / r, self.thickness_mm / r, self.edge_radius_mm / r,
                     centre_z=z)
@@ -212,7 +222,6 @@ class CylinderSpec(ShapeSpec):
                                                  f"default); {_MM}")
 
     def core(self, r: float, z: float = 0.0):
-        from dynslip.physics.bodies import Cylinder
 
         return Cylinder(self.radius_mm / r, z, z + self.height_mm / r,
                         inner_radius=(self.inner_radius_mm or 0.0) / r,
@@ -231,7 +240,6 @@ class ConeSpec(ShapeSpec):
                                    f"nonzero; {_MM}")
 
     def core(self, r: float, z: float = 0.0):
-        from dynslip.physics.bodies import Cone
 
         return Cone(self.radius_mm / r, z, z + self.apex_mm / r)
 
@@ -248,7 +256,6 @@ class TorusSpec(ShapeSpec):
                                description=f"its tube's radius; {_MM}")
 
     def core(self, r: float, z: float = 0.0):
-        from dynslip.physics.bodies import Torus
 
         return Torus(self.ring_radius_mm / r, self.minor_radius_mm / r, centre_z=z)
 
@@ -263,8 +270,6 @@ class ProfileSpec(ShapeSpec):
                                                 "axis or closed (at most 200)")
 
     def core(self, r: float, z: float = 0.0):
-        from dynslip.physics.bodies import Profile
-        from dynslip.physics.bodies.segments import Arc, Line
 
         segs = []
         for s in self.segments:
@@ -364,7 +369,6 @@ def ball_core(ball: ShapeSpec | None, r: float):
     """The core ball body (units of R): the unit :class:`Sphere` for the default (the closed
     forms of :mod:`dynslip.physics.sheet`, operation for operation), else its kind's body,
     centred at the origin."""
-    from dynslip.physics.bodies import Sphere
 
     if ball is None or (ball.kind == "sphere" and ball.radius(r) == r):
         return Sphere()
@@ -392,7 +396,6 @@ def check_bodies(bodies, ball, others, r: float, sheet_z: float, sheet_rho: floa
     (units of R) outside every body, names unique."""
     import numpy as np
 
-    from dynslip.physics.bodies import BodyGeometryError, inside, penetration, shared_face
 
     def shared(a, b):
         return max(shared_face(a, b), shared_face(b, a))

@@ -18,14 +18,16 @@ from typing import Literal
 
 from pydantic import PrivateAttr, model_validator
 
+from dynslip.physics.bodies import BodyGeometryError
+from dynslip.physics.bodies.apparatus import bottle, tube_wall
 from dynslip.schema.apparatus import BottleSpec, TubeSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
-from dynslip.schema.bodies import BallSpec, BodySpec
-from dynslip.schema.friction import CoulombSpec, FrictionLaw, FrictionSpec
+from dynslip.schema.bodies import BallSpec, BodySpec, ball_core, body_core, check_bodies
+from dynslip.schema.friction import FRICTION_SPECS, CoulombSpec, FrictionLaw, FrictionSpec
 from dynslip.schema.materials import MaterialSpec
 from dynslip.schema.stages import MAX_STAGES, MAX_TIME_S, StageSpec
 from dynslip.schema.stages import default_stages as _default_stages
-from dynslip.schema.world import build_protocol, clamp_enters_ball
+from dynslip.schema.world import build_protocol, build_world, clamp_enters_ball
 
 __all__ = ["FormingScenario", "FormingPhysics", "FormingNumerics", "StageSpec", "MaterialSpec",
            "FrictionSpec", "TubeSpec", "BottleSpec", "build_protocol"]
@@ -97,7 +99,6 @@ class FormingPhysics(Strict):
     @model_validator(mode="after")
     def _geometry(self):
         if self.friction.law == "none":
-            from dynslip.schema.friction import FRICTION_SPECS
 
             laws = ", ".join(law for law in FRICTION_SPECS.specs if law != "none")
             raise ValueError(f"friction.law = none: the ball's friction needs a law; allowed: "
@@ -166,12 +167,10 @@ class FormingPhysics(Strict):
 
     def ball_body(self):
         """The core ball body (units of R; :func:`dynslip.schema.bodies.ball_core`)."""
-        from dynslip.schema.bodies import ball_core
 
         return ball_core(self.ball, self.ball_radius_mm)
 
     def _bodies_fit(self):
-        from dynslip.physics.bodies import BodyGeometryError
 
         r = self.ball_radius_mm
         try:
@@ -180,11 +179,9 @@ class FormingPhysics(Strict):
             raise ValueError(f"ball (kind {self.ball.kind}): {err}") from None
         if not self.bodies:
             return
-        from dynslip.schema.bodies import check_bodies
 
         others = []
         if self.tube is not None:
-            from dynslip.physics.bodies.apparatus import tube_wall
 
             others.append(("tube", tube_wall(r, od_mm=2 * self.rim_radius_mm,
                                              wall_mm=self.tube.wall_mm,
@@ -202,7 +199,6 @@ class FormingPhysics(Strict):
     def tube_body(self):
         """The tube's wall as a core body (units of R;
         :func:`~dynslip.physics.bodies.apparatus.tube_wall`), hanging from its rim."""
-        from dynslip.physics.bodies.apparatus import tube_wall
 
         t = self.tube
         return tube_wall(self.ball_radius_mm, od_mm=2 * self.rim_radius_mm, wall_mm=t.wall_mm,
@@ -213,7 +209,6 @@ class FormingPhysics(Strict):
         (:mod:`dynslip.schema.friction`; the tube's and the bottle's ``mu`` as Coulomb's): the
         tube's wall, the bottle's parts and each of ``physics.bodies``, in the order the solver
         holds them (:func:`~dynslip.schema.world.build_world` makes each a ``Held`` entry)."""
-        from dynslip.schema.bodies import body_core
 
         t, b = self.tube, self.bottle
         out = [("tube wall", self.tube_body(), False, CoulombSpec(mu=t.mu))] if t is not None \
@@ -329,7 +324,6 @@ class FormingPhysics(Strict):
     def bottle_parts(self) -> tuple:
         """The bottle's core bodies, one smooth solid (units of R;
         :func:`~dynslip.physics.bodies.apparatus.bottle`)."""
-        from dynslip.physics.bodies.apparatus import bottle
 
         b = self.bottle
         return bottle(self.ball_radius_mm, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm,
@@ -510,7 +504,6 @@ class FormingScenario(ScenarioBase):
     def world(self):
         """The run's :class:`~dynslip.schema.world.World`, every core object built from this
         scenario (:func:`dynslip.schema.world.build_world`)."""
-        from dynslip.schema.world import build_world
 
         return build_world(self)
 

@@ -15,6 +15,13 @@ from typing import Annotated, Literal
 
 from pydantic import model_validator
 
+from dynslip.physics.friction import (
+    CAP_BLEND,
+    Coulomb,
+    PressureDependent,
+    SlipWeakening,
+    capstan_reference_tension,
+)
 from dynslip.physics.layout import f64
 from dynslip.physics.reference import MEASURED_MU_K, MEASURED_MU_S
 from dynslip.schema.base import F, Strict
@@ -37,7 +44,6 @@ def capstan_reference_pressure_kPa(exponent: float, test: dict = CAPSTAN_TEST) -
     :func:`dynslip.physics.friction.capstan_reference_tension` (a strip of width w under
     tension T on radius R presses with T / (R w); the strip's narrowing under tension, 4% at
     T_ref, is left out). 1.06 kPa at exponent 1/3 with the assumed masses."""
-    from dynslip.physics.friction import capstan_reference_tension
 
     t_hold = test["hold_mass_g"] * 1e-3 * 9.81
     t_load = t_hold * math.exp(test["mu"] * test["wrap_rad"])
@@ -101,7 +107,6 @@ class CoulombSpec(FrictionSpec):
     mu: float = F(1.15, ge=0, le=10, description="the Coulomb coefficient, in [0, 10]")
 
     def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
-        from dynslip.physics.friction import Coulomb
 
         return Coulomb(mu=f64(self.mu), eps=f64(eps))
 
@@ -135,7 +140,6 @@ class SlipWeakeningSpec(FrictionSpec):
         return self
 
     def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
-        from dynslip.physics.friction import SlipWeakening
 
         return SlipWeakening(mu_s=f64(self.mu_s), mu_k=f64(self.mu_k),
                              d_c=f64(self.d_c_mm / ball_radius_mm), eps=f64(eps))
@@ -180,7 +184,6 @@ class PressureSpec(FrictionSpec):
 
     @model_validator(mode="after")
     def _bound(self):
-        from dynslip.physics.friction import CAP_BLEND
 
         if self.mu_max < self.mu_ref * math.exp(CAP_BLEND):
             raise ValueError(f"mu_max = {self.mu_max} is below mu_ref e^{CAP_BLEND:g} = "
@@ -189,7 +192,6 @@ class PressureSpec(FrictionSpec):
         return self
 
     def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
-        from dynslip.physics.friction import CAP_BLEND, PressureDependent
 
         if pressure_scale_kPa is None or not pressure_scale_kPa > 0:
             raise ValueError("law: pressure needs the pressure scale G h0 / R (kPa) > 0, got "

@@ -11,6 +11,7 @@ from typing import Literal
 
 from pydantic import model_validator
 
+from dynslip.physics.materials import MATERIALS
 from dynslip.schema.base import F, Strict
 
 __all__ = ["MaterialSpec", "MODELS"]
@@ -50,7 +51,6 @@ class MaterialSpec(Strict):
     def core(self):
         """The core material (:data:`dynslip.physics.materials.MATERIALS`), its parameters
         from this section."""
-        from dynslip.physics.materials import MATERIALS
 
         params = {"mooney_rivlin": {"c1": float(self.c1), "c2": float(self.c2_value)},
                   "gent": {"jm": float(self.jm)}}

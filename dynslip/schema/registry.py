@@ -20,6 +20,8 @@ from typing import Annotated, Any, Union
 from pydantic import BaseModel, Field
 from pydantic_core import core_schema
 
+from dynslip.schema.base import Strict
+
 __all__ = ["Registry"]
 
 
@@ -103,7 +105,6 @@ def _models_in(annotation: Any) -> list[type[BaseModel]]:
 
 def _rebuild_holders() -> None:
     """Rebuild every schema model whose fields reach a registry, children before parents."""
-    from dynslip.schema.base import Strict
 
     models: list[type[BaseModel]] = []
     stack: list[type[BaseModel]] = [Strict]

@@ -18,6 +18,14 @@ from typing import Annotated, Literal
 
 from pydantic import model_validator
 
+from dynslip.physics.protocols import (
+    BallReactionBelow,
+    BallSpeedAbove,
+    ClampForceBelow,
+    Duration,
+    Rest,
+    ThetaMaxBelow,
+)
 from dynslip.schema.base import F, Strict
 from dynslip.schema.registry import Registry
 
@@ -62,7 +70,6 @@ class DurationSpec(StopSpec):
     rule: Literal["duration"] = F("duration", description="duration: the stage's duration_s")
 
     def build(self, duration, r, fs):
-        from dynslip.physics.protocols import Duration
 
         return Duration(duration=duration)
 
@@ -77,7 +84,6 @@ class ClampForceBelowSpec(StopSpec):
     force_N: float = F(..., unit="N", gt=0, le=1e6, description="the threshold, in (0, 1e6] N")
 
     def build(self, duration, r, fs):
-        from dynslip.physics.protocols import ClampForceBelow
 
         return ClampForceBelow(force=self.force_N / fs, duration=duration)
 
@@ -102,7 +108,6 @@ class BallReactionBelowSpec(StopSpec):
     force_N: float = F(..., unit="N", gt=0, le=1e6, description="the threshold, in (0, 1e6] N")
 
     def build(self, duration, r, fs):
-        from dynslip.physics.protocols import BallReactionBelow
 
         return BallReactionBelow(force=self.force_N / fs, duration=duration)
 
@@ -123,7 +128,6 @@ class ThetaMaxBelowSpec(StopSpec):
                          description="the polar angle, in (0, pi) (pi/2: opening radius R)")
 
     def build(self, duration, r, fs):
-        from dynslip.physics.protocols import ThetaMaxBelow
 
         return ThetaMaxBelow(angle=self.angle_rad, duration=duration)
 
@@ -138,7 +142,6 @@ class BallSpeedAboveSpec(StopSpec):
                           description="the ball-speed threshold, in (0, 1e3] mm/s")
 
     def build(self, duration, r, fs):
-        from dynslip.physics.protocols import BallSpeedAbove
 
         return BallSpeedAbove(rate=self.speed_mm_s / r, duration=duration)
 
@@ -157,7 +160,6 @@ class RestSpec(StopSpec):
                                   "duration_s")
 
     def build(self, duration, r, fs):
-        from dynslip.physics.protocols import Rest
 
         return Rest(rate=self.rate_mm_s / r, hold=self.hold_s, duration=duration)
 

@@ -24,6 +24,20 @@ from typing import TYPE_CHECKING, Any
 
 import jax.numpy as jnp
 
+from dynslip.physics.bodies import Sphere
+from dynslip.physics.bodies.held import Held
+from dynslip.physics.protocols import (
+    BALL_FORCE,
+    BALL_HOLD,
+    CLAMP_BAND,
+    CLAMP_FORCE,
+    Protocol,
+    Stage,
+    ball_drag_coefficient,
+)
+from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
+from dynslip.physics.solver.methods import Settings
+
 if TYPE_CHECKING:
     from dynslip.physics.protocols import Protocol
     from dynslip.physics.sheet import SheetModel
@@ -132,7 +146,6 @@ def settings_of(nu, ball_radius_mm: float, body_names: tuple) -> Settings:
     """The driver's :class:`~dynslip.physics.solver.methods.Settings` of the numerics spec ``nu``:
     every setting of the same name taken as it is, the four the spec states in its own units
     or words converted."""
-    from dynslip.physics.solver.methods import Settings
 
     same = {f.name for f in dataclasses.fields(Settings)} & set(type(nu).model_fields)
     return Settings(
@@ -149,9 +162,6 @@ def build_world(sc) -> World:
     """The :class:`World` of ``sc``, a validated
     :class:`~dynslip.schema.forming.FormingScenario` (its protocol built once, by the
     scenario's validation)."""
-    from dynslip.physics.bodies.held import Held
-    from dynslip.physics.protocols import ball_drag_coefficient
-    from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 
     p, nu = sc.physics, sc.numerics
     r = p.ball_radius_mm
@@ -230,7 +240,6 @@ def clamp_enters_ball(prot, ball) -> bool:
     """Whether the keyframed clamp path comes into the ball: within the unit distance of the
     centre for the unit ball (closed form), else at a distance at most 0 from the ball's body
     along the straight segments between keyframes (sampled every 1e-3 of a segment)."""
-    from dynslip.physics.bodies import Sphere
 
     if isinstance(ball, Sphere) and ball.radius == 1.0:
         return prot.clamp_min_distance_to_ball() <= 1.0
@@ -249,14 +258,6 @@ def build_protocol(sc):
     """The core :class:`dynslip.physics.protocols.Protocol` (nondimensional) of ``sc``, a
     :class:`dynslip.schema.forming.FormingScenario` (typed in words: that module imports this
     one)."""
-    from dynslip.physics.protocols import (
-        BALL_FORCE,
-        BALL_HOLD,
-        CLAMP_BAND,
-        CLAMP_FORCE,
-        Protocol,
-        Stage,
-    )
 
     p = sc.physics
     r = p.ball_radius_mm

@@ -22,6 +22,7 @@ import jax.numpy as jnp
 from dynslip.physics.field import Layout, heal, vector_field
 from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
 from dynslip.physics.solver.newton import MotionNewton, SegmentOutput, zero_rate
+from dynslip.physics.solver.upstream import VeryChord
 
 __all__ = ["DIFFRAX_METHODS", "SOLVERS", "Settings", "TimeStepping", "solver_for"]
 
@@ -95,7 +96,6 @@ class TimeStepping(eqx.Module):
     def _diffrax_solver(self, layout: Layout):
         import diffrax
 
-        from dynslip.physics.solver.upstream import VeryChord
 
         # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.solver.upstream),
         # on
