@@ -152,6 +152,18 @@ def test_load_step_matches_kvaerno5_on_a_short_push_down(reference, backtrack):
 # ----------------------------------------------------------------------------- energy and order
 
 
+def push_down_start():
+    """The push-down stage of :func:`test_forming.push_protocol` from its start: the stage,
+    the layout, its loads, the start state and the stage's end time."""
+    protocol = push_protocol()
+    stage = protocol.stages[0]
+    layout = Layout(N, 0)
+    args = stage_args(stage, 0.0, protocol.ball_z0, 0.0, (0.0, 0.0), _friction(), 1e-3, TAU,
+                      TAU * 4 * math.pi, 0.0)
+    y0 = initial_state(MODEL, layout, PRE, Z0, protocol.ball_z0)
+    return stage, layout, args, y0, jnp.asarray(stage.max_duration)
+
+
 @eqx.filter_jit
 def _fixed_increments(model, layout, y0, t1, h, args):
     """The push-down stage in increments of h (the cap; with h <= tau Newton converges fast, so
@@ -170,23 +182,7 @@ def test_energy_residual_and_end_state_are_first_order_in_the_increment(referenc
     """Work = change of stored energy + drag + friction dissipation, every term accumulated
     from its backward-Euler increment; the residual is implicit Euler's numerical dissipation,
     O(h) over the path, as is the end state's error against Kvaerno5 (rtol 1e-7)."""
-    protocol = push_protocol()
-    stage = protocol.stages[0]
-    layout = Layout(N, 0)
-    args = stage_args(
-        stage,
-        0.0,
-        protocol.ball_z0,
-        0.0,
-        (0.0, 0.0),
-        _friction(),
-        1e-3,
-        TAU,
-        TAU * 4 * math.pi,
-        0.0,
-    )
-    y0 = initial_state(MODEL, layout, PRE, Z0, protocol.ball_z0)
-    t1 = jnp.asarray(stage.max_duration)
+    stage, layout, args, y0, t1 = push_down_start()
     # Kvaerno5's state at the end of push-down (the frame at the stage boundary)
     ref = next(f for f in reference.frames if abs(f["time"] - stage.max_duration) < 1e-9)
 

@@ -32,7 +32,6 @@ Measured on the push-down stage of test_forming (N = 24, mu = 0.8, as tests/test
 in fixed increments h, one increment per segment, every segment checked to take exactly one.
 """
 
-import math
 
 import equinox as eqx
 import jax
@@ -40,14 +39,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from dynslip.physics.driver.member import stage_args
-from dynslip.physics.frames import initial_state
-from dynslip.physics.layout import Layout
 from dynslip.physics.solver.loadstep import FullStateLoadStep
 from dynslip.physics.solver.methods import Settings, solver_for
 from dynslip.physics.solver.newton import zero_rate
-from test_forming import PRE, Z0, push_protocol
-from test_loadstep import MODEL, TAU, N, _friction
+from test_loadstep import MODEL, push_down_start
 
 HS = np.array([0.1, 0.05, 0.025, 0.0125])  # s: the increments, 1 to 1/8 drag time
 # Newton's tolerances: tight, so that its residual is far below the quadrature's error (the
@@ -132,23 +127,7 @@ def _path(solver, layout, y0, t1, h, args):
 
 
 def _measure(solver):
-    protocol = push_protocol()
-    stage = protocol.stages[0]
-    layout = Layout(N, 0)
-    args = stage_args(
-        stage,
-        0.0,
-        protocol.ball_z0,
-        0.0,
-        (0.0, 0.0),
-        _friction(),
-        1e-3,
-        TAU,
-        TAU * 4 * math.pi,
-        0.0,
-    )
-    y0 = initial_state(MODEL, layout, PRE, Z0, protocol.ball_z0)
-    t1 = jnp.asarray(stage.max_duration)
+    _, layout, args, y0, t1 = push_down_start()
     rows = []
     for h in HS:
         s = _path(solver, layout, y0, t1, jnp.asarray(h), args)
