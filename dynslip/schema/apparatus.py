@@ -26,10 +26,10 @@ class TubeSpec(Strict):
                        description="wall thickness (its end a half torus of radius wall_mm / 2), "
                                    "in (0, 1e3] mm, below the rim's radius")
     height_mm: float = F(101.6, unit="mm", gt=0, le=1e4,
-                         description="tube height above the rim, in (0, 1e4] mm; the tube is "
-                                     "an open cylinder: its height is geometry only and does "
-                                     "not bound the push (the ball and the sheet's tent can "
-                                     "leave through its top end)")
+                         description="tube height above the rim, in (0, 1e4] mm; the tube is an "
+                                     "open cylinder: its height is geometry only and does not "
+                                     "bound the push (the ball and the sheet's tent can leave "
+                                     "through its top end)")
     rim_gap_mm: float = F(0.2, unit="mm", gt=0, le=1e3,
                           description="the rim's lowest point above the flat sheet's initial "
                                       "height, in (0, 1e3] mm")

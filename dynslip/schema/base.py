@@ -433,7 +433,7 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
             _rows({"properties": common}, defs, f"{prefix}{name}.", rows)
             for value, props in variants.items():
                 sub = {"properties": {k: {**v, "description": f"{tag}: {value}: "
-                                          f"{v.get('description', '')}"}
+                                                              f"{v.get('description', '')}"}
                                       for k, v in props.items() if k != tag and k not in common}}
                 _rows(sub, defs, f"{prefix}{name}.", rows)
             continue

@@ -84,8 +84,8 @@ class SegmentSpec(Strict):
         extra = [k for k in ("start_mm", "end_mm", "centre_mm", "radius_mm", "start_deg",
                              "end_deg") if k not in need and getattr(self, k) is not None]
         if extra:
-            raise ValueError(f"{', '.join(extra)}: not a field of a {self.type} segment "
-                             f"(its fields: {', '.join(need)})")
+            raise ValueError(f"{', '.join(extra)}: not a field of a {self.type} segment (its "
+                             f"fields: {', '.join(need)})")
         return self
 
     def core(self, r: float):
@@ -160,9 +160,8 @@ class SphereSpec(ShapeSpec):
 
     kind: Literal["sphere"] = F("sphere", description="sphere")
     radius_mm: float | None = F(None, unit="mm", gt=0, le=1e4,
-                                description="the radius (required of a held sphere; the ball's "
-                                            "default: ball_radius_mm); in "
-                                            f"(0, 1e4] {_MM}")
+                                description=f"the radius (required of a held sphere; the ball's "
+                                            f"default: ball_radius_mm); in (0, 1e4] {_MM}")
     can_be_ball: ClassVar[bool] = True
     held_needs: ClassVar[tuple[str, ...]] = ("radius_mm",)
 
@@ -215,8 +214,8 @@ class CylinderSpec(ShapeSpec):
     height_mm: float = F(..., unit="mm", gt=0, le=1e5,
                          description=f"its height, in (0, 1e5] {_MM}")
     inner_radius_mm: float | None = F(None, unit="mm", ge=0, le=1e4,
-                                      description="the inner radius of a tube wall (0: solid, the "
-                                                  f"default), below the radius; {_MM}")
+                                      description=f"the inner radius of a tube wall (0: solid, "
+                                                  f"the default), below the radius; {_MM}")
     edge_radius_mm: float | None = F(None, unit="mm", ge=0, le=1e4,
                                      description=f"its corners' rounding radius (0: sharp, the "
                                                  f"default); {_MM}")
@@ -236,8 +235,8 @@ class ConeSpec(ShapeSpec):
     radius_mm: float = F(..., unit="mm", gt=0, le=1e4,
                          description=f"its base's radius, in (0, 1e4] {_MM}")
     apex_mm: float = F(..., unit="mm", ge=-1e5, le=1e5,
-                       description="the apex's height above its base (negative: below), "
-                                   f"nonzero; {_MM}")
+                       description=f"the apex's height above its base (negative: below), nonzero; "
+                                   f"{_MM}")
 
     def core(self, r: float, z: float = 0.0):
 
@@ -250,7 +249,7 @@ class TorusSpec(ShapeSpec):
 
     kind: Literal["torus"] = F("torus", description="torus")
     ring_radius_mm: float = F(..., unit="mm", gt=0, le=1e4,
-                              description="the radius of its centre circle, above the minor "
+                              description=f"the radius of its centre circle, above the minor "
                                           f"radius; {_MM}")
     minor_radius_mm: float = F(..., unit="mm", gt=0, le=1e4,
                                description=f"its tube's radius; {_MM}")
@@ -288,14 +287,15 @@ class HeldFields(Strict):
 
     name: str = F(..., min_length=1, max_length=100, description="the body's name (unique)")
     z_mm: float = F(0.0, unit="mm", ge=-1e5, le=1e5,
-                    description="placement along the axis from the ball's centre, up: the centre "
-                                "of a sphere, disc or torus, the bottom of a cylinder, the base "
+                    description=f"placement along the axis from the ball's centre, up: the centre "
+                                f"of a sphere, disc or torus, the bottom of a cylinder, the base "
                                 f"of a cone, the shift of a profile's points; {_MM}")
     motion: Literal["held", "with_ball", "stage", "free"] = F(
         "held", description="held: at rest; with_ball: carried with the ball (as the bottle); "
-        "stage: moved by the stages (each stage's body_velocity_mm_s gives its velocity by "
-        "name; 0 where not named); free: moves along the axis under the sheet's pressure and "
-        "friction and force_N against its drag (numerics.solver load_step)")
+                            "stage: moved by the stages (each stage's body_velocity_mm_s gives "
+                            "its velocity by name; 0 where not named); free: moves along the axis "
+                            "under the sheet's pressure and friction and force_N against its drag "
+                            "(numerics.solver load_step)")
     force_N: float | None = F(None, unit="N", ge=-1e4, le=1e4,
                               description="motion: free: the axial force applied to the body, + "
                                           "up (its weight, a spring's preload: give it here; "
@@ -306,8 +306,9 @@ class HeldFields(Strict):
                                        "(0, 1e6]; default 1")
     friction: FrictionLaw = F(FrictionlessSpec(),
                               description="the sheet's friction on this body, as physics.friction "
-                              "(law: none, the default, coulomb, slip_weakening or pressure; "
-                              "slip distances relative to the body, each body its own)")
+                                          "(law: none, the default, coulomb, slip_weakening or "
+                                          "pressure; slip distances relative to the body, each "
+                                          "body its own)")
 
     @model_validator(mode="after")
     def _free_only(self):
@@ -409,8 +410,8 @@ def check_bodies(bodies, ball, others, r: float, sheet_z: float, sheet_rho: floa
         try:
             cores.append(body_core(b, r))
         except BodyGeometryError as err:
-            raise ValueError(f"bodies.{k} ({b.name!r}, kind {b.kind}): {err} (lengths in units "
-                             f"of R = ball_radius_mm = {r:g} mm)") from None
+            raise ValueError(f"bodies.{k} ({b.name!r}, kind {b.kind}): {err} (lengths in units of "
+                             f"R = ball_radius_mm = {r:g} mm)") from None
     sheet = np.stack([np.linspace(0.0, sheet_rho, 4001), np.full(4001, sheet_z)], -1)
     for k, (b, c) in enumerate(zip(bodies, cores, strict=True)):
         where = f"bodies.{k} ({b.name!r}, kind {b.kind}, z_mm = {b.z_mm})"
@@ -430,8 +431,8 @@ def check_bodies(bodies, ball, others, r: float, sheet_z: float, sheet_rho: floa
         for j in range(k):
             depth = penetration(c, cores[j])
             if depth > 1e-9:
-                raise ValueError(f"{where}: overlaps body {bodies[j].name!r} by "
-                                 f"{depth * r:.4g} mm; allowed: apart or touching")
+                raise ValueError(f"{where}: overlaps body {bodies[j].name!r} by {depth * r:.4g} "
+                                 f"mm; allowed: apart or touching")
             face = shared(c, cores[j])
             if face > SHARED_FACE_MAX:
                 raise ValueError(f"{where}: shares a face with body {bodies[j].name!r} over "
@@ -440,6 +441,6 @@ def check_bodies(bodies, ball, others, r: float, sheet_z: float, sheet_rho: floa
         ins = inside(c, sheet)
         if ins.any():
             rho = float(sheet[np.argmax(ins), 0]) * r
-            raise ValueError(f"{where}: the flat sheet starts inside it (at rho = {rho:.4g} mm, "
-                             f"z = {sheet_z * r:.4g} mm); allowed: the body below or above the "
+            raise ValueError(f"{where}: the flat sheet starts inside it (at rho = {rho:.4g} mm, z "
+                             f"= {sheet_z * r:.4g} mm); allowed: the body below or above the "
                              f"sheet's start")

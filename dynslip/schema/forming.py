@@ -45,54 +45,53 @@ class FormingPhysics(Strict):
                            description="ball mass (only with gravity on), in [0, 1e6] g")
     thickness_um: float = F(150.0, unit="um", gt=0, le=1e6,
                             description="sheet thickness h0, in (0, 1e6] um")
-    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, le=1e6, description="Young's modulus E (G "
-                                                                             "= E/3), "
-                                  "in (0, 1e6] MPa")
+    youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, le=1e6, description="Young's modulus E "
+                                                                             "(G = E/3), in (0, "
+                                                                             "1e6] MPa")
     material: MaterialSpec = MaterialSpec()
     friction: FrictionLaw = F(CoulombSpec(),
                               description="the sheet's friction on the ball: law coulomb (the "
-                              "default; mu), slip_weakening (mu_s, mu_k, d_c_mm) or pressure "
-                              "(mu_ref, p_ref_kPa, exponent, mu_max); not none")
+                                          "default; mu), slip_weakening (mu_s, mu_k, d_c_mm) or "
+                                          "pressure (mu_ref, p_ref_kPa, exponent, mu_max); not "
+                                          "none")
     rim_radius_mm: float = F(50.8, unit="mm", gt=0, le=1e4,
                              description="radius of the held edge (tube rim, or hands), in (0, "
                                          "1e4] mm")
     pre_stretch: float = F(1.05, ge=0.5, le=3.0,
                            description="radial stretch of the held sheet, in [0.5, 3]: method 2, "
-                                       "the small stretch "
-                           "of the disc clamped on the rim; method 1, the hand pre-stretch (the "
-                           "held disc has "
-                           "material radius rim_radius / pre_stretch). Below 1 the held disc is "
-                           "slack: more material "
-                           "than the rim's radius, the bound on what a sheet sliding over the rim "
-                           "could feed in "
-                           "(docs/forming.md, 'Material fed over the rim')")
+                                       "the small stretch of the disc clamped on the rim; method "
+                                       "1, the hand pre-stretch (the held disc has material "
+                                       "radius rim_radius / pre_stretch). Below 1 the held disc "
+                                       "is slack: more material than the rim's radius, the bound "
+                                       "on what a sheet sliding over the rim could feed in "
+                                       "(docs/forming.md, 'Material fed over the rim')")
     sheet_gap_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
                             description="initial height of the flat sheet above the ball top, in "
                                         "(0, 1e4] mm")
     gravity: bool = F(False, description="ball weight on (off by default: a downward-opening "
-                                         "membrane pocket "
-                      "cannot carry it; physics.md Section 4)")
+                                         "membrane pocket cannot carry it; physics.md Section 4)")
     tube: TubeSpec | None = F(None, description="the tube's wall as a held body, moved with the "
-                              "band by the stages' tube_velocity_mm_s; none by default")
+                                                "band by the stages' tube_velocity_mm_s; none by "
+                                                "default")
     bottle: BottleSpec | None = F(None, description="the bottle under the ball, one solid at rest "
-                                  "in the lab; none by default")
+                                                    "in the lab; none by default")
     frame: Literal["lab", "tube"] = F(
         "lab", description="the frame the run is computed and saved in: lab (the ball on its "
-        "support and the bottle at rest, the tube and its band moved by tube_velocity_mm_s) or "
-        "tube (the tube at rest, the held ball and the bottle moved at minus it: the same path "
-        "while the ball is held, shifted; docs/experiment.md)")
+                           "support and the bottle at rest, the tube and its band moved by "
+                           "tube_velocity_mm_s) or tube (the tube at rest, the held ball and the "
+                           "bottle moved at minus it: the same path while the ball is held, "
+                           "shifted; docs/experiment.md)")
     ball: BallSpec = F(BallSpec(), description="the ball's kind: a sphere of ball_radius_mm (the "
-                       "default) or a disc (a coin; R = ball_radius_mm is then only the length "
-                       "unit); schema/bodies.py")
+                                               "default) or a disc (a coin; R = ball_radius_mm is "
+                                               "then only the length unit); schema/bodies.py")
     bodies: list[BodySpec] = F(default_factory=list, max_length=50,
                                description="held bodies (obstacles) by kind and size in mm, "
-                               "divided by ball_radius_mm (R) in the core; at most 50; "
-                               "schema/bodies.py")
+                                           "divided by ball_radius_mm (R) in the core; at most "
+                                           "50; schema/bodies.py")
     band_grip_N_per_mm: float = F(0.0, unit="N/mm", ge=0, le=1e3,
                                   description="clamp: band: the band's grip, the largest pull "
                                               "along the wall per length of its circumference "
-                                              "before "
-                                              "the sheet slides under it, in [0, 1e3] N/mm")
+                                              "before the sheet slides under it, in [0, 1e3] N/mm")
     stages: list[StageSpec] = F(default_factory=_default_stages, max_length=MAX_STAGES,
                                 description="the loading path, in order (at most 100 stages)")
 
@@ -110,8 +109,8 @@ class FormingPhysics(Strict):
             raise ValueError(f"stages: duplicate stage names "
                              f"{sorted({n for n in names if names.count(n) > 1})}")
         if self.rim_radius_mm <= self.ball.widest_mm(self.ball_radius_mm):
-            raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the ball "
-                             f"(radius {self.ball.widest_mm(self.ball_radius_mm)} mm)")
+            raise ValueError(f"rim_radius_mm = {self.rim_radius_mm} puts the clamp inside the "
+                             f"ball (radius {self.ball.widest_mm(self.ball_radius_mm)} mm)")
         moved = self.stage_moved_names()
         allowed = ", ".join(repr(n) for n in moved) or "none: no body has motion: stage"
         for i, s in enumerate(self.stages):
@@ -143,15 +142,14 @@ class FormingPhysics(Strict):
             if s.clamp_to_z_mm is not None:
                 if not known:
                     raise ValueError(f"stages.{s.name}: clamp_to_z_mm after a condition stage "
-                                     f"(start height "
-                                     "unknown): use clamp_velocity_mm_s with duration_s")
+                                     f"(start height unknown): use clamp_velocity_mm_s with "
+                                     f"duration_s")
                 if abs(s.clamp_to_z_mm - z) < 1e-9:
                     raise ValueError(f"stages.{s.name}: empty stage (clamp already at {z} mm)")
                 if abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s > MAX_TIME_S:
                     raise ValueError(f"stages.{s.name}: the clamp_to_z_mm move lasts "
-                                     f"{abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s:.3g} s (|dz| "
-                                     f"/ "
-                                     "clamp_speed_mm_s); allowed: at most 1e6 s")
+                                     f"{abs(s.clamp_to_z_mm - z) / s.clamp_speed_mm_s:.3g} s "
+                                     f"(|dz| / clamp_speed_mm_s); allowed: at most 1e6 s")
                 z = s.clamp_to_z_mm
             else:
                 z += s.clamp_velocity_mm_s * s.duration_s
@@ -275,10 +273,10 @@ class FormingPhysics(Strict):
                              f"{self.stages[i].tube_velocity_mm_s}: moves the tube; allowed only "
                              f"with physics.tube")
         if self.frame == "tube" and any(s.ball == "support" for s in self.stages):
-            raise ValueError("physics.frame = tube: a stage rests the ball on its support, "
-                             "which is the lab's (the bottle's lip) and moves in the tube's "
-                             "frame; allowed: frame: lab, or ball: hold where the tube moves "
-                             "and no support stage")
+            raise ValueError("physics.frame = tube: a stage rests the ball on its support, which "
+                             "is the lab's (the bottle's lip) and moves in the tube's frame; "
+                             "allowed: frame: lab, or ball: hold where the tube moves and no "
+                             "support stage")
         if self.frame == "tube" and self.bodies:
             raise ValueError(f"physics.frame = tube: the tube's frame moves the lab's bodies with "
                              f"the ball; allowed only without physics.bodies ({len(self.bodies)} "
@@ -298,14 +296,14 @@ class FormingPhysics(Strict):
                 raise ValueError(
                     f"physics.stages.{i}.tube_velocity_mm_s = {s.tube_velocity_mm_s} (stage "
                     f"{s.name!r}): the tube's rim would reach {rim0 + shift:.4g} mm, below the "
-                    f"table (the bottle's base at {table:.4g} mm); allowed: a push that keeps "
-                    f"the rim above {table:.4g} mm")
+                    f"table (the bottle's base at {table:.4g} mm); allowed: a push that keeps the "
+                    f"rim above {table:.4g} mm")
             top = rim0 + self.tube.height_mm
             if s.clamp == "band" and not rim0 <= band <= top:
                 raise ValueError(
                     f"physics.stages.{i} (stage {s.name!r}): the band at {band:.4g} mm on the "
-                    f"tube, past its end; allowed: on the outer wall, from the rim "
-                    f"({rim0:.4g} mm) to the top ({top:.4g} mm)")
+                    f"tube, past its end; allowed: on the outer wall, from the rim ({rim0:.4g} "
+                    f"mm) to the top ({top:.4g} mm)")
 
     def table_z_mm(self) -> float | None:
         """The table's height (mm from the resting ball's centre, the lab frame): the bottle's
@@ -365,10 +363,8 @@ class FormingNumerics(Strict):
     nodes: int = F(50, ge=6, le=4000, description="nodes from the pole to the clamp, 6..4000")
     mesh_grading: float = F(1.0, ge=1.0, le=4.0,
                             description="node material radii rbar_i = rbar_edge (i/(N-1))^g: 1 is "
-                                        "uniform, g > 1 "
-                            "grades the mesh toward the pole (where the push-down stretches the "
-                            "cap most), in "
-                            "[1, 4]")
+                                        "uniform, g > 1 grades the mesh toward the pole (where "
+                                        "the push-down stretches the cap most), in [1, 4]")
     edge_grading: float = F(1.0, ge=1.0, le=4.0,
                             description="grades the mesh toward the held edge, in [1, 4]: node "
                                         "material radii rbar_i = rbar_edge v_i^g with v_i = 1 - "
@@ -376,45 +372,48 @@ class FormingNumerics(Strict):
                                         "where the sheet wraps a tube's rim near its edge")
     drag_time_s: float = F(0.1, unit="s", gt=0, le=MAX_TIME_S,
                            description="drag time tau = eta R^2/(G h0) of the overdamped sheet; "
-                                       "loading is "
-                           "slow when a stage lasts >> tau (docs/forming.md)")
-    ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet drag "
-                                                        "over the ball's "
-                         "area 4 pi R^2, in (0, 1e6]")
+                                       "loading is slow when a stage lasts >> tau "
+                                       "(docs/forming.md)")
+    ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet "
+                                                        "drag over the ball's area 4 pi R^2, in "
+                                                        "(0, 1e6]")
     solver: Literal["load_step", "kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F(
-        "load_step", description="load_step (default): quasi-static implicit Euler load increments "
-                                 "controlled by "
-        "Newton's iteration count (first order in time: for slow paths; rtol, atol are Newton's "
-        "tolerances); "
-        "kvaerno5: the adaptive 5th-order reference (docs/speed.md says when each is right)")
-    max_increment: float = F(20.0, gt=0, le=1e4, description="load_step: largest increment in drag "
-                                                             "times, driven "
-                             "stages, in (0, 1e4] (the drag eta A / dt keeps Newton's matrix "
-                             "regular on slack sheet)")
+        "load_step", description="load_step (default): quasi-static implicit Euler load "
+                                 "increments controlled by Newton's iteration count (first order "
+                                 "in time: for slow paths; rtol, atol are Newton's tolerances); "
+                                 "kvaerno5: the adaptive 5th-order reference (docs/speed.md says "
+                                 "when each is right)")
+    max_increment: float = F(20.0, gt=0, le=1e4, description="load_step: largest increment in "
+                                                             "drag times, driven stages, in (0, "
+                                                             "1e4] (the drag eta A / dt keeps "
+                                                             "Newton's matrix regular on slack "
+                                                             "sheet)")
     max_increment_free: float = F(5.0, gt=0, le=1e4, description="load_step: largest increment in "
-                                                                 "drag times where "
-                                  "the ball or the clamp moves under a force (let-go, release, "
-                                  "rest), in (0, 1e4]")
-    newton_max_iter: int = F(20, ge=2, le=100, description="load_step: Newton iterations before an "
-                                                           "increment is "
-                             "cut, 2..100")
+                                                                 "drag times where the ball or "
+                                                                 "the clamp moves under a force "
+                                                                 "(let-go, release, rest), in (0, "
+                                                                 "1e4]")
+    newton_max_iter: int = F(20, ge=2, le=100, description="load_step: Newton iterations before "
+                                                           "an increment is cut, 2..100")
     newton_backtrack: int = F(4, ge=0, le=20, description="load_step: at most this many halvings "
-                                                          "of a Newton "
-                              "correction that would raise the residual's max norm (a backtracking "
-                              "safeguard "
-                              "that breaks stick/slip cycles at the contact edge; 0: plain "
-                              "Newton), 0..20")
+                                                          "of a Newton correction that would "
+                                                          "raise the residual's max norm (a "
+                                                          "backtracking safeguard that breaks "
+                                                          "stick/slip cycles at the contact edge; "
+                                                          "0: plain Newton), 0..20")
     newton_weight: float = F(1e3, ge=0, le=1e8, unit="1",
                              description="load_step: the complementarity parameter c of the ball "
-                             "friction's weighted form, units G h0 (force per displacement): "
-                             "a node's stick/slip is decided by its trial force plus "
-                             "max(c - eta A / dt, 0) times its tangential displacement; the same "
-                             "roots as the law for every c, only Newton's path differs "
-                             "(docs/speed.md); 0: the law's own form, in [0, 1e8]")
+                                         "friction's weighted form, units G h0 (force per "
+                                         "displacement): a node's stick/slip is decided by its "
+                                         "trial force plus max(c - eta A / dt, 0) times its "
+                                         "tangential displacement; the same roots as the law for "
+                                         "every c, only Newton's path differs (docs/speed.md); 0: "
+                                         "the law's own form, in [0, 1e8]")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
         description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "
-        "Thomas + Schur complement, cost linear in nodes) or dense (diffrax's default LU)",
+                    "Thomas + Schur complement, cost linear in nodes) or dense (diffrax's default "
+                    "LU)",
     )
     rtol: float = F(1e-5, gt=0, lt=1, description="relative tolerance")
     atol: float = F(1e-7, gt=0, lt=1, description="absolute tolerance")
@@ -422,49 +421,42 @@ class FormingNumerics(Strict):
     pid_icoeff: float = F(0.3, gt=0, le=1, description="PID controller integral coefficient")
     penalty_stiffness: float = F(1e4, gt=0, le=1e12, unit="1",
                                  description="contact penalty stiffness k, units G h0 / R^3 per "
-                                             "reference area, "
-                                 "in (0, 1e12]")
+                                             "reference area, in (0, 1e12]")
     penalty_width: float = F(1e-3, gt=0, lt=1, description="penalty smoothing width w, units of R "
-                                                           "(C^2 penalty), "
-                             "in (0, 1)")
+                                                           "(C^2 penalty), in (0, 1)")
     friction_smoothing: float = F(1e-3, ge=0, lt=1,
                                   description="force-space smoothing epsilon of the Coulomb law, "
-                                              "units G h0 / R "
-                                  "(exactly stuck below mu F_N - epsilon); 0 is the ideal law")
+                                              "units G h0 / R (exactly stuck below mu F_N - "
+                                              "epsilon); 0 is the ideal law")
     contact_threshold: float = F(1e-2, gt=0, le=1e3, description="contact where the pressure "
-                                                                 "exceeds this "
-                                 "(G h0 / R), in (0, 1e3]")
+                                                                 "exceeds this (G h0 / R), in (0, "
+                                                                 "1e3]")
     support_stiffness: float = F(1e3, gt=0, le=1e8,
                                  description="ball: support: contact stiffness of the bottle neck "
-                                             "on the ball, units "
-                                 "G h0 (force G h0 R per penetration R; 1e3 lets the ball sink "
-                                 "~1e-3 R under a "
-                                 "force of G h0 R)")
+                                             "on the ball, units G h0 (force G h0 R per "
+                                             "penetration R; 1e3 lets the ball sink ~1e-3 R under "
+                                             "a force of G h0 R)")
     max_steps: int = F(50000, ge=100, le=100_000_000,
                        description="step limit per save segment, 100..1e8")
     save_interval_s: float = F(2.0, unit="s", ge=1e-4, le=MAX_TIME_S,
                                description="time between saved frames (and condition checks), in "
-                                           "[1e-4, 1e6] s; "
-                               "at most 1e6 frames in all")
+                                           "[1e-4, 1e6] s; at most 1e6 frames in all")
     heal_rate_mm_s: float = F(0.002, unit="mm/s", ge=0, le=1.0,
                               description="healing criterion of slip_weakening: a node's slip "
-                                          "distance resets where "
-                              "its slip rate is at most this (checked at every save); 0 is the "
-                              "bare force criterion "
-                              "S = 0, which a node settling onto its friction limit never reaches "
-                              "(docs/forming.md)")
+                                          "distance resets where its slip rate is at most this "
+                                          "(checked at every save); 0 is the bare force criterion "
+                                          "S = 0, which a node settling onto its friction limit "
+                                          "never reaches (docs/forming.md)")
     max_chord_depth: float = F(0.1, gt=0, le=1.0,
                                description="the mesh resolves the contact while no element's "
-                                           "straight chord dips "
-                               "deeper than this into the ball (units R; 0.1 is about 0.9 rad of "
-                               "arc per element), "
-                               "checked on every saved frame (and the pole must not pass through "
-                               "the ball); a run "
-                               "that goes past it stops as failed (exit 3: no answer to trapped), "
-                               "in (0, 1]")
+                                           "straight chord dips deeper than this into the ball "
+                                           "(units R; 0.1 is about 0.9 rad of arc per element), "
+                                           "checked on every saved frame (and the pole must not "
+                                           "pass through the ball); a run that goes past it stops "
+                                           "as failed (exit 3: no answer to trapped), in (0, 1]")
     trap_reaction_tol: float = F(1e-3, gt=0, lt=1,
-                                 description="trapped needs |ball reaction| below this (units G h0 "
-                                             "R) at the end")
+                                 description="trapped needs |ball reaction| below this (units G "
+                                             "h0 R) at the end")
     energy_bound: float = F(0.05, gt=0, le=1.0,
                             description="trapped is unknown (exit 3) where the energy balance's "
                                         "largest residual exceeds this fraction of the energy "
@@ -481,11 +473,10 @@ class FormingScenario(ScenarioBase):
 
     kind: Literal["forming"] = "forming"
     start_from: str | None = F(
-        None, description="start from a formed pocket: a saved trajectory.nc (its last frame) or a "
-                          "forming "
-        "scenario (run first into outputs/<stem>/, or reused when its saved result matches); "
-        "relative paths are "
-        "taken from the working directory, else from the scenario file's folder")
+        None, description="start from a formed pocket: a saved trajectory.nc (its last frame) or "
+                          "a forming scenario (run first into outputs/<stem>/, or reused when its "
+                          "saved result matches); relative paths are taken from the working "
+                          "directory, else from the scenario file's folder")
     physics: FormingPhysics = FormingPhysics()
     numerics: FormingNumerics = FormingNumerics()
     _source_dir: Path | None = PrivateAttr(default=None)
@@ -523,13 +514,12 @@ class FormingScenario(ScenarioBase):
                              f"{free[0]!r} (physics.bodies, motion: free) needs load stepping; "
                              f"allowed: load_step")
         if free and self.start_from is not None:
-            raise ValueError(f"start_from = {self.start_from!r}: a start state does not carry "
-                             f"the free body {free[0]!r}'s height (not built); allowed: no "
-                             f"start_from with a body of motion: free")
+            raise ValueError(f"start_from = {self.start_from!r}: a start state does not carry the "
+                             f"free body {free[0]!r}'s height (not built); allowed: no start_from "
+                             f"with a body of motion: free")
         frames = sum(s.max_duration for s in prot.stages) / self.numerics.save_interval_s
         if frames > MAX_FRAMES:  # every saved frame is held in memory
             raise ValueError(f"numerics.save_interval_s = {self.numerics.save_interval_s}: the "
-                             f"loading path "
-                             f"(at its longest) would save {frames:.3g} frames; allowed: at most "
-                             f"{MAX_FRAMES:.0e}")
+                             f"loading path (at its longest) would save {frames:.3g} frames; "
+                             f"allowed: at most {MAX_FRAMES:.0e}")
         return self

@@ -122,15 +122,15 @@ class SlipWeakeningSpec(FrictionSpec):
     (numerics.heal_rate_mm_s)."""
 
     law: Literal["slip_weakening"] = F(
-        "slip_weakening", description="slip_weakening: static/kinetic, mu falls from mu_s to "
-        "mu_k over a slip distance d_c_mm, reset when the node sticks")
+        "slip_weakening", description="slip_weakening: static/kinetic, mu falls from mu_s to mu_k "
+                                      "over a slip distance d_c_mm, reset when the node sticks")
     mu_s: float = F(MEASURED_MU_S, ge=0, le=10,
                     description=f"static coefficient, in [0, 10] (paper: {MEASURED_MU_S:g})")
     mu_k: float = F(MEASURED_MU_K, ge=0, le=10,
                     description=f"kinetic coefficient, in [0, mu_s] (paper: {MEASURED_MU_K:g})")
     d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
-                      description="weakening slip distance, in (0, 1e4] mm; the mesh must be "
-                      "much finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
+                      description="weakening slip distance, in (0, 1e4] mm; the mesh must be much "
+                                  "finer than 15 sqrt(d_c R) (about 42 mm = 2.1 R at the default)")
 
     @model_validator(mode="after")
     def _order(self):
@@ -160,27 +160,29 @@ class PressureSpec(FrictionSpec):
 
     law: Literal["pressure"] = F(
         "pressure", description="pressure: mu = mu_ref (p / p_ref_kPa)^(-exponent) bounded by "
-        "mu_max (Schallamach), p the node's contact force per area (pressure_on)")
+                                "mu_max (Schallamach), p the node's contact force per area "
+                                "(pressure_on)")
     pressure_on: Literal["deformed", "reference"] = F(
-        "deformed", description="the area p is taken on: deformed (the true contact pressure, "
-        "the node's reference area times its areal stretch; in the load increment, the stretch "
-        "at the increment's start) or reference (the undeformed area: overstates p by the "
-        "areal stretch, up to about 20 in a pocket)")
+        "deformed", description="the area p is taken on: deformed (the true contact pressure, the "
+                                "node's reference area times its areal stretch; in the load "
+                                "increment, the stretch at the increment's start) or reference "
+                                "(the undeformed area: overstates p by the areal stretch, up to "
+                                "about 20 in a pocket)")
     exponent: float = F(1.0 / 3.0, ge=0, lt=1,
                         description="exponent a, in [0, 1): 1/3 is Schallamach's (Hertzian "
-                        "asperities), 0 is Coulomb; at 1 the friction force would not rise with "
-                        "the load")
+                                    "asperities), 0 is Coulomb; at 1 the friction force would not "
+                                    "rise with the load")
     mu_ref: float = F(MEASURED_MU_S, ge=0, le=10,
                       description=f"coefficient at p_ref_kPa (paper's capstan test: "
                                   f"{MEASURED_MU_S:g})")
     p_ref_kPa: float = F(1.06, unit="kPa", gt=0, le=1e6,
                          description="reference pressure, in (0, 1e6] kPa: the capstan strip "
-                         "test's, T_ref/(R w) with 5 mm strips on the 40 mm ball and masses 2 g "
-                         "and 44.9 g (assumed; docs/experiment.md)")
+                                     "test's, T_ref/(R w) with 5 mm strips on the 40 mm ball and "
+                                     "masses 2 g and 44.9 g (assumed; docs/experiment.md)")
     mu_max: float = F(2.18, ge=0, le=10,
                       description="bound at low pressure (where the power law would exceed it), "
-                      ">= 1.05 mu_ref; default: the top of the literature's static range for "
-                      "latex, 0.86-2.18")
+                                  ">= 1.05 mu_ref; default: the top of the literature's static "
+                                  "range for latex, 0.86-2.18")
 
     @model_validator(mode="after")
     def _bound(self):
@@ -194,7 +196,7 @@ class PressureSpec(FrictionSpec):
     def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
 
         if pressure_scale_kPa is None or not pressure_scale_kPa > 0:
-            raise ValueError("law: pressure needs the pressure scale G h0 / R (kPa) > 0, got "
+            raise ValueError(f"law: pressure needs the pressure scale G h0 / R (kPa) > 0, got "
                              f"{pressure_scale_kPa}")
         return PressureDependent(mu_ref=f64(self.mu_ref), p_ref=f64(self.p_ref_kPa /
                                                                   pressure_scale_kPa),

@@ -25,16 +25,15 @@ class MaterialSpec(Strict):
     model: Literal["gent", "neo_hookean", "mooney_rivlin", "hookean"] = F(
         "gent",
         description="strain energy: gent -(J_m/2) ln(1 - (I1 - 3)/J_m); neo_hookean (I1 - 3)/2; "
-        "mooney_rivlin C1 (I1 - 3) + C2 (I2 - 3); hookean, the small-strain energy (unrelaxed, as "
-        "in the paper; "
-        "refused beyond stretch 3)",
+                    "mooney_rivlin C1 (I1 - 3) + C2 (I2 - 3); hookean, the small-strain energy "
+                    "(unrelaxed, as in the paper; refused beyond stretch 3)",
     )
     jm: float = F(
         50.0, gt=0, le=1e4, description="Gent locking parameter J_m (I1 < J_m + 3), in (0, 1e4]"
     )
     c1: float = F(0.4, ge=0, le=0.5, description="Mooney-Rivlin C1 / G, in [0, 0.5]")
     c2: float | None = F(None, ge=0, le=0.5, description="Mooney-Rivlin C2 / G; default 1/2 - c1 "
-                         "(2 C1 + 2 C2 = 1: G is the unit)")
+                                                         "(2 C1 + 2 C2 = 1: G is the unit)")
 
     @model_validator(mode="after")
     def _sum(self):

@@ -80,7 +80,7 @@ class ClampForceBelowSpec(StopSpec):
 
     rule: Literal["clamp_force_below"] = F(
         "clamp_force_below", description="clamp_force_below: the clamp's axial force (net of "
-        "drag) below force_N")
+                                         "drag) below force_N")
     force_N: float = F(..., unit="N", gt=0, le=1e6, description="the threshold, in (0, 1e6] N")
 
     def build(self, duration, r, fs):
@@ -89,8 +89,8 @@ class ClampForceBelowSpec(StopSpec):
 
     def check_stage(self, stage):
         if stage.clamp not in ("move", "band"):
-            raise ValueError("until: clamp_force_below needs a clamp that holds the edge "
-                             "(clamp: move or band)")
+            raise ValueError("until: clamp_force_below needs a clamp that holds the edge (clamp: "
+                             "move or band)")
         if stage.clamp_velocity_mm_s == 0.0 and stage.ball == "hold" \
                 and stage.ball_velocity_mm_s == 0.0:
             raise ValueError("until: clamp_force_below with a clamp and ball at rest can never "
@@ -104,7 +104,7 @@ class BallReactionBelowSpec(StopSpec):
 
     rule: Literal["ball_reaction_below"] = F(
         "ball_reaction_below", description="ball_reaction_below: the hold's force on the ball "
-        "(net of drag) below force_N")
+                                           "(net of drag) below force_N")
     force_N: float = F(..., unit="N", gt=0, le=1e6, description="the threshold, in (0, 1e6] N")
 
     def build(self, duration, r, fs):
@@ -123,7 +123,7 @@ class ThetaMaxBelowSpec(StopSpec):
 
     rule: Literal["theta_max_below"] = F(
         "theta_max_below", description="theta_max_below: the contact edge's polar angle below "
-        "angle_rad")
+                                       "angle_rad")
     angle_rad: float = F(..., unit="rad", gt=0, lt=math.pi,
                          description="the polar angle, in (0, pi) (pi/2: opening radius R)")
 
@@ -151,8 +151,8 @@ class RestSpec(StopSpec):
     """Ends when the largest slip speed and the ball's speed have stayed below rate_mm_s for
     hold_s."""
 
-    rule: Literal["rest"] = F("rest", description="rest: slip and ball speeds below rate_mm_s "
-                                                  "for hold_s")
+    rule: Literal["rest"] = F("rest", description="rest: slip and ball speeds below rate_mm_s for "
+                                                  "hold_s")
     rate_mm_s: float = F(..., unit="mm/s", gt=0, le=1e4,
                          description="largest slip speed and ball speed, in (0, 1e4] mm/s")
     hold_s: float = F(..., unit="s", gt=0, le=MAX_TIME_S,
@@ -175,35 +175,32 @@ class StageSpec(Strict):
     name: str = F(..., min_length=1, description="stage name (unique)")
     clamp_to_z_mm: float | None = F(None, unit="mm", ge=-1e4, le=1e4,
                                     description="clamp height to move to (from the ball centre), "
-                                                "in [-1e4, 1e4] mm; "
-                                    "needs clamp_speed_mm_s")
+                                                "in [-1e4, 1e4] mm; needs clamp_speed_mm_s")
     clamp_speed_mm_s: float | None = F(None, unit="mm/s", ge=1e-6, le=1e4,
                                        description="speed of a clamp_to_z_mm move, in [1e-6, 1e4] "
                                                    "mm/s")
     clamp_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
-                                   description="signed vertical clamp velocity (up > 0) for stages "
-                                               "ended by a condition "
-                                   "or duration, in [-1e4, 1e4] mm/s")
+                                   description="signed vertical clamp velocity (up > 0) for "
+                                               "stages ended by a condition or duration, in "
+                                               "[-1e4, 1e4] mm/s")
     duration_s: float | None = F(None, unit="s", gt=0, le=MAX_TIME_S,
                                  description="stage duration, in (0, 1e6] s; for condition stages "
                                              "the longest it may run")
     until: Until = F(
         DurationSpec(),
         description="stop rule, by rule: duration (the default), clamp_force_below (force_N), "
-        "ball_reaction_below (force_N: a held ball standing in for one on its support: the "
-        "support would stop carrying it), theta_max_below (angle_rad), ball_speed_above "
-        "(speed_mm_s: a pull has torn the ball out), rest (rate_mm_s, hold_s); a rule without "
-        "parameters may be written as its name")
+                    "ball_reaction_below (force_N: a held ball standing in for one on its "
+                    "support: the support would stop carrying it), theta_max_below (angle_rad), "
+                    "ball_speed_above (speed_mm_s: a pull has torn the ball out), rest "
+                    "(rate_mm_s, hold_s); a rule without parameters may be written as its name")
     ball_force_N: float | None = F(None, unit="N", ge=-1e3, le=1e3,
                                    description="ball: pull: the applied force on the ball at the "
-                                               "stage's end (up > 0; "
-                                   "toward the pocket's opening < 0), ramped linearly from 0 over "
-                                   "duration_s")
+                                               "stage's end (up > 0; toward the pocket's opening "
+                                               "< 0), ramped linearly from 0 over duration_s")
     ball_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
-                                  description="signed velocity (up > 0), in [-1e4, 1e4] mm/s, of a "
-                                              "held ball (ball: "
-                                  "hold); the pole of the "
-                                  "ball points up, the pocket's opening down")
+                                  description="signed velocity (up > 0), in [-1e4, 1e4] mm/s, of "
+                                              "a held ball (ball: hold); the pole of the ball "
+                                              "points up, the pocket's opening down")
     tube_velocity_mm_s: float = F(0.0, unit="mm/s", ge=-1e4, le=1e4,
                                   description="signed velocity (up > 0) in the lab of the tube "
                                               "(its wall, rim and band; physics.tube) over this "
@@ -213,24 +210,23 @@ class StageSpec(Strict):
                                               "the tube (clamp: band or move, no clamp_to_z_mm)")
     body_velocity_mm_s: dict[str, float] = F(
         default_factory=dict, unit="mm/s",
-        description="signed axial velocity (up > 0), in [-1e4, 1e4] mm/s, over this stage of "
-        "each held body with motion: stage (physics.bodies), by name; a body not named stays "
-        "where the previous stage left it")
+        description="signed axial velocity (up > 0), in [-1e4, 1e4] mm/s, over this stage of each "
+                    "held body with motion: stage (physics.bodies), by name; a body not named "
+                    "stays where the previous stage left it")
     clamp: Literal["move", "let_go", "free", "band"] = F(
         "move", description="move: the clamp holds the edge and moves as given; let_go: its force "
-                            "on the sheet is "
-        "ramped to zero over the stage (the band lets the sheet go); free: the edge is not held; "
-        "band: the band on the tube's wall (moving as given) holds the edge while the sheet's "
-        "pull along the wall is below physics.band_grip_N_per_mm times the band's circumference, "
-        "and lets it slide beyond")
+                            "on the sheet is ramped to zero over the stage (the band lets the "
+                            "sheet go); free: the edge is not held; band: the band on the tube's "
+                            "wall (moving as given) holds the edge while the sheet's pull along "
+                            "the wall is below physics.band_grip_N_per_mm times the band's "
+                            "circumference, and lets it slide beyond")
     ball: Literal["hold", "release", "free", "support", "pull"] = F(
-        "hold", description="hold: ball held in place; release: the hold's reaction ramped to zero "
-                            "over the "
-        "stage; free: no hold; support: the ball rests on the bottle neck (a rigid unilateral "
-        "support below it: "
-        "the pocket may lift it off); pull: a force ramped from 0 (from the previous stage's final "
-        "force when that "
-        "stage is a pull too: a preload, then a ramp) to ball_force_N over the stage")
+        "hold", description="hold: ball held in place; release: the hold's reaction ramped to "
+                            "zero over the stage; free: no hold; support: the ball rests on the "
+                            "bottle neck (a rigid unilateral support below it: the pocket may "
+                            "lift it off); pull: a force ramped from 0 (from the previous stage's "
+                            "final force when that stage is a pull too: a preload, then a ramp) "
+                            "to ball_force_N over the stage")
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -244,8 +240,7 @@ class StageSpec(Strict):
                 raise ValueError("clamp_to_z_mm needs clamp_speed_mm_s")
             if self.clamp_velocity_mm_s != 0.0:
                 raise ValueError("overlapping clamp motions: give clamp_to_z_mm (with "
-                                 "clamp_speed_mm_s) "
-                                 "or clamp_velocity_mm_s, not both")
+                                 "clamp_speed_mm_s) or clamp_velocity_mm_s, not both")
             if self.duration_s is not None:
                 raise ValueError("overlapping timing: a clamp_to_z_mm move takes |dz|/speed; drop "
                                  "duration_s")
@@ -265,9 +260,9 @@ class StageSpec(Strict):
                 self.ball not in ("hold", "support") or self.clamp_to_z_mm is not None
                 or self.clamp not in ("move", "band")):
             raise ValueError(f"tube_velocity_mm_s = {self.tube_velocity_mm_s}: the tube moves "
-                             "with the ball on its support and the sheet's edge on the tube; "
-                             "allowed with ball: hold or support and clamp: band or move, "
-                             "without clamp_to_z_mm")
+                             f"with the ball on its support and the sheet's edge on the tube; "
+                             f"allowed with ball: hold or support and clamp: band or move, "
+                             f"without clamp_to_z_mm")
         if self.ball_velocity_mm_s != 0.0 and self.ball != "hold":
             raise ValueError("ball_velocity_mm_s moves a held ball: it needs ball: hold")
         self.until.check_stage(self)

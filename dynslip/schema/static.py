@@ -43,9 +43,8 @@ SwitchValue = Annotated[float, Field(gt=0, lt=math.pi)]
 
 def _switch_guess(at: str):
     """The shooting's Newton start: one default and one set of bounds wherever it is asked for."""
-    return F((2.2, 1.0, 0.25), description="Newton start (pole stretch in [1, 10], mu in [0, 100], "
-                                           "switch radius in "
-             f"(0, pi)) {at}")
+    return F((2.2, 1.0, 0.25), description=f"Newton start (pole stretch in [1, 10], mu in [0, "
+                                           f"100], switch radius in (0, pi)) {at}")
 
 
 def _increasing(section, lo: str, hi: str) -> None:
@@ -65,11 +64,12 @@ class Selection(Strict):
     rule: Literal["switch_radius", "switch_angle"] = F(
         "switch_radius",
         description="switch_radius: F_m changes sign at undeformed radius `value` (units R); "
-        "switch_angle: at polar angle `value` (rad), which is also where the largest stretch sits")
+                    "switch_angle: at polar angle `value` (rad), which is also where the largest "
+                    "stretch sits")
     value: float = F(0.25, gt=0, lt=math.pi, description="switch radius (units R) or switch angle "
-                                                         "(rad), in (0, pi); "
-                     "when omitted: 0.25 R for switch_radius, pi/4 rad (the paper's statement) for "
-                     "switch_angle")
+                                                         "(rad), in (0, pi); when omitted: 0.25 R "
+                                                         "for switch_radius, pi/4 rad (the "
+                                                         "paper's statement) for switch_angle")
 
     @model_validator(mode="before")
     @classmethod
@@ -85,14 +85,14 @@ class Geometry(Strict):
     """The contact region and the physical scales (paper Section 3.3)."""
 
     ball_radius_mm: float = F(20.0, unit="mm", gt=0, le=1e4, description="ball radius R (sets the "
-                                                                         "length scale), "
-                              "in (0, 1e4] mm")
+                                                                         "length scale), in (0, "
+                                                                         "1e4] mm")
     youngs_modulus_MPa: float = F(2.0, unit="MPa", gt=0, le=1e6,
                                   description="Young's modulus E = 3 G (force scale only), in (0, "
                                               "1e6] MPa")
     thickness_mm: float = F(0.15, unit="mm", gt=0, le=1e4, description="sheet thickness h0 (force "
-                                                                       "scale only), "
-                            "in (0, 1e4] mm")
+                                                                       "scale only), in (0, 1e4] "
+                                                                       "mm")
     rbar_max: float = F(0.9, gt=0, le=10,
                         description="undeformed radius of the lift-off point, units R, in (0, 10]")
     theta_max: float = F(1.8, unit="rad", gt=0, lt=math.pi,
@@ -106,8 +106,8 @@ class StaticPhysics(Geometry):
                                description="strain energy (schema/materials.py)")
     initial_shape: Literal["fully_mobilised", "linear"] = F(
         "fully_mobilised",
-        description="initial shape of the march: the selected fully mobilised member, or "
-        "theta = theta_max rbar / rbar_max (= 2 rbar for the paper's pair)")
+        description="initial shape of the march: the selected fully mobilised member, or theta = "
+                    "theta_max rbar / rbar_max (= 2 rbar for the paper's pair)")
     selection: Selection = F(Selection(),
                              description="selection rule of the fully mobilised member")
 
@@ -119,26 +119,25 @@ class StaticNumerics(Strict):
                      description=f"grid nodes from the pole to rbar_max (paper: {PAPER_N_NODES})")
     march: Literal["implicit", "explicit", "diffrax"] = F(
         "implicit", description="march integrator: implicit (backward Euler, semi-smooth Newton, "
-                                "growing steps), "
-        "explicit (forward-Euler jitted loop at the stable step) or diffrax")
+                                "growing steps), explicit (forward-Euler jitted loop at the "
+                                "stable step) or diffrax")
     diffrax_solver: Literal["euler", "tsit5"] = F(
         "euler", description="diffrax solver: euler (constant stable step) or tsit5 (adaptive)")
     diffrax_rtol: float = F(1e-6, gt=0, lt=1, description="tsit5 relative tolerance")
     dt_safety: float = F(0.4, gt=0, le=1, description="explicit step as a fraction of h^2 / (2 D)")
     rest_velocity: float = F(1e-6, gt=0, lt=1, description="rest when max |d theta/dt| is below "
-                                                           "this (units rad per "
-                             "time unit), in (0, 1)")
+                                                           "this (units rad per time unit), in "
+                                                           "(0, 1)")
     max_steps: int = F(400_000, ge=100, le=100_000_000,
                        description="largest number of march steps per mu, 100..1e8")
     mu_bracket: tuple[MuValue, MuValue] = F((0.1, 5.0), description="search bracket for mu [low, "
-                                                                    "high], "
-                                            "0 <= low < high <= 100")
+                                                                    "high], 0 <= low < high <= "
+                                                                    "100")
     mu_tol: float = F(1e-4, gt=0, lt=0.1, description="relative width of the final mu bracket")
     fv_tol: float | None = F(None, ge=0, le=1, unit="1",
                              description="F_v counts as vanished at or below this (units G*h0*R); "
-                                         "null: "
-                             "1e-3 (99/(n_nodes-1))^2, the O(h^2) discretisation error of F_v "
-                             "scaled from N=100")
+                                         "null: 1e-3 (99/(n_nodes-1))^2, the O(h^2) "
+                                         "discretisation error of F_v scaled from N=100")
     ode_rtol: float = F(1e-10, gt=0, lt=1e-3,
                         description="tolerance of the fully mobilised shooting ODE")
     switch_guess: tuple[StretchValue, MuValue, SwitchValue] = _switch_guess("of the shooting")
@@ -236,8 +235,7 @@ class CylinderNumerics(Strict):
     """Random admissible friction profiles and their grid."""
 
     n_profiles: int = F(200, ge=1, le=10_000, description="random admissible friction profiles, "
-                                                          "1..1e4 "
-                        "(n_profiles * n_nodes <= 1e7)")
+                                                          "1..1e4 (n_profiles * n_nodes <= 1e7)")
     n_nodes: int = F(400, ge=8, le=10_000, description="nodes on [0, theta_max], 8..1e4")
     n_angles: int = F(30, ge=2, le=1000, description="lift-off angles sampled, 2..1000")
     seed: int = F(0, ge=0, le=2**31 - 2,
@@ -246,9 +244,8 @@ class CylinderNumerics(Strict):
     @model_validator(mode="after")
     def _size(self):
         if self.n_profiles * self.n_nodes > 10_000_000:
-            raise ValueError(f"n_profiles * n_nodes = {self.n_profiles * self.n_nodes}: allowed at "
-                             f"most 1e7 "
-                             "(the profiles of one angle are held in memory at once)")
+            raise ValueError(f"n_profiles * n_nodes = {self.n_profiles * self.n_nodes}: allowed "
+                             f"at most 1e7 (the profiles of one angle are held in memory at once)")
         return self
 
 

@@ -185,8 +185,7 @@ def friction_field(resolved: dict, field_name: str | None = None) -> tuple[str, 
         else:
             raise InputError(
                 "window: the scenario has no field 'physics.friction.mu' or "
-                "'physics.friction.mu_s' "
-                "to search over"
+                "'physics.friction.mu_s' to search over"
             )
     try:
         get_path(resolved, field_name)
