@@ -16,7 +16,9 @@ its own outline when it is not the unit sphere (:mod:`dynslip.app.drawn`).
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from dynslip.app.drawn import drawn_bodies
 from dynslip.data.files import write_text
@@ -41,13 +43,14 @@ def _pvd(entries: list[tuple[float, int, str]], names=None) -> str:
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
 
 
-def _parts(ds) -> list[tuple[str, str, object]]:
+def _parts(ds) -> list[tuple[str, str, Callable[[Any, int], Any]]]:
     """``(file stem, name, make(ds, k))`` of every part: the sheet, the ball, each held body."""
 
     drawn = drawn_bodies(ds) or {"ball": None, "held": []}
     r = scales(ds)["R"]
-    parts = [("sheet", "sheet", sheet_mesh),
-             ("ball", "ball", lambda d, k: ball_mesh(d, k, outline=drawn["ball"]))]
+    parts: list[tuple[str, str, Callable[[Any, int], Any]]] = [
+        ("sheet", "sheet", sheet_mesh),
+        ("ball", "ball", lambda d, k: ball_mesh(d, k, outline=drawn["ball"]))]
     for i, (name, outline, shift) in enumerate(drawn["held"]):
         def make(d, k, outline=outline, shift=shift):
             return revolved_mesh(outline, r, 0.0 if shift is None else float(shift[k]))
@@ -73,7 +76,7 @@ def _write_vtu(ds, folder: Path) -> list[Path]:
 
 def _write_xdmf(ds, folder: Path) -> list[Path]:
     import numpy as np
-    from meshio.xdmf import TimeSeriesWriter
+    from meshio.xdmf import TimeSeriesWriter  # type: ignore[import-untyped]  # meshio: no types
 
     paths = []
     for stem, _, make in _parts(ds):

@@ -37,7 +37,9 @@ def resolve(data: dict, source: str, validate_fn: Callable | None = None) -> dic
     """Validate scenario data and return the resolved scenario (every default filled in)."""
     if validate_fn is None:
         # at call time: the tests replace it in its home module
-        from dynslip.schema.base import validate_data as validate_fn
+        from dynslip.schema.base import validate_data
+
+        validate_fn = validate_data
     return json.loads(validate_fn(data, source).to_json())
 
 

@@ -11,6 +11,8 @@ writes what it computed (``complete = 0``, summary ``status: failed``) and raise
 
 from __future__ import annotations
 
+from typing import Literal, cast
+
 import numpy as np
 
 from dynslip.analysis.paper import PAPER_MU, paper_mu
@@ -35,6 +37,9 @@ from dynslip.schema.static import material_of
 
 __all__ = ["PAPER_MU", "run_static", "run_figure4", "run_family",
            "run_cylinder", "paper_mu"]
+
+#: the names of FIGURE4_MODELS, each a value of MaterialSpec.model
+_Fig4Model = Literal["hookean", "neo_hookean", "gent"]
 
 
 def _scales(p) -> dict:
@@ -109,7 +114,7 @@ def run_figure4(sc, out, console) -> dict:
     p = sc.physics
     results, sums, dss = [], [], []
     for model in FIGURE4_MODELS:
-        mat = MaterialSpec(model=model, jm=p.jm).core()
+        mat = MaterialSpec(model=cast(_Fig4Model, model), jm=p.jm).core()
         res = compute_static(
             mat,
             model,
@@ -142,7 +147,8 @@ def run_family(sc, out, console) -> dict:
     outs = Outputs.of(out)
     p, num = sc.physics, sc.numerics
     values = np.linspace(p.switch_from, p.switch_to, num.n_members)
-    materials = {model: MaterialSpec(model=model, jm=p.jm).core() for model in FIGURE4_MODELS}
+    materials = {model: MaterialSpec(model=cast(_Fig4Model, model), jm=p.jm).core()
+                 for model in FIGURE4_MODELS}
     cols, selected = family(
         materials,
         values,

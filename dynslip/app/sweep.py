@@ -90,6 +90,7 @@ def expand(spec: SweepSpec, sweep_path: Path, validate_fn: Callable | None = Non
             for idx in itertools.product(*(range(len(grid[k])) for k in keys))
         ]
     else:
+        assert spec.list_ is not None  # the sweep's check: a grid or a list, one of them
         combos = [((i,), dict(entry)) for i, entry in enumerate(spec.list_)]
     window = spec.window.model_dump() if spec.window else None
     bases: dict[str, dict] = {}

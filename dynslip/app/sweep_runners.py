@@ -35,7 +35,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from dynslip.analysis.summary import summarize
 from dynslip.app.forming import finish, to_dataset
@@ -241,7 +241,7 @@ BATCH_SIZE: int | None | str = "auto"
 
 def _batch_size() -> int | None:
     if BATCH_SIZE != "auto":
-        return BATCH_SIZE
+        return cast("int | None", BATCH_SIZE)  # "auto" is its one text
     import jax
 
     return 1 if jax.default_backend() == "cpu" else None
@@ -318,9 +318,11 @@ def run_forming_batch(
                 rec.update(status="error", error=f"{type(err).__name__}: {err}")
             rec["wall_s"] = (time.perf_counter() - b0) / len(batch)  # the batch's time, shared
             recs[i] = rec
-    for rec in recs:
-        rec.setdefault("wall_s", (time.perf_counter() - t0) / len(datas))
-    return recs
+    # every member has its record: its batch's, or its validation's failure
+    done = cast("list[dict]", recs)
+    for member_rec in done:
+        member_rec.setdefault("wall_s", (time.perf_counter() - t0) / len(datas))
+    return done
 
 
 def _run_batched(groups: dict[str, list[Member]], member_fn, run_dir, done) -> str:

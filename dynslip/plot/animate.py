@@ -15,6 +15,7 @@ wheel ships its own ffmpeg binary.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import xarray as xr
@@ -26,6 +27,12 @@ from dynslip.errors import InputError
 from dynslip.plot.forming import outcome_title
 from dynslip.plot.fronts import draw_spacetime
 from dynslip.plot.style import STATE_COLORS, STATE_LABELS
+
+if TYPE_CHECKING:
+    from imageio.plugins.ffmpeg import FfmpegFormat
+    from imageio.plugins.pillow import PillowPlugin
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.patches import Circle, Polygon
 
 FORMATS = ("gif", "mp4")
 DEFAULT_SIZE = (960, 432)
@@ -129,7 +136,8 @@ class _Renderer:
         bodies = bodies or {}
         style = dict(facecolor="#f4efe1", edgecolor="0.35", lw=1.0, zorder=1)
         if bodies.get("ball") is None:
-            self.ball_parts = [(Circle((0.0, 0.0), 1.0, **style), None)]
+            self.ball_parts: list[tuple[Circle | Polygon, np.ndarray | None]] = [
+                (Circle((0.0, 0.0), 1.0, **style), None)]
         else:
             self.ball_parts = [(Polygon(h, closed=True, **style), h)
                                for h in _halves(bodies["ball"])]
@@ -141,8 +149,8 @@ class _Renderer:
                 self.ax.add_patch(patch)
                 if shift is not None:
                     self.moving.append((patch, h, shift))
-        for patch, _ in self.ball_parts:
-            self.ax.add_patch(patch)
+        for part, _ in self.ball_parts:
+            self.ax.add_patch(part)
         self.ball = self.ball_parts[0][0]
         self.sheet = LineCollection([], linewidths=2.6, capstyle="round", zorder=3)
         self.ax.add_collection(self.sheet)
@@ -177,7 +185,8 @@ class _Renderer:
         for a in self.dynamic:
             a.set_animated(True)
         self.fig.canvas.draw()
-        self.background = self.fig.canvas.copy_from_bbox(self.fig.bbox)
+        # the Agg backend's canvas (matplotlib.use("Agg") above)
+        self.background = cast("FigureCanvasAgg", self.fig.canvas).copy_from_bbox(self.fig.bbox)
 
     def _segments(self, k: int):
         """Two half-segments per node (to the midpoints with its neighbours), mirrored."""
@@ -197,11 +206,11 @@ class _Renderer:
         self.sheet.set_segments(segs)
         self.sheet.set_color(cols)
         zb = float(ds["ball_z"].values[k])
-        for patch, h in self.ball_parts:
-            if h is None:
-                patch.set_center((0.0, zb))
+        for part, h in self.ball_parts:
+            if h is None:  # the unit circle
+                cast("Circle", part).set_center((0.0, zb))
             else:
-                patch.set_xy(h + np.array([0.0, zb]))
+                cast("Polygon", part).set_xy(h + np.array([0.0, zb]))
         for patch, h, shift in self.moving:
             patch.set_xy(h + np.array([0.0, float(shift[k])]))
         nodes = self.front_node[:, k]
@@ -226,11 +235,11 @@ class _Renderer:
         )
         self.title.set_text(text)
         self.cursor.set_ydata([self.t[k], self.t[k]])
-        canvas = self.fig.canvas
+        canvas = cast("FigureCanvasAgg", self.fig.canvas)  # the Agg backend's
         canvas.restore_region(self.background)
         for a in self.dynamic:
             self.fig.draw_artist(a)
-        return np.asarray(self.fig.canvas.buffer_rgba())[..., :3].copy()
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
     def close(self):
         self.plt.close(self.fig)
@@ -307,8 +316,9 @@ def _write_gif(renderer: _Renderer, frames, path: Path, fps: float) -> None:
     import imageio.v3 as iio
 
     with iio.imopen(path, "w", plugin="pillow", extension=".gif") as f:
+        gif = cast("PillowPlugin", f)  # its write takes GIF's duration and loop
         for k in frames:
-            f.write(renderer.draw(int(k)), duration=1000.0 / fps, loop=0)
+            gif.write(renderer.draw(int(k)), duration=1000.0 / fps, loop=0)
 
 
 def _write_mp4(renderer: _Renderer, frames, path: Path, fps: float) -> None:
@@ -384,7 +394,7 @@ def describe(path) -> dict:
         }
     import imageio.v2 as iio2
 
-    reader = iio2.get_reader(path, format="FFMPEG")
+    reader = cast("FfmpegFormat.Reader", iio2.get_reader(path, format="FFMPEG"))
     try:
         n = reader.count_frames()
         h, w = reader.get_data(0).shape[:2]

@@ -105,7 +105,7 @@ def plot_meridian(ds: xr.Dataset, ax, indices, zoom: bool = False, ball=None):
     the ball's body (:mod:`dynslip.physics.bodies`; None: the unit sphere)."""
     drawn_z: list[float] = []
     last = indices[-1]
-    width = {}
+    width: dict[int, int] = {}
     for i in indices:
         c, ls, s = _stage_style(ds, i)
         fr = ds.isel(time=i)

@@ -49,14 +49,14 @@ def draw_spacetime(ax, ds: xr.Dataset, fronts: xr.Dataset | None = None, legend:
     )
     stage = np.asarray(ds["stage"].values).astype(int)
     names = stage_names(ds)
-    for k in np.flatnonzero(np.diff(stage) != 0) + 1:
-        tb = 0.5 * (t[k - 1] + t[k])
+    for change in np.flatnonzero(np.diff(stage) != 0) + 1:
+        tb = 0.5 * (t[change - 1] + t[change])
         ax.axhline(tb, color="k", lw=0.6, ls="--")
     for s in np.unique(stage):
-        k = np.flatnonzero(stage == s)[0]
+        first = np.flatnonzero(stage == s)[0]
         ax.text(
             right,
-            t[k],
+            t[first],
             f" {names[s] if s < len(names) else s}",
             va="bottom",
             ha="right",
@@ -130,8 +130,8 @@ def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path, outcome: str | None = 
     axes[2].set_ylabel(r"front speed $d\bar r/dt$ (R/s), + toward equator")
     for ax in axes[1:]:
         stage = np.asarray(ds["stage"].values).astype(int)
-        for k in np.flatnonzero(np.diff(stage) != 0) + 1:
-            ax.axvline(0.5 * (t[k - 1] + t[k]), color="k", lw=0.6, ls="--")
+        for change in np.flatnonzero(np.diff(stage) != 0) + 1:
+            ax.axvline(0.5 * (t[change - 1] + t[change]), color="k", lw=0.6, ls="--")
     path = save_figure(fig, path, dpi=110)
     plt.close(fig)
     return path

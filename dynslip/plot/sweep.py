@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from pathlib import Path
 
 import numpy as np
@@ -123,7 +124,7 @@ def plot_sweep(ds: xr.Dataset, path) -> Path:
     return out
 
 
-def _window_panel(ax, ds: xr.Dataset, dims: list[str], x: np.ndarray, ticks) -> None:
+def _window_panel(ax, ds: xr.Dataset, dims: list[Hashable], x: np.ndarray, ticks) -> None:
     """Each member's trapping windows as vertical bars over the first swept field."""
     groups = [None] if len(dims) == 1 else list(range(ds.sizes[dims[1]]))
     step = np.min(np.abs(np.diff(x))) if len(x) > 1 else 1.0

@@ -74,12 +74,12 @@ def _text_for_number(tp, value) -> str | None:
         args = [a for a in get_args(tp) if a is not type(None)]
         return _text_for_number(args[0], value) if len(args) == 1 else None
     if origin in (tuple, list) and isinstance(value, (list, tuple)):
-        args = get_args(tp)
+        item_types = get_args(tp)
         for i, v in enumerate(value):
-            if origin is tuple and not (len(args) == 2 and args[1] is Ellipsis):
-                item = args[i] if i < len(args) else None
+            if origin is tuple and not (len(item_types) == 2 and item_types[1] is Ellipsis):
+                item = item_types[i] if i < len(item_types) else None
             else:
-                item = args[0] if args else None
+                item = item_types[0] if item_types else None
             why = None if item is None else _text_for_number(item, v)
             if why:
                 return f"item {i}: {why}"
@@ -124,7 +124,7 @@ class ScenarioBase(Strict):
         return self.model_dump_json()
 
 
-def kind_classes() -> dict[str, type]:
+def kind_classes() -> dict[str, type[BaseModel]]:
     """kind -> scenario class. An import error of a schema module propagates: it is a bug,
     not an unknown kind."""
     return {kind: getattr(importlib.import_module(mod), cls) for kind, (mod, cls) in KINDS.items()}
@@ -149,7 +149,11 @@ class _DuplicateKey(yaml.MarkedYAMLError):
     """A key given twice in one mapping."""
 
 
-class Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
+# libyaml's loader when PyYAML was built with it; a name, as mypy takes no call as a base class
+_SafeLoader: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+class Loader(_SafeLoader):
     """``yaml.SafeLoader`` (libyaml's parser when installed) that refuses duplicate keys and
     reads ``1e-5`` as a float."""
 
@@ -273,7 +277,7 @@ def _field_path(loc, data) -> str:
 def format_validation_error(err: ValidationError, source: str, data=None) -> str:
     """One line: the first offending field, its value and what is allowed."""
     e = err.errors()[0]
-    eloc = tuple(e["loc"])
+    eloc: tuple[Any, ...] = tuple(e["loc"])
     if e["type"] == NUMBER_AS_TEXT:  # raised by the section: the field is in its context
         eloc = (*eloc, (e.get("ctx") or {}).get("field"))
     elif e["type"] == "value_error" and isinstance(e.get("input"), dict) and eloc and \
@@ -463,7 +467,7 @@ def _rows(schema: dict, defs: dict, prefix: str, rows: list) -> None:
             _rows({"properties": {"": items}}, defs, f"{prefix}{name}[]", rows)
 
 
-def schema_reference(extra: dict[str, type] | None = None) -> str:
+def schema_reference(extra: dict[str, type[BaseModel]] | None = None) -> str:
     """A plain-text reference of every field of every scenario kind (and of the models in
     ``extra``, title -> pydantic class: the sweep file)."""
     lines = []

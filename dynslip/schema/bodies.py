@@ -91,9 +91,13 @@ class SegmentSpec(Strict):
     def core(self, r: float):
         """The core segment (units of R)."""
 
+        # _fields_of_type has checked that the fields of this segment's type are given
         if self.type == "line":
+            assert self.start_mm is not None and self.end_mm is not None
             return Line((self.start_mm[0] / r, self.start_mm[1] / r),
                         (self.end_mm[0] / r, self.end_mm[1] / r))
+        assert self.centre_mm is not None and self.radius_mm is not None
+        assert self.start_deg is not None and self.end_deg is not None
         return Arc((self.centre_mm[0] / r, self.centre_mm[1] / r), self.radius_mm / r,
                    math.radians(self.start_deg), math.radians(self.end_deg))
 
@@ -330,8 +334,8 @@ class _Variants(Registry):
         self._keep, self._base = keep, base
         self._made: dict[type[BaseModel], type[BaseModel]] = {}
 
-    @property  # type: ignore[override]
-    def specs(self) -> dict[str, type[BaseModel]]:
+    @property
+    def specs(self) -> dict[str, type[BaseModel]]:  # type: ignore[override]  # derived, never set
         return {tag: self._made_of(s) for tag, s in BODY_KINDS.specs.items() if self._keep(s)}
 
     def _made_of(self, shape: type[BaseModel]) -> type[BaseModel]:

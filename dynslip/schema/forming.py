@@ -14,7 +14,7 @@ the run's world in :mod:`dynslip.schema.world` (:func:`build_protocol`, re-expor
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal, cast
 
 from pydantic import PrivateAttr, model_validator
 
@@ -22,7 +22,7 @@ from dynslip.physics.bodies import BodyGeometryError
 from dynslip.physics.bodies.apparatus import bottle, tube_wall
 from dynslip.schema.apparatus import BottleSpec, TubeSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
-from dynslip.schema.bodies import BallSpec, BodySpec, ball_core, body_core, check_bodies
+from dynslip.schema.bodies import BallSpec, BodySpec, ShapeSpec, ball_core, body_core, check_bodies
 from dynslip.schema.friction import FRICTION_SPECS, CoulombSpec, FrictionLaw, FrictionSpec
 from dynslip.schema.materials import MaterialSpec
 from dynslip.schema.stages import MAX_STAGES, MAX_TIME_S, StageSpec
@@ -161,7 +161,8 @@ class FormingPhysics(Strict):
     def sheet_start_mm(self) -> float:
         """The flat sheet's initial height (mm, from the ball's centre): sheet_gap_mm above the
         ball's top."""
-        return self.ball.top_mm(self.ball_radius_mm) + self.sheet_gap_mm
+        # a validated ball is an instance of its kind's ShapeSpec (BallSpec only dispatches)
+        return cast(ShapeSpec, self.ball).top_mm(self.ball_radius_mm) + self.sheet_gap_mm
 
     def ball_body(self):
         """The core ball body (units of R; :func:`dynslip.schema.bodies.ball_core`)."""
@@ -192,6 +193,7 @@ class FormingPhysics(Strict):
     @property
     def tube_rim_z(self) -> float:
         """The tube's rim height (units of R): rim_gap_mm above the flat sheet's start."""
+        assert self.tube is not None  # asked only of a scenario with a tube
         return (self.sheet_start_mm + self.tube.rim_gap_mm) / self.ball_radius_mm
 
     def tube_body(self):
@@ -209,8 +211,8 @@ class FormingPhysics(Strict):
         holds them (:func:`~dynslip.schema.world.build_world` makes each a ``Held`` entry)."""
 
         t, b = self.tube, self.bottle
-        out = [("tube wall", self.tube_body(), False, CoulombSpec(mu=t.mu))] if t is not None \
-            else []
+        out: list[tuple[str, Any, bool, FrictionSpec]] = \
+            [("tube wall", self.tube_body(), False, CoulombSpec(mu=t.mu))] if t is not None else []
         if b is not None:
             parts = self.bottle_parts()
             names = ["bottle"] if len(parts) == 1 else [f"bottle {k}" for k in range(len(parts))]
@@ -324,6 +326,7 @@ class FormingPhysics(Strict):
         :func:`~dynslip.physics.bodies.apparatus.bottle`)."""
 
         b = self.bottle
+        assert b is not None  # asked only of a scenario with a bottle
         return bottle(self.ball_radius_mm, b.neck_od_mm, b.neck_wall_mm, b.neck_length_mm,
                       b.shoulder_height_mm, b.body_od_mm, b.body_height_mm, b.neck_fillet_mm,
                       b.shoulder_fillet_mm, b.base_fillet_mm)
