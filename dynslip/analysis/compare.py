@@ -71,7 +71,7 @@ def compare(states: dict) -> dict:
     mu_mobilised_max, and the difference of the reference to each other run (``"A - B"``)."""
     names = list(states)
     ref = states[names[0]]
-    result = {"runs": {}, "differences": {}}
+    result: dict[str, dict] = {"runs": {}, "differences": {}}
     for n in names:
         s = states[n]
         result["runs"][n] = {

@@ -219,7 +219,7 @@ def stage_summary(ds: xr.Dataset, fronts: xr.Dataset | None = None) -> list[dict
         if idx.size == 0:
             out.append({"stage": s, "name": name, "frames": 0})
             continue
-        disp = {1: [], 2: []}
+        disp: dict[int, list[float]] = {1: [], 2: []}
         for k in range(pos.shape[0]):
             p = pos[k, idx]
             p = p[np.isfinite(p)]

@@ -160,7 +160,7 @@ def _link(prev: list[_Front], new: list[_Front], reach: int = 1) -> dict[int, in
     """
     n, m = len(prev), len(new)
     # best[i][j] = (links, -displacement) using prev[i:] and new[j:]
-    best = [[(0, 0)] * (m + 1) for _ in range(n + 1)]
+    best: list[list[tuple[int, float]]] = [[(0, 0)] * (m + 1) for _ in range(n + 1)]
     choice = [[0] * (m + 1) for _ in range(n + 1)]
     for i in range(n - 1, -1, -1):
         for j in range(m - 1, -1, -1):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -39,7 +40,7 @@ def release_metrics(ds: xr.Dataset, model=None) -> dict:
     first = int(below[0]) if below.size else len(th)
     upto = slice(0, max(first, 1))
     i_peak = int(np.argmax(np.abs(force_n[upto])))
-    out = {
+    out: dict[str, Any] = {
         "peak_force_N": float(force_n[i_peak]),
         "hold_force_at_peak_N": float(hold_n[i_peak]),
         "peak_displacement_mm": float(disp_mm[i_peak]),

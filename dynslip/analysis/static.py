@@ -10,6 +10,7 @@ A search that finds no root returns what it computed with ``status = "failed"`` 
 from __future__ import annotations
 
 import time
+from typing import cast
 
 import numpy as np
 
@@ -82,7 +83,7 @@ def compute_static(material, model: str, *, rbar_max, theta_max, initial_shape, 
             **march_kw,
         )
     except ComputationError as err:
-        part = err.partial
+        part = cast(dict, err.partial)  # the search's failure carries its brackets
         out.update(
             status="failed",
             error=f"{LABEL.get(model, model)}: {err}",

@@ -341,6 +341,7 @@ def rest_words(world, ds: xr.Dataset, result, at_rest: bool) -> str:
     stopped, not a rest state)."""
     last = result.stage_end[-1] if result.stage_end else None
     if at_rest:
+        assert last is not None  # at rest: a stage met its rest condition
         return (f"at rest: stage {last['name']!r} met its rest condition at "
                 f"t = {last['t_end']:.4g} s")
     if last is None:

@@ -224,6 +224,8 @@ def find_windows(
         a, b, unresolved = edges[i]
         edge = Edge(0.5 * (a + b), 0.5 * (b - a), unresolved=unresolved)
         if scanned[i][1]:  # trapped -> not trapped: a window closes
+            # a trapped point's run was opened (at the range's start or at the last edge)
+            assert start is not None
             res.windows.append(Window(start, edge))
             start = None
         else:

@@ -324,6 +324,7 @@ class StagedRun:
 
     def _keep(self) -> Path:
         """Rename the staging folder ``<out>.incomplete-<UTC time>`` (a fresh name)."""
+        assert self.staging is not None  # set by __enter__, which __exit__ follows
         base = f"{self.out.name}.incomplete-{_utc_stamp()}"
         for i in range(1000):
             target = self.out.with_name(base if i == 0 else f"{base}-{i}")
@@ -337,6 +338,7 @@ class StagedRun:
         return self.staging
 
     def _swap_in(self) -> None:
+        assert self.staging is not None  # set by __enter__, which __exit__ follows
         try:
             self.check()
         except InputError as err:

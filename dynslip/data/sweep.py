@@ -106,7 +106,7 @@ def assemble(
             continue
         if present and all(isinstance(v, str) for v in present):
             arr = np.full(shape, "", dtype=object)
-            fill = [v if isinstance(v, str) else "" for v in vals]
+            fill: list[str | float] = [v if isinstance(v, str) else "" for v in vals]
         else:
             arr = np.full(shape, np.nan)
             fill = [

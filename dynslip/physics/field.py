@@ -59,11 +59,12 @@ class StageArgs(eqx.Module):
     drag: jnp.ndarray  # eta per reference area: seconds (time unit tau = eta R^2/(G h0))
     ball_drag: jnp.ndarray  # eta_b (G h0 R s / R)
     weight: jnp.ndarray  # gravity force on the ball along +z (G h0 R), 0 when off
-    support: jnp.ndarray = 0.0  # 1 where the ball rests on the rigid support (bottle neck), else 0
-    support_z: jnp.ndarray = 0.0  # ball-centre height at which the support's contact begins (R)
-    support_k: jnp.ndarray = (
-        1e3  # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
-    )
+    # 1 where the ball rests on the rigid support (bottle neck), else 0
+    support: jnp.ndarray | float = 0.0
+    # ball-centre height at which the support's contact begins (R)
+    support_z: jnp.ndarray | float = 0.0
+    # support contact stiffness (G h0 R per R), C^1 over a width 1e-3 R
+    support_k: jnp.ndarray | float = 1e3
     # the held bodies' heights at the stage's start and their axial velocities over it, (K,)
     # per held entry (R, R/s): None when no body is moved by the stages
     body_z0: jnp.ndarray | None = None
@@ -283,6 +284,7 @@ def bodies_power(model: SheetModel, rho, z, zb, vb, hf):
             continue
         push = -body_load(model, e, rho, z, zb)
         if e.friction is not None:
+            assert axial is not None  # a body with friction: hf is a frame
             push = push + axial[fric.index(k)]
         total = total + e.speed(vb) * push
     return total

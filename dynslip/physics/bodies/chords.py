@@ -151,7 +151,7 @@ def _frame(body: AbstractBody, xf, zf):
     frame at a time; 0.3 s of the main job). A body that cannot be hashed (array fields) is
     searched every time."""
     try:
-        key = (body, xf.tobytes(), float(zf))
+        key: tuple | None = (body, xf.tobytes(), float(zf))
         with _SEEN_LOCK:
             hit = _SEEN.get(key)
             if hit is not None:

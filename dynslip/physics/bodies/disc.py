@@ -32,7 +32,7 @@ def rounded_box(r_in: float, r_out: float, z0: float, z1: float, e: float) -> tu
     """Profile of the solid r_in <= rho <= r_out, z0 <= z <= z1 with its outer corners (and,
     when r_in > 0, its inner ones) rounded to ``e`` (0: sharp). From the axis (r_in = 0) or
     from the top face's inner end (a ring), clockwise."""
-    segs = []
+    segs: list[Line | Arc] = []
     if e > 0:
         segs.append(Line((r_in + (e if r_in > 0 else 0.0), z1), (r_out - e, z1)))
         segs.append(Arc((r_out - e, z1 - e), e, math.pi / 2, 0.0))

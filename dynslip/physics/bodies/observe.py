@@ -75,7 +75,7 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
     if hf is None:
         hf = model.held_friction(rho, z, f, drag, eps, zb, delta, projections)
     slip = None if hf is None else hf.slip(vb)[1]  # (K_frictional, N)
-    out = {"s": [], "contact": [], "state": []}
+    out: dict[str, list] = {"s": [], "contact": [], "state": []}
     j = 0
     for k, e in enumerate(entries):
         p = projected(e, k, x, zb, projections)
@@ -84,6 +84,7 @@ def body_observables(model, rho, z, zb, f, vb, drag, eps, contact_threshold,
         if e.friction is None:
             state = jnp.where(contact, TOUCHING, FREE)
         else:
+            assert slip is not None  # a body with friction: hf is a frame
             s = jnp.where(idx == 0, 0.0, slip[j])
             j += 1
             moving = jnp.where(s < 0, SLIP_BACK, SLIP_ON)

@@ -28,6 +28,7 @@ Example::
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import equinox as eqx
 import jax
@@ -132,11 +133,12 @@ class Projection(eqx.Module):
         derivative in x the projection's own: a projection computed once serves a derivative
         taken later (the held friction's, :mod:`dynslip.physics.solver.newton_matrix`). Needs
         ``curvature``."""
+        curvature = cast(jnp.ndarray, self.curvature)  # given where this is called
         dd = jnp.sum(self.normal * dx, axis=-1)
-        kt = (self.curvature * jnp.sum(self.tangent * dx, axis=-1))[..., None]
+        kt = (curvature * jnp.sum(self.tangent * dx, axis=-1))[..., None]
         return Projection(distance=self.distance + dd, normal=self.normal + kt * self.tangent,
                           s=self.s, tangent=self.tangent - kt * self.normal,
-                          curvature=self.curvature - self.curvature**2 * dd)
+                          curvature=curvature - curvature**2 * dd)
 
 
 #: relative slack of the in-range tests (a foot a rounding error past a joint still counts)

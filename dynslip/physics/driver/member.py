@@ -10,6 +10,7 @@ import dataclasses
 import math
 import time as _time
 from collections.abc import Callable
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -194,7 +195,7 @@ class MemberRun:
         self.t = 0.0
         self.frames: list = []
         self.stage_end: list = []
-        self.stats = {
+        self.stats: dict[str, Any] = {
             "steps": 0,
             "accepted": 0,
             "rejected": 0,

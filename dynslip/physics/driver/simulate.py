@@ -195,6 +195,7 @@ def drive(runs: list[MemberRun]) -> list[Result]:
         )
     while not all(r.done for r in runs):
         segs = [r.segment() for r in runs]
+        seg: tuple
         if batched:
             seg = (
                 np.stack([np.asarray(s.y) for s in segs]),

@@ -207,6 +207,7 @@ def _weighting(inc: Increment, i, q, t, eta_a, alone=None):
     \Delta_t/\Delta t$, with $\Delta_t = (q - q_0)\cdot t$ its tangential displacement over
     the increment (1 and 0 over a zero-length increment, and where ``alone`` is False: a held
     body's friction acts on the node too, :func:`weighted_slip`)."""
+    assert inc.weight is not None  # the weighted form is taken only with a weight
     moved = inc.h > 0
     if alone is not None:
         moved = moved & alone

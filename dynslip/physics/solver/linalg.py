@@ -150,14 +150,13 @@ def extract_blocks(mv, mvT, s: Structure) -> Blocks:
     n, b, m = s.n, s.b, s.m
     nb = n * b
     pad = jnp.asarray(s.padding())
-    mv_flat, mvT_flat = mv, mvT
 
-    def mv(v):  # noqa: F811 - blocked-order product, zero on padding
-        r = s.to_blocked(mv_flat(s.from_blocked(v)))
+    def mv_blocked(v):  # blocked-order product, zero on padding
+        r = s.to_blocked(mv(s.from_blocked(v)))
         return r.at[:nb].set(jnp.where(pad, 0.0, r[:nb]))
 
-    def mvT(w):  # noqa: F811
-        r = s.to_blocked(mvT_flat(s.from_blocked(w)))
+    def mvT_blocked(w):
+        r = s.to_blocked(mvT(s.from_blocked(w)))
         return r.at[:nb].set(jnp.where(pad, 0.0, r[:nb]))
 
     node = jnp.arange(n)
@@ -166,7 +165,7 @@ def extract_blocks(mv, mvT, s: Structure) -> Blocks:
     probes = probes.at[node % 3, :, node, :].set(jnp.eye(b)[None, :, :])
     probes = probes.reshape(3 * b, nb)
     probes = jnp.concatenate([probes, jnp.zeros((3 * b, m))], axis=1)
-    cols = jax.vmap(mv)(probes)[:, :nb].reshape(3, b, n, b)  # [c, k, row node, row comp]
+    cols = jax.vmap(mv_blocked)(probes)[:, :nb].reshape(3, b, n, b)  # [c, k, row node, row comp]
     # Entry A[r, j][:, k] sits in probe (j % 3, k) at row node r, for |r - j| <= 1.
     cols = jnp.transpose(cols, (0, 2, 3, 1))  # [c, row node, row comp, k]
 
@@ -180,8 +179,8 @@ def extract_blocks(mv, mvT, s: Structure) -> Blocks:
     # identity on padding so that the factorisation stays regular
     diag = diag + jnp.eye(b)[None] * pad.reshape(n, b)[:, :, None]
     eye_m = jnp.concatenate([jnp.zeros((m, nb)), jnp.eye(m)], axis=1)
-    right = jax.vmap(mv)(eye_m).T  # (nb + m, m): columns of [B; D]
-    bottom = jax.vmap(mvT)(eye_m)  # (m, nb + m): rows of [C D]
+    right = jax.vmap(mv_blocked)(eye_m).T  # (nb + m, m): columns of [B; D]
+    bottom = jax.vmap(mvT_blocked)(eye_m)  # (m, nb + m): rows of [C D]
     return Blocks(lower, diag, upper, right[:nb], bottom[:, :nb], right[nb:])
 
 

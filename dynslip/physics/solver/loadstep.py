@@ -209,6 +209,7 @@ def load_step_solver(
         if linear_solver == "structured"
         else lx.AutoLinearSolver(well_posed=None)
     )
+    newton: optx.Newton
     if backtrack:
         # the energy accumulators do not feed back into the motion: left out of the merit
         w = jnp.ones(layout.size).at[layout.accumulators].set(0.0)

@@ -85,7 +85,7 @@ as one.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import equinox as eqx
 import jax
@@ -100,7 +100,7 @@ from dynslip.physics.solver.increment import (
     residual_and_state,
     sheet_held_frame,
 )
-from dynslip.physics.solver.linalg import bordered_solve
+from dynslip.physics.solver.linalg import Blocks, bordered_solve
 from dynslip.physics.solver.newton_matrix import free_system, newton_blocks
 from dynslip.physics.terms import forces, held_projections
 
@@ -247,7 +247,9 @@ class SegmentOutput(eqx.Module):
     accepted: jax.Array
     rejected: jax.Array
     newton_iterations: jax.Array
-    rate: Rate  # the last accepted increment per unit time on (q, zb): the next predictor
+    # the last accepted increment per unit time on (q, zb): the next predictor (the load-step
+    # solver's increment loop: of the whole state, flat)
+    rate: Rate | jax.Array
     forces: Forces | None = None
     ball_velocity: jax.Array | None = None
 
@@ -420,7 +422,10 @@ class MotionNewton(eqx.Module):
             go = (~done) & (~bad) & (it < self.max_iter)
             dq, dz = jax.lax.cond(
                 go,
-                lambda: bordered_solve(*blocks(qn, zbn, trial.state), tq, tz, self.linear),
+                # Blocks: six arrays (mypy spreads an untyped star argument over every parameter)
+                lambda: bordered_solve(
+                    *cast(Blocks, blocks(qn, zbn, trial.state)), tq, tz, self.linear
+                ),
                 lambda: (jnp.zeros_like(c.dq), jnp.zeros_like(c.dz)),
             )
             return NewtonIterate(q=qn, zb=zbn, r_q=tq, r_z=tz, iterations=it, done=done,
@@ -452,6 +457,7 @@ class MotionNewton(eqx.Module):
             _, vb1, delta1 = increment_rates(model, friction, inc, q, zb, g, load, ps)
         else:
             # the converged state's gradient and rates, from the residual's last evaluation
+            assert last.state is not None  # an EndState from the loop's start
             g, vb1, delta1 = last.state.g, last.state.ball_velocity, last.state.delta
             load, ps = last.state.load, last.state.projections
         f1 = Forces(g, load, ps)

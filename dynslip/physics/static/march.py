@@ -99,6 +99,9 @@ def march_diffrax(material, theta0, h, mu, dt, t_end, vtol, rtol, solver: str = 
     def steady(t, y, args, **kw):
         return jnp.max(jnp.abs(velocity(material, y, h, mu))) <= vtol
 
+    method: diffrax.AbstractSolver
+    controller: diffrax.AbstractStepSizeController
+    dt0: float | None
     if solver == "euler":
         method, controller, dt0 = diffrax.Euler(), diffrax.ConstantStepSize(), dt
     elif solver == "tsit5":
