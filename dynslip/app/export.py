@@ -76,7 +76,7 @@ def _write_vtu(ds, folder: Path) -> list[Path]:
 
 def _write_xdmf(ds, folder: Path) -> list[Path]:
     import numpy as np
-    from meshio.xdmf import TimeSeriesWriter  # type: ignore[import-untyped]  # meshio: no types
+    from meshio.xdmf import TimeSeriesWriter
 
     paths = []
     for stem, _, make in _parts(ds):
