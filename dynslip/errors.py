@@ -8,6 +8,8 @@
   failure, no root in a bracket); what was computed is kept and marked incomplete.
 """
 
+from typing import Any
+
 
 class InputError(ValueError):
     """Bad input: the CLI prints the one-line message and exits with status 2."""
@@ -20,7 +22,7 @@ class ComputationError(RuntimeError):
     computed before it failed (set by the code that raises or passes it on; None if nothing)."""
 
     exit_code = 3
-    partial = None
+    partial: Any = None  # a dict, a dataset or a run record, by the code that raises
 
 
 #: what a failed run's message ends with, before the path of its partial trajectory

@@ -8,7 +8,7 @@ the package docstring of :mod:`dynslip.physics.static` states the whole model).
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple, cast
+from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
@@ -58,7 +58,7 @@ def search_mu(material, theta0, h, mu_lo, mu_hi, *, method="explicit", mu_tol=1e
             f"F_v({mu_lo:g}) = {f_lo:.4g}, F_v({mu_hi:g}) = {f_hi:.4g} (units G*h0*R); "
             "F_v must be > 0 at the lower end and <= 0 at the upper end"
         )
-        cast(Any, err).partial = {
+        err.partial = {
             "mu": (mu_lo, mu_hi),
             "fv": (f_lo, f_hi),
             "theta": (np.asarray(cache[mu_lo][1].theta), np.asarray(cache[mu_hi][1].theta)),
