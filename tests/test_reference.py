@@ -2,7 +2,6 @@
 with them and the schema's descriptions quote them, so no copy can drift."""
 
 import math
-from pathlib import Path
 
 import pytest
 
@@ -47,7 +46,7 @@ def test_release_analysis_uses_the_runs_ball_drag():
     from dynslip.schema import world
 
     assert release.ball_drag_coefficient is protocols.ball_drag_coefficient
-    assert "protocols import ball_drag_coefficient" in Path(world.__file__).read_text()
+    assert world.ball_drag_coefficient is protocols.ball_drag_coefficient
     for drag_time_s, ball_drag in [(0.1, 1.0), (0.02, 3.5), (1.0, 0.0)]:
         assert (
             release.ball_drag_coefficient(drag_time_s, ball_drag)

@@ -6,15 +6,18 @@ extent in the body's surface coordinate s. ``dynslip fronts TRAJ --body NAME``."
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
-from matplotlib.figure import Figure
 
 from dynslip.data.files import save_figure
 from dynslip.data.trajectory import BODY_STATE_MEANINGS, body_index, stage_names
 from dynslip.plot.forming import outcome_title
 from dynslip.plot.style import STATE_COLORS
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["BODY_STATE_COLORS", "body_state_map", "plot_body_state"]
 
@@ -38,6 +41,7 @@ def body_state_map(ds: xr.Dataset, name: str, outcome: str | None = None) -> Fig
     (zoomed to the nodes that touch it, the ball's outermost contact dotted), right the
     contact's extent in s and the nodes in contact."""
     from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.figure import Figure
     from matplotlib.patches import Patch
 
 

@@ -7,6 +7,7 @@ import textwrap
 
 from dynslip.analysis.compare import difference, trapped_text
 from dynslip.data.files import save_figure
+from dynslip.plot.style import pyplot
 
 __all__ = ["plot_compare"]
 
@@ -22,10 +23,7 @@ def _short(name: str) -> str:
 def plot_compare(states: dict, path):
     """Draw the end states (name -> :func:`~dynslip.analysis.compare.end_state`, the first
     the reference) and their differences, save the figure to ``path``; returns the path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     names = list(states)
     ref = states[names[0]]

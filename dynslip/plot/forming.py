@@ -9,16 +9,17 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
 import numpy as np
 import xarray as xr
-from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Polygon
 
 from dynslip.analysis.paper import ROUGH_END_STATE
 from dynslip.data import files as io
 from dynslip.plot.style import STATE_LABELS, state_colormap
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = [
     "end_words",
@@ -84,6 +85,8 @@ STAGE_STYLES = ("-", "--", "-.", ":")
 
 
 def _stage_style(ds, i):
+    import matplotlib
+
     s = int(ds["stage"].values[i])
     return matplotlib.colormaps["tab10"](s % 10), STAGE_STYLES[s % len(STAGE_STYLES)], s
 
@@ -92,6 +95,8 @@ def ball_patch(ball, zb: float, **kw):
     """The ball's meridian section as a patch at height ``zb``: the unit circle for None (the
     default sphere), else the body's outline (:meth:`~dynslip.physics.bodies.base.AbstractBody.
     outline`) mirrored about the axis."""
+    from matplotlib.patches import Circle, Polygon
+
     if ball is None:
         return Circle((0, zb), 1.0, **kw)
     o = ball.meridian_points(400, zb)
@@ -235,6 +240,8 @@ def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None, ball=None
     sheet, ball and clamp at ``indices`` (default :func:`snapshot_indices`, one per stage),
     whole and near the ball; ``outcome``: summary.json's ``outcome`` for the title; ``ball``:
     the ball's body (None: the unit sphere)."""
+    from matplotlib.figure import Figure
+
     idx = snapshot_indices(ds, per_stage=1) if indices is None else indices
     fig = Figure(figsize=(11, 7), layout="constrained")
     ax0, ax1 = fig.subplots(1, 2, width_ratios=[1, 1.3])
@@ -257,6 +264,8 @@ def meridian(ds: xr.Dataset, indices=None, outcome: str | None = None, ball=None
 
 def theta_rbar(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figure:
     """The figure ``theta_rbar.png``: theta(rbar) on the contact region at ``indices``."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(7, 5), layout="constrained")
     plot_theta(
         ds, fig.subplots(), snapshot_indices(ds, per_stage=1) if indices is None else indices
@@ -267,6 +276,8 @@ def theta_rbar(ds: xr.Dataset, indices=None, outcome: str | None = None) -> Figu
 
 def state_map(ds: xr.Dataset, outcome: str | None = None) -> Figure:
     """The figure ``state_map.png``: the contact and slip state against time and rbar."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(9, 5.5), layout="constrained")
     plot_state_map(ds, fig.subplots())
     fig.suptitle(outcome_title(ds, outcome), fontsize=9)

@@ -15,7 +15,7 @@ from dynslip.analysis.fronts import BIRTH_EVENTS, DEATH_EVENTS, motion_state
 from dynslip.data.files import save_figure
 from dynslip.data.trajectory import stage_names
 from dynslip.plot.forming import outcome_title
-from dynslip.plot.style import STATE_COLORS, STATE_LABELS, state_colormap
+from dynslip.plot.style import STATE_COLORS, STATE_LABELS, pyplot, state_colormap
 
 __all__ = ["draw_spacetime", "plot_fronts"]
 
@@ -100,11 +100,7 @@ def _edges(x: np.ndarray) -> np.ndarray:
 def plot_fronts(ds: xr.Dataset, fronts: xr.Dataset, path, outcome: str | None = None) -> Path:
     """Figure: fronts over the space-time map; front angle and speed against time; titled
     with the run's ``outcome`` (summary.json's, else where the contact ends)."""
-    import matplotlib
-
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t = np.asarray(ds["time"].values, dtype=float)
     fig, axes = plt.subplots(1, 3, figsize=(13, 5.2), constrained_layout=True)

@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import xarray as xr
-from matplotlib.figure import Figure
 
 from dynslip.analysis.paper import MEASURED_RELEASE_FORCE_N
 from dynslip.analysis.release import release_metrics, sheet_force
 from dynslip.data import files as io
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["release_force", "plot_release"]
 
@@ -24,6 +27,8 @@ def release_force(ds: xr.Dataset, metrics: dict | None = None) -> Figure:
     theta_max = pi/2 marked, the measured release force drawn; below it theta_max.
     ``metrics``: :func:`dynslip.analysis.release.release_metrics` of ``ds`` (computed when
     omitted)."""
+    from matplotlib.figure import Figure
+
     if metrics is None:
         metrics = release_metrics(ds)
     fs = float(ds.attrs["force_scale_N"])

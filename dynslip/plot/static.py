@@ -12,15 +12,11 @@
 
 from __future__ import annotations
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-
-from dynslip.data.files import save_figure  # noqa: E402
-from dynslip.plot.style import MODEL_LABELS as LABEL  # noqa: E402
+from dynslip.data.files import save_figure
+from dynslip.plot.style import MODEL_LABELS as LABEL
+from dynslip.plot.style import pyplot
 
 __all__ = [
     "figure4_row",
@@ -77,6 +73,8 @@ def _title(ds, model: str) -> str:
 
 
 def _legend(fig):
+    from matplotlib.patches import Patch
+
     fig.legend(handles=[Patch(color=C_EQ, label="friction toward the equator"),
                         Patch(color=C_POLE, label="friction toward the pole")],
                loc="lower center", ncol=2, fontsize=8, frameon=False)
@@ -84,6 +82,8 @@ def _legend(fig):
 
 def figure4_row(ds):
     """One row of the paper's Fig. 4 from a ``static`` result dataset."""
+    plt = pyplot()
+
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
     _row(axes, ds, _title(ds, ds.attrs.get("model", "")))
     _legend(fig)
@@ -93,6 +93,8 @@ def figure4_row(ds):
 
 def figure4(ds):
     """The 3x3 Fig. 4 from a ``figure4`` result dataset (dimension ``model``)."""
+    plt = pyplot()
+
     models = [str(m) for m in ds["model"].values]
     fig, axes = plt.subplots(len(models), 3, figsize=(12, 3.2 * len(models)))
     for i, m in enumerate(models):
@@ -105,6 +107,8 @@ def figure4(ds):
 
 def family_plot(ds):
     """mu (and the switch angle) across the fully mobilised family, the selected members marked."""
+    plt = pyplot()
+
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
     x = ds["switch_value"].values
     xl = (
@@ -140,6 +144,8 @@ def family_plot(ds):
 
 def cylinder_plot(ds):
     """Capstan bounds with random admissible tensions, and F_v against theta_max (all > 0)."""
+    plt = pyplot()
+
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
     th = ds["theta"].values
     for t in ds["T"].values:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dynslip.analysis.paper import MODEL_LABELS
 from dynslip.data.trajectory import STATE_MEANINGS
 
-__all__ = ["STATE_COLORS", "STATE_LABELS", "MODEL_LABELS", "state_colormap"]
+__all__ = ["STATE_COLORS", "STATE_LABELS", "MODEL_LABELS", "pyplot", "state_colormap"]
 
 STATE_COLORS = ("#d9d9d9", "#1f4e9c", "#e08a1e", "#c0282d")
 """Colours of the state flags free, stuck, slipping toward the pole, toward the equator."""
@@ -25,3 +25,14 @@ def state_colormap():
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
     return ListedColormap(STATE_COLORS), BoundaryNorm([-0.5, 0.5, 1.5, 2.5, 3.5], 4)
+
+
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (figures are files), imported when a figure is
+    drawn: ``import dynslip`` imports no plotting library."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt

@@ -18,6 +18,7 @@ import xarray as xr
 
 from dynslip.analysis.paper import MEASURED_MU_S
 from dynslip.data.files import save_figure
+from dynslip.plot.style import pyplot
 
 PANELS = [
     "trapped",
@@ -30,13 +31,6 @@ PANELS = [
 ]
 
 
-def _mpl():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _label(da: xr.DataArray) -> str:
@@ -65,7 +59,7 @@ def _reduce(ds: xr.Dataset) -> tuple[xr.Dataset, str]:
 def plot_sweep(ds: xr.Dataset, path) -> Path:
     """The sweep's figure (see the module docstring); written atomically to ``path``."""
 
-    plt = _mpl()
+    plt = pyplot()
     ds, note = _reduce(ds)
     dims = list(ds["status"].dims)
     panels = [p for p in PANELS if p in ds and np.isfinite(ds[p].values.astype(float)).any()]
@@ -177,7 +171,7 @@ def _window_range(ds: xr.Dataset) -> tuple[float, float]:
 def plot_window(result: dict, path) -> Path:
     """trapped(mu) at every evaluated mu (failed runs as red crosses), windows shaded."""
 
-    plt = _mpl()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 3.4 if result.get("resolution_check") else 2.6))
     ev = [(m, v) for m, v in result["evaluations"]]
     ok = [(m, v) for m, v in ev if v is not None]
@@ -208,7 +202,7 @@ def plot_critical_mu(result: dict, path) -> Path:
     """critical_mu.png: the path's critical mu (lowest window's lower edge, +- half its
     bracket) against the mesh size, with the Richardson value where extrapolable."""
 
-    plt = _mpl()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5, 3.2))
     pts = [
         (int(n), c["value"], c["err"], bool(c.get("open")), bool(c.get("failed_side")))

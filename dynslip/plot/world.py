@@ -5,13 +5,16 @@ run from its trajectory and its world (:func:`world_figure`)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
-from matplotlib.figure import Figure
 
 from dynslip.physics.bodies import Sphere
 from dynslip.physics.bodies.held import held_entries
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_world", "world_figure", "drawn_ball"]
 
@@ -37,6 +40,8 @@ def plot_world(
     ``ball``: the ball's body, its outline dotted (None: the unit sphere). ``zoom``: limits of a
     second panel, the same frames drawn closer (the pocket about the ball). Units of R on both
     axes."""
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(6.0 if zoom is None else 10.0, 8.0), constrained_layout=True)
     axes = fig.subplots(1, 1 if zoom is None else 2, squeeze=False)[0]
     for k, ax in enumerate(axes):
