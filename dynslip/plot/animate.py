@@ -26,7 +26,7 @@ from dynslip.data.trajectory import open_trajectory, stage_names, time_indices
 from dynslip.errors import InputError
 from dynslip.plot.forming import outcome_title
 from dynslip.plot.fronts import draw_spacetime
-from dynslip.plot.style import STATE_COLORS, STATE_LABELS
+from dynslip.plot.style import STATE_COLORS, STATE_LABELS, pyplot
 
 if TYPE_CHECKING:
     from imageio.plugins.ffmpeg import FfmpegFormat
@@ -86,14 +86,12 @@ class _Renderer:
         outcome=None,
         bodies=None,
     ):
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
         from matplotlib.collections import LineCollection
+        from matplotlib.colors import to_rgba
         from matplotlib.lines import Line2D
         from matplotlib.patches import Circle, Polygon
 
+        plt = pyplot()
         self.ds, self.fronts = ds, fronts
         self.plt = plt
         w, h = size
@@ -115,7 +113,7 @@ class _Renderer:
             if fronts.sizes["track"]
             else np.zeros((0, self.t.size))
         )
-        self.colors = np.array([matplotlib.colors.to_rgba(c) for c in STATE_COLORS])
+        self.colors = np.array([to_rgba(c) for c in STATE_COLORS])
 
         sel = frames
         cz, cr, bz = (
@@ -185,7 +183,7 @@ class _Renderer:
         for a in self.dynamic:
             a.set_animated(True)
         self.fig.canvas.draw()
-        # the Agg backend's canvas (matplotlib.use("Agg") above)
+        # the Agg backend's canvas (plot.style.pyplot chose it)
         self.background = cast("FigureCanvasAgg", self.fig.canvas).copy_from_bbox(self.fig.bbox)
 
     def _segments(self, k: int):
