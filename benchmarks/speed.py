@@ -96,17 +96,22 @@ def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
         from dynslip.physics.solver.loadstep import FullStateLoadStep
 
         st = kw["settings"]
+        newton = st.solver
         full = FullStateLoadStep(
-            max_steps=st.max_steps, newton_max_iter=st.newton_max_iter,
-            newton_backtrack=st.newton_backtrack, linear_solver=st.linear_solver,
-            heal_rate=st.heal_rate, max_increment=st.max_increment,
-            max_increment_free=st.max_increment_free,
+            max_steps=newton.max_steps, newton_max_iter=newton.max_iter,
+            newton_backtrack=newton.backtrack, linear_solver=sc.numerics.linear_solver,
+            heal_rate=newton.heal_rate, max_increment=newton.max_increment,
+            max_increment_free=newton.max_increment_free,
         )
         kw["settings"] = dataclasses.replace(st, solver=full)
     if solver == "load_step_law":
-        kw["settings"] = dataclasses.replace(kw["settings"], newton_weight=0.0)
+        st = kw["settings"]
+        kw["settings"] = dataclasses.replace(st, solver=dataclasses.replace(st.solver, weight=0.0))
     if solver == "kvaerno5":
-        kw["settings"] = dataclasses.replace(kw["settings"], max_steps=KV_MAX_STEPS)
+        st = kw["settings"]
+        kw["settings"] = dataclasses.replace(
+            st, solver=dataclasses.replace(st.solver, max_steps=KV_MAX_STEPS)
+        )
     w0 = time.perf_counter()
     res = simulate(model, protocol, **kw)
     wall = time.perf_counter() - w0
@@ -195,7 +200,7 @@ def _scipy(ref, core) -> tuple[dict, object]:
         return {k: np.asarray(v) for k, v in rec.items()}
 
     rec_fn(0.0, y, args0)
-    reset_internal(model, layout, y, args0, _f(settings.heal_rate)).block_until_ready()
+    reset_internal(model, layout, y, args0, _f(settings.solver.heal_rate)).block_until_ready()
     compile_s = time.perf_counter() - c0
 
     frames = []
@@ -252,7 +257,7 @@ def _scipy(ref, core) -> tuple[dict, object]:
                     break
                 y = jax.numpy.asarray(sol.y[:, -1])
                 if layout.n_int:
-                    y = reset_internal(model, layout, y, args, _f(settings.heal_rate))
+                    y = reset_internal(model, layout, y, args, _f(settings.solver.heal_rate))
                 t = t1
                 record(t, y, args, si)
             reaction = float(frames[-1]["ball_reaction"])

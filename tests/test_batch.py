@@ -33,6 +33,7 @@ from dynslip.physics.protocols import (
 )
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.solver.methods import Settings
+from numerics import named_solver
 
 NODES = 20
 RIM = 2.54
@@ -43,7 +44,7 @@ MODEL = SheetModel(
     make_material("gent", jm=50.0),
     Penalty(jnp.asarray(1e4), jnp.asarray(1e-3)),
 )
-SETTINGS = Settings(solver="load_step", save_interval=1.0)
+SETTINGS = Settings(solver=named_solver(), save_interval=1.0)
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -129,7 +130,7 @@ def test_members_in_different_stages_at_the_same_tick():
 
 
 def test_members_that_cannot_share_a_compiled_solve_are_refused():
-    kws = [kwargs(1.5, 1.25), kwargs(1.5, 1.25, Settings(solver="load_step", max_increment=10.0))]
+    kws = [kwargs(1.5, 1.25), kwargs(1.5, 1.25, Settings(solver=named_solver(max_increment=10.0)))]
     with pytest.raises(ValueError, match="different compiled solves"):
         simulate_batch([MODEL] * 2, [protocol(Duration(duration=1.0))] * 2, kws)
     with pytest.raises(ValueError, match="non-array part"):

@@ -27,6 +27,7 @@ from dynslip.physics.protocols import CLAMP_BAND, Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, element_stretches, make_mesh
 from dynslip.physics.solver.methods import Settings
 from helpers import run_sheet
+from numerics import named_solver
 from test_forming import residual
 
 N = 32
@@ -53,7 +54,7 @@ def _run(solver="load_step"):
     )
     protocol = Protocol(stages, clamp_rho0=R0 + A, clamp_z0=0.0, ball_z0=-1.05)
     friction = Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(EPS))
-    settings = Settings(solver=solver, save_interval=0.25)
+    settings = Settings(solver=named_solver(solver), save_interval=0.25)
     return run_sheet(MODEL, protocol, friction, settings, pre=PRE, z_sheet=0.0, tau=TAU, eps=EPS)
 
 

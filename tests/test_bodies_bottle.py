@@ -31,6 +31,7 @@ from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh, penalty_pressure
 from dynslip.physics.solver.methods import Settings
 from helpers import push_and_hold, run_refused, run_sheet, set_field
+from numerics import named_solver
 
 # the quick loop (-m 'not slow') leaves these out: each test runs the sheet over the bottle (N = 24)
 pytestmark = pytest.mark.slow
@@ -105,7 +106,7 @@ def _run(model, z_sheet, ball_z0, depth, speed=0.2, hold=4.0):
     stages = push_and_hold(z_sheet, depth, speed, hold)
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
     friction = Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(1e-3))
-    settings = Settings(solver="load_step", save_interval=1.0)
+    settings = Settings(solver=named_solver(), save_interval=1.0)
     return run_sheet(model, protocol, friction, settings, pre=PRE, z_sheet=z_sheet, tau=TAU)
 
 

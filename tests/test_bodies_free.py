@@ -29,6 +29,7 @@ from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.solver import increment as ni
 from dynslip.physics.solver import newton_matrix as nm
 from dynslip.physics.solver.methods import Settings
+from numerics import named_solver
 from test_newton import _dense
 
 N = 24
@@ -56,7 +57,7 @@ def _rise(model, settings=None):
     res = simulate(
         model, protocol, friction=FRICTION, eps=EPS, drag=TAU, ball_drag=ETA,
         pre_stretch=PRE, z_sheet=0.0,
-        settings=settings or Settings(solver="load_step", save_interval=1.0),
+        settings=settings or Settings(solver=named_solver(), save_interval=1.0),
     )
     assert res.failed is None, res.failed
     return res
@@ -156,8 +157,8 @@ def test_power_balance_with_a_frictional_free_body_is_exact(run_friction):
 
 
 def _run(max_increment, model=MODEL):
-    return _rise(model, Settings(solver="load_step", save_interval=1.0,
-                                 max_increment=max_increment, max_increment_free=max_increment))
+    newton = named_solver(max_increment=max_increment, max_increment_free=max_increment)
+    return _rise(model, Settings(solver=newton, save_interval=1.0))
 
 
 def _balance(res):

@@ -36,6 +36,7 @@ from helpers import (
     run_sheet,
     small_model,
 )
+from numerics import named_solver
 from test_forming import residual
 
 N = 32
@@ -71,7 +72,7 @@ def _run(model, solver="load_step", hold=4.0, depth=-1.5, **settings):
     protocol = Protocol(
         push_and_hold(0.0, depth, SPEED, hold), clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0
     )
-    settings = Settings(solver=solver, save_interval=0.5, **settings)
+    settings = Settings(solver=named_solver(solver), save_interval=0.5, **settings)
     return run_sheet(model, protocol, _coulomb(0.5), settings, pre=PRE, z_sheet=0.0, tau=TAU,
                      eps=EPS)
 

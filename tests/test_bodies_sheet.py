@@ -32,6 +32,7 @@ from helpers import (
     run_sheet,
     small_model,
 )
+from numerics import named_solver
 from test_forming import residual
 
 N = 24
@@ -53,7 +54,7 @@ def _run(model, z_sheet, ball_z0, depth, solver="load_step", speed=0.2, hold=4.0
     stages = push_and_hold(z_sheet, depth, speed, hold)
     protocol = Protocol(stages, clamp_rho0=RIM, clamp_z0=z_sheet, ball_z0=ball_z0)
     friction = Coulomb(mu=jnp.asarray(mu), eps=jnp.asarray(1e-3))
-    settings = Settings(solver=solver, save_interval=1.0)
+    settings = Settings(solver=named_solver(solver), save_interval=1.0)
     return run_sheet(model, protocol, friction, settings, pre=PRE, z_sheet=z_sheet, tau=TAU)
 
 

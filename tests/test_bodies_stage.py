@@ -26,6 +26,7 @@ from dynslip.physics.materials import make_material
 from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.solver.methods import Settings
+from numerics import named_solver
 
 # the quick loop (-m 'not slow') leaves these out: two runs of the moving world (N = 24)
 pytestmark = pytest.mark.slow
@@ -59,7 +60,7 @@ def _run(stage_moved: bool):
     res = simulate(
         model, protocol, friction=_coulomb(0.5), eps=EPS, drag=TAU, ball_drag=TAU * 4 * math.pi,
         pre_stretch=PRE, z_sheet=0.0,
-        settings=Settings(solver="load_step", save_interval=0.5, rtol=RTOL, atol=ATOL),
+        settings=Settings(solver=named_solver(), save_interval=0.5, rtol=RTOL, atol=ATOL),
     )
     assert res.failed is None, res.failed
     return res

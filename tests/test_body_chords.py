@@ -34,6 +34,7 @@ from dynslip.physics.bodies.chords import (
     relative_chord_depths,
 )
 from dynslip.physics.driver.failures import ContactUnresolved
+from numerics import named_solver
 
 EDGE = 0.25
 POST = Cylinder(radius=1.0, z_bottom=-3.0, z_top=-0.2, edge_radius=EDGE)
@@ -179,7 +180,7 @@ def test_a_chord_past_the_limit_in_a_held_body_stops_the_run_naming_it():
         return simulate(
             model, protocol, friction=Coulomb(mu=jnp.asarray(0.5), eps=jnp.asarray(eps)),
             eps=eps, drag=tau, ball_drag=tau * 4 * math.pi, pre_stretch=1.05, z_sheet=0.0,
-            settings=Settings(solver="load_step", save_interval=0.5, max_chord_depth=limit,
+            settings=Settings(solver=named_solver(), save_interval=0.5, max_chord_depth=limit,
                               body_names=("post",)),
         )
 

@@ -18,6 +18,7 @@ from dynslip.physics.bodies.observe import SLIP_BACK, SLIP_ON, STUCK
 from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.protocols import Duration, Protocol, Stage
 from dynslip.physics.solver.methods import Settings
+from numerics import named_solver
 from test_bodies_friction import (
     EPS,
     FRICTIONAL,
@@ -68,7 +69,7 @@ def eased():
     res = simulate(FRICTIONAL, Protocol(stages, clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0),
                    friction=_coulomb(0.5), eps=EPS, drag=TAU, ball_drag=TAU * 4 * math.pi,
                    pre_stretch=PRE, z_sheet=0.0,
-                   settings=Settings(solver="load_step", save_interval=0.5))
+                   settings=Settings(solver=named_solver(), save_interval=0.5))
     assert res.failed is None, res.failed
     return res.frames
 

@@ -22,6 +22,7 @@ from dynslip.physics.driver.simulate import simulate
 from dynslip.physics.friction import SlipWeakening
 from dynslip.physics.solver.methods import Settings
 from dynslip.schema.base import load
+from numerics import named_solver
 from test_forming import MODEL, PRE, Z0, push_protocol
 
 # ----------------------------------------------------------------- stick/slip through the sheet
@@ -73,7 +74,7 @@ def weakening_push():
         ball_drag=ETA * 4 * math.pi,
         pre_stretch=PRE,
         z_sheet=Z0,
-        settings=Settings(solver="load_step", save_interval=0.1),
+        settings=Settings(solver=named_solver(), save_interval=0.1),
     )
     assert res.failed is None, res.failed
     return res

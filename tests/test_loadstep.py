@@ -31,6 +31,7 @@ from dynslip.physics.solver.loadstep import (
 )
 from dynslip.physics.solver.methods import Settings
 from dynslip.physics.solver.upstream import ImplicitEuler
+from numerics import named_solver
 from test_forming import MAT, PRE, RIM, Z0, push_protocol
 
 N = 24
@@ -43,7 +44,7 @@ def _friction():
     return Coulomb(mu=jnp.asarray(MU), eps=jnp.asarray(1e-3))
 
 
-def _run(solver, **kw):
+def _run(name, rtol=1e-5, atol=1e-7, **numerics):
     return simulate(
         MODEL,
         push_protocol(),
@@ -53,7 +54,8 @@ def _run(solver, **kw):
         ball_drag=TAU * 4 * math.pi,
         pre_stretch=PRE,
         z_sheet=Z0,
-        settings=Settings(solver=solver, save_interval=1.0, **kw),
+        settings=Settings(solver=named_solver(name, **numerics), save_interval=1.0, rtol=rtol,
+                          atol=atol),
     )
 
 

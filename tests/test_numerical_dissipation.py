@@ -40,8 +40,8 @@ import numpy as np
 import pytest
 
 from dynslip.physics.solver.loadstep import FullStateLoadStep
-from dynslip.physics.solver.methods import Settings, solver_for
 from dynslip.physics.solver.newton import zero_rate
+from numerics import named_solver
 from test_loadstep import MODEL, push_down_start
 
 HS = np.array([0.1, 0.05, 0.025, 0.0125])  # s: the increments, 1 to 1/8 drag time
@@ -138,7 +138,7 @@ def _measure(solver):
 
 @pytest.mark.parametrize(
     "solver",
-    [solver_for(Settings(solver="load_step")), FullStateLoadStep(newton_max_iter=16)],
+    [named_solver(), FullStateLoadStep(newton_max_iter=16)],
     ids=["motion_newton", "full_state"],
 )
 def test_numerical_dissipation_closes_the_balance_to_second_order(solver):

@@ -1,6 +1,8 @@
-"""The segment solver named by the schema's ``numerics.solver``: each name maps to a class that
-builds itself from :class:`~dynslip.physics.solver.methods.Settings`, taking each setting it runs on
-from its own field (no copy by matching names), and every other parameter at its default."""
+"""The segment solver named by the schema's ``numerics.solver``: the spec builds it
+(:meth:`~dynslip.schema.forming.FormingNumerics.build_solver`), each setting it runs on taken
+from its own field and every other parameter at the solver's default; the driver's
+:class:`~dynslip.physics.solver.methods.Settings` take the rest of the spec, field by named
+field (:func:`~dynslip.schema.world.settings_of`)."""
 
 from __future__ import annotations
 
@@ -8,24 +10,19 @@ import dataclasses
 import typing
 
 import diffrax
+import pydantic
 import pytest
 
-from dynslip.physics.solver.methods import (
-    DIFFRAX_METHODS,
-    SOLVERS,
-    Settings,
-    TimeStepping,
-    solver_for,
-)
+from dynslip.physics.solver.methods import DIFFRAX_METHODS, TimeStepping, solver_name
 from dynslip.physics.solver.newton import MotionNewton
 from dynslip.schema.forming import FormingNumerics
+from dynslip.schema.world import settings_of
 
-# every setting a solver reads, away from its default (``linear_solver`` by solver family)
+# every numerics field a solver reads, away from its default (``linear_solver`` by family)
 CHANGED = dict(
     max_steps=123,
-    heal_rate=0.25,
-    pcoeff=0.2,
-    icoeff=0.4,
+    pid_pcoeff=0.2,
+    pid_icoeff=0.4,
     newton_max_iter=9,
     newton_backtrack=2,
     newton_weight=7.5,
@@ -43,22 +40,22 @@ def _changed_fields(obj, default) -> dict:
     }
 
 
-def test_every_schema_solver_name_has_a_class():
-    names = typing.get_args(FormingNumerics.model_fields["solver"].annotation)
-    assert set(names) == set(SOLVERS)
-    assert set(DIFFRAX_METHODS) == set(SOLVERS) - {"load_step"}
+@pytest.mark.parametrize(
+    "name", typing.get_args(FormingNumerics.model_fields["solver"].annotation)
+)
+def test_every_schema_solver_name_builds_the_solver_of_that_name(name):
+    solver = FormingNumerics(solver=name).build_solver(0.0)
+    assert solver_name(solver) == name
+    if name != "load_step":
+        assert solver.method is getattr(diffrax, DIFFRAX_METHODS[name])
 
 
-@pytest.mark.parametrize("linear, built", [("thomas", "thomas"), ("cyclic", "cyclic"),
-                                           ("structured", "auto"), ("dense", "auto")])
-def test_load_step_takes_its_settings_and_nothing_else(linear, built):
-    s = Settings(solver="load_step", linear_solver=linear, **CHANGED)
-    solver = solver_for(s)
+@pytest.mark.parametrize("linear", ["structured", "dense"])
+def test_load_step_takes_its_settings_and_nothing_else(linear):
+    solver = FormingNumerics(solver="load_step", linear_solver=linear, **CHANGED).build_solver(0.25)
     assert type(solver) is MotionNewton
-    changed = _changed_fields(solver, MotionNewton())
-    changed.pop("linear", None)
-    assert solver.linear == built
-    assert changed == dict(
+    # load stepping picks its linear algebra by the mesh's size
+    assert _changed_fields(solver, MotionNewton()) == dict(
         max_iter=9,
         backtrack=2,
         weight=7.5,
@@ -70,28 +67,37 @@ def test_load_step_takes_its_settings_and_nothing_else(linear, built):
 
 
 @pytest.mark.parametrize("name", sorted(DIFFRAX_METHODS))
-def test_time_stepping_takes_its_method_and_settings(name):
-    s = Settings(solver=name, linear_solver="dense", **CHANGED)
-    solver = solver_for(s)
+def test_time_stepping_takes_its_scheme_and_settings(name):
+    solver = FormingNumerics(solver=name, linear_solver="dense", **CHANGED).build_solver(0.25)
     assert type(solver) is TimeStepping
-    assert solver.method is getattr(diffrax, DIFFRAX_METHODS[name])
-    default = TimeStepping(method=solver.method, max_steps=20000)
-    assert _changed_fields(solver, default) == dict(
+    assert _changed_fields(solver, TimeStepping(scheme=name)) == dict(
         max_steps=123, linear_solver="dense", pcoeff=0.2, icoeff=0.4, heal_rate=0.25
     )
 
 
-def test_a_solver_object_is_used_as_it_is_and_an_unknown_name_refused():
-    given = MotionNewton(max_iter=3)
-    assert solver_for(Settings(solver=given)) is given
-    with pytest.raises(ValueError, match="load_step"):
-        solver_for(Settings(solver="rk4"))
+def test_an_unknown_scheme_is_refused_by_the_schema_and_the_solver():
+    with pytest.raises(pydantic.ValidationError, match="solver"):
+        FormingNumerics(solver="rk4")
+    with pytest.raises(ValueError, match="kvaerno5"):
+        TimeStepping(scheme="rk4")
 
 
-def test_equal_settings_build_equal_solvers():
-    """The compiled step's cache is keyed by the solver object: equal settings must give equal,
-    equally hashed objects (one compile), and a changed setting a different one."""
-    a, b = (solver_for(Settings(solver="load_step", **CHANGED)) for _ in range(2))
+def test_equal_numerics_build_equal_solvers():
+    """The compiled step's cache is keyed by the solver object: equal numerics must give
+    equal, equally hashed objects (one compile), and a changed setting a different one."""
+    a, b = (FormingNumerics(**CHANGED).build_solver(0.25) for _ in range(2))
     assert a == b and hash(a) == hash(b)
-    c = solver_for(Settings(solver="load_step", **{**CHANGED, "newton_max_iter": 10}))
+    c = FormingNumerics(**{**CHANGED, "newton_max_iter": 10}).build_solver(0.25)
     assert c != a
+
+
+def test_settings_take_each_driver_field_from_the_spec():
+    nu = FormingNumerics(rtol=1e-6, atol=1e-9, save_interval_s=0.5, contact_threshold=0.02,
+                         max_chord_depth=0.2, heal_rate_mm_s=0.5, **CHANGED)
+    s = settings_of(nu, ball_radius_mm=2.0, body_names=("post",))
+    assert (s.rtol, s.atol, s.save_interval, s.contact_threshold, s.max_chord_depth) == (
+        1e-6, 1e-9, 0.5, 0.02, 0.2
+    )
+    assert s.body_names == ("post",)
+    # the healing rate in R/s: 0.5 mm/s on a ball of radius 2 mm
+    assert s.solver == nu.build_solver(0.25)

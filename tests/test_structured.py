@@ -12,7 +12,7 @@ from dynslip.physics.driver.simulate import segment_step
 from dynslip.physics.field import Layout, vector_field
 from dynslip.physics.frames import initial_state
 from dynslip.physics.solver.linalg import extract_blocks, sheet_structure, to_dense
-from dynslip.physics.solver.methods import solver_for
+from dynslip.physics.solver.methods import TimeStepping
 from dynslip.physics.solver.newton import zero_rate
 from dynslip.schema.base import load
 
@@ -49,13 +49,13 @@ FREE_ARGS = _setup("method2_pinned")[2][2]
 
 
 def _solve(linear_solver, y, t1):
-    import dataclasses
-
-    settings = dataclasses.replace(SETTINGS, solver="kvaerno5", linear_solver=linear_solver)
-    step = segment_step(solver_for(settings))  # the run's step: the segment and its frame
+    newton = SETTINGS.solver  # the scenario's load stepping: its step limit and healing
+    kvaerno5 = TimeStepping(max_steps=newton.max_steps, linear_solver=linear_solver,
+                            heal_rate=newton.heal_rate)
+    step = segment_step(kvaerno5)  # the run's step: the segment and its frame
     f = jnp.asarray
     out, _ = step(MODEL, LAYOUT, y, f(0.0), f(t1), f(1e-3), ARGS, f(1e-7), f(1e-9),
-                  zero_rate(N), f(settings.contact_threshold))
+                  zero_rate(N), f(SETTINGS.contact_threshold))
     assert bool(out.ok)
     return out.y, int(out.steps)
 

@@ -61,34 +61,47 @@ def test_a_copy_with_other_physics_builds_its_own_protocol(builds):
 
 
 def test_the_settings_take_every_setting_of_the_numerics_spec():
-    """Each of the driver's settings follows the scenario's field of that name (or its renamed,
-    converted field), changed one at a time."""
+    """Each of the driver's settings, and each setting of the segment solver the spec builds,
+    follows the scenario's field (renamed and converted where the spec states it in its own
+    units), changed one at a time; the diffrax solver's own settings with ``solver:
+    kvaerno5``."""
+    kv = ["numerics.solver=kvaerno5"]
     changed = {
-        "rtol": ("numerics.rtol", 3e-6, 3e-6),
-        "atol": ("numerics.atol", 4e-8, 4e-8),
-        "pcoeff": ("numerics.pid_pcoeff", 0.25, 0.25),
-        "icoeff": ("numerics.pid_icoeff", 0.35, 0.35),
-        "max_steps": ("numerics.max_steps", 1234, 1234),
-        "save_interval": ("numerics.save_interval_s", 0.5, 0.5),
-        "contact_threshold": ("numerics.contact_threshold", 0.02, 0.02),
-        "heal_rate": ("numerics.heal_rate_mm_s", 0.004, 0.004 / 20.0),  # R = 20 mm
-        "linear_solver": ("numerics.linear_solver", "dense", "dense"),
-        "newton_max_iter": ("numerics.newton_max_iter", 13, 13),
-        "newton_backtrack": ("numerics.newton_backtrack", 2, 2),
-        "newton_weight": ("numerics.newton_weight", 50.0, 50.0),
-        "max_increment": ("numerics.max_increment", 7.0, 7.0),
-        "max_increment_free": ("numerics.max_increment_free", 3.0, 3.0),
-        "max_chord_depth": ("numerics.max_chord_depth", 0.05, 0.05),
-        "solver": ("numerics.solver", "kvaerno5", "kvaerno5"),
+        "rtol": ("numerics.rtol", 3e-6, 3e-6, []),
+        "atol": ("numerics.atol", 4e-8, 4e-8, []),
+        "save_interval": ("numerics.save_interval_s", 0.5, 0.5, []),
+        "contact_threshold": ("numerics.contact_threshold", 0.02, 0.02, []),
+        "max_chord_depth": ("numerics.max_chord_depth", 0.05, 0.05, []),
+        "solver.max_steps": ("numerics.max_steps", 1234, 1234, []),
+        "solver.heal_rate": ("numerics.heal_rate_mm_s", 0.004, 0.004 / 20.0, []),  # R = 20 mm
+        "solver.max_iter": ("numerics.newton_max_iter", 13, 13, []),
+        "solver.backtrack": ("numerics.newton_backtrack", 2, 2, []),
+        "solver.weight": ("numerics.newton_weight", 50.0, 50.0, []),
+        "solver.max_increment": ("numerics.max_increment", 7.0, 7.0, []),
+        "solver.max_increment_free": ("numerics.max_increment_free", 3.0, 3.0, []),
+        "solver.name": ("numerics.solver", "kvaerno4", "kvaerno4", kv),
+        "solver.pcoeff": ("numerics.pid_pcoeff", 0.25, 0.25, kv),
+        "solver.icoeff": ("numerics.pid_icoeff", 0.35, 0.35, kv),
+        "solver.linear_solver": ("numerics.linear_solver", "dense", "dense", kv),
     }
-    assert set(changed) | {"body_names"} == {f.name for f in dataclasses.fields(Settings)}
+    assert {n for n in changed if "." not in n} | {"solver", "body_names"} == {
+        f.name for f in dataclasses.fields(Settings)
+    }
+
+    def read(settings, name):
+        for part in name.split("."):
+            settings = getattr(settings, part)
+        return settings
+
     base = load(BAND).world().settings
     assert base.body_names == ("tube wall",)
-    for name, (path, value, expected) in changed.items():
-        got = getattr(load(BAND, [f"{path}={value}"]).world().settings, name)
+    assert base.solver.name == "load_step"
+    for name, (path, value, expected, given) in changed.items():
+        before = read(load(BAND, given).world().settings, name)
+        got = read(load(BAND, [*given, f"{path}={value}"]).world().settings, name)
         assert got == pytest.approx(expected, rel=1e-15) if isinstance(got, float) \
             else got == expected, name
-        assert got != getattr(base, name), name
+        assert got != before, name
 
 
 def _schema_objects(x, path="world"):

@@ -20,6 +20,8 @@ from pydantic import PrivateAttr, model_validator
 
 from dynslip.physics.bodies import BodyGeometryError
 from dynslip.physics.bodies.apparatus import bottle, tube_wall
+from dynslip.physics.solver.methods import TimeStepping
+from dynslip.physics.solver.newton import MotionNewton
 from dynslip.schema.apparatus import BottleSpec, TubeSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.bodies import BallSpec, BodySpec, ShapeSpec, ball_core, body_core, check_bodies
@@ -470,6 +472,29 @@ class FormingNumerics(Strict):
                                       "ends farther than this from where it started (ran away), "
                                       "in (0, 1e6] mm")
 
+
+    def build_solver(self, heal_rate: float) -> MotionNewton | TimeStepping:
+        """The segment solver that ``solver`` names, built with the settings of this spec that
+        it runs on, and the healing rate ``heal_rate`` (R/s). Load stepping's linear algebra
+        is chosen by the mesh's size (``linear_solver`` is the diffrax solvers')."""
+        if self.solver == "load_step":
+            return MotionNewton(
+                max_iter=self.newton_max_iter,
+                backtrack=self.newton_backtrack,
+                max_increment=self.max_increment,
+                max_increment_free=self.max_increment_free,
+                heal_rate=heal_rate,
+                max_steps=self.max_steps,
+                weight=self.newton_weight,
+            )
+        return TimeStepping(
+            scheme=self.solver,
+            max_steps=self.max_steps,
+            linear_solver=self.linear_solver,
+            pcoeff=self.pid_pcoeff,
+            icoeff=self.pid_icoeff,
+            heal_rate=heal_rate,
+        )
 
 class FormingScenario(ScenarioBase):
     """Whole-sheet forming (method 2 by default): the pocket as the end state of a loading path."""

@@ -143,17 +143,16 @@ class World:
 
 
 def settings_of(nu, ball_radius_mm: float, body_names: tuple) -> Settings:
-    """The driver's :class:`~dynslip.physics.solver.methods.Settings` of the numerics spec ``nu``:
-    every setting of the same name taken as it is, the four the spec states in its own units
-    or words converted."""
-
-    same = {f.name for f in dataclasses.fields(Settings)} & set(type(nu).model_fields)
+    """The driver's :class:`~dynslip.physics.solver.methods.Settings` of the numerics spec
+    ``nu``: the segment solver it builds (with the healing rate in R/s), its tolerances, the
+    save interval in s and the checks on each saved frame."""
     return Settings(
-        **{name: getattr(nu, name) for name in same},
-        pcoeff=nu.pid_pcoeff,
-        icoeff=nu.pid_icoeff,
+        solver=nu.build_solver(heal_rate=nu.heal_rate_mm_s / ball_radius_mm),
+        rtol=nu.rtol,
+        atol=nu.atol,
         save_interval=nu.save_interval_s,
-        heal_rate=nu.heal_rate_mm_s / ball_radius_mm,
+        contact_threshold=nu.contact_threshold,
+        max_chord_depth=nu.max_chord_depth,
         body_names=body_names,
     )
 

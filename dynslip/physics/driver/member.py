@@ -27,7 +27,7 @@ from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.layout import N_ACC, N_ACC_MOVED, Layout, f64
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
-from dynslip.physics.solver.methods import Settings, counts_newton, solver_for
+from dynslip.physics.solver.methods import Settings, counts_newton, solver_name
 from dynslip.physics.solver.newton import zero_rate
 
 __all__ = ["MemberRun", "Result", "Segment", "stage_args", "static_key"]
@@ -106,7 +106,7 @@ def static_key(settings: Settings, layout: Layout, model, args) -> tuple:
     with its type (so 1 and 1.0 differ) and each array's shape and dtype."""
     leaves, treedef = jax.tree_util.tree_flatten((model, args))
     return (
-        solver_for(settings),
+        settings.solver,
         layout,
         treedef,
         tuple((x.shape, np.dtype(x.dtype)) if eqx.is_array(x) else (type(x), x) for x in leaves),
@@ -181,7 +181,7 @@ class MemberRun:
         # state unchanged)
         self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf,
                              n_memory(model.bodies))
-        self.solver = solver_for(settings)
+        self.solver = settings.solver
         if nf and not counts_newton(self.solver):
             raise ValueError(
                 "a held body free along the axis needs load stepping (solver load_step): its "
@@ -202,9 +202,7 @@ class MemberRun:
             "compile_s": 0.0,
             "run_s": 0.0,
             "segments": 0,
-            "method": settings.solver
-            if isinstance(settings.solver, str)
-            else type(settings.solver).__name__,
+            "method": solver_name(self.solver),
             "newton_iterations": 0 if counts_newton(self.solver) else None,
         }
         self.dt_guess = 1e-3 * settings.save_interval
@@ -268,9 +266,9 @@ class MemberRun:
         self.stats["rejected"] += nrej
         self.stats["segments"] += 1
         if not ok:
-            s = self.settings
-            if nst >= s.max_steps:
-                self._fail(StepLimit(self.stage.name, self.t, seg.t1, s.max_steps))
+            limit = self.solver.max_steps
+            if nst >= limit:
+                self._fail(StepLimit(self.stage.name, self.t, seg.t1, limit))
             else:
                 self._fail(
                     NonFinite(

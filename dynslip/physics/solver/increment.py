@@ -8,6 +8,8 @@ rates, and the residual $q - q_0 - \Delta t\,u(q)$, $z_b - z_{b,0} - \Delta t\,v
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -22,6 +24,7 @@ from dynslip.physics.terms import contact_gap, forces, held_projections
 
 __all__ = [
     "Increment",
+    "NodeLaw",
     "ball_rate",
     "ball_velocity",
     "edge_rate",
@@ -29,6 +32,7 @@ __all__ = [
     "law_area",
     "node_force_jacobian",
     "node_held_frame",
+    "node_law",
     "node_rate",
     "residual",
     "residual_and_state",
@@ -114,6 +118,31 @@ def law_area(friction: AbstractFriction, inc: Increment, i, area):
                                                                         inc.areal_stretch[i])
 
 
+class NodeLaw(NamedTuple):
+    """What the ball's friction law reads at one node: the driving forces, normal and tangent
+    and the penalty's normal force of :func:`node_contact`, the node's reference area, its drag
+    ``eta_a`` and smoothing ``eps`` (both per area), and its area as the law reads its pressure
+    (:func:`law_area`)."""
+
+    fn: jax.Array
+    ft: jax.Array
+    n: jax.Array
+    t: jax.Array
+    normal: jax.Array
+    area: jax.Array
+    eta_a: jax.Array
+    eps: jax.Array
+    a_law: jax.Array
+
+
+def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q, g) -> NodeLaw:
+    """The :class:`NodeLaw` of node ``i`` at relative position ``q`` under the energy gradient
+    ``g``."""
+    fn, ft, n, t, normal, area = node_contact(model, i, q, g)
+    return NodeLaw(fn, ft, n, t, normal, area, inc.args.drag * area, inc.args.eps * area,
+                   law_area(friction, inc, i, area))
+
+
 def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
     """The held bodies' friction frame of node ``i`` at relative position ``q`` under the
     energy gradient ``g``, the ball at ``zb`` (held friction acts on neither the pole nor the
@@ -133,12 +162,8 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     leaves that friction out (the ball's part alone); ``projections`` the held bodies' of the
     node (None: projected here); ``alone``: whether no frictional held body touches the node
     (:func:`untouched`; None: found here with held friction, else True)."""
-    args = inc.args
     pole = i == 0
-    fn, ft, n, t, normal, area = node_contact(model, i, q, g)
-    eta_a = args.drag * area
-    eps = args.eps * area
-    a_law = law_area(friction, inc, i, area)
+    fn, ft, n, t, normal, area, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g)
     hf = None
     if held and frictional(model.bodies):
         hf = node_held_frame(model, inc, i, q, g, zb, projections)
@@ -180,12 +205,8 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     the increment's start, as the return map takes it). Two forward directions fewer than
     ``jacfwd`` in $g$ (the Newton matrix's largest part at large N); checked against it in
     tests/test_newton.py."""
-    args = inc.args
     pole = i == 0
-    _, ft, n, t, normal, area = node_contact(model, i, q, g)
-    eta_a = args.drag * area
-    eps = args.eps * area
-    a_law = law_area(friction, inc, i, area)
+    _, ft, n, t, normal, _, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g)
 
     w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a, alone)
 

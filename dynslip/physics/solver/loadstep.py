@@ -85,7 +85,12 @@ from equinox.internal import ω
 
 from dynslip.physics.field import heal, vector_field
 from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
-from dynslip.physics.solver.newton import SegmentOutput, increment_cap, zero_rate
+from dynslip.physics.solver.newton import (
+    SegmentOutput,
+    increment_cap,
+    segment_output,
+    zero_rate,
+)
 from dynslip.physics.solver.upstream import ImplicitEuler, reject_failed
 
 __all__ = [
@@ -342,13 +347,4 @@ def increments(
         iterations=zero,
     )
     end = jax.lax.while_loop(cond, body, init)
-    ok = (end.t >= t1) & jnp.all(jnp.isfinite(end.y))
-    return SegmentOutput(
-        y=end.y,
-        ok=ok,
-        steps=end.accepted + end.rejected,
-        accepted=end.accepted,
-        rejected=end.rejected,
-        newton_iterations=end.iterations,
-        rate=end.state.rate,
-    )
+    return segment_output(end, t1, end.state.rate)

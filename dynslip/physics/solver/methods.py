@@ -1,105 +1,72 @@
-r"""The segment solvers, as objects built from the driver's :class:`Settings` (the schema's
-``numerics``): load stepping by Newton on the motion alone
-(:class:`dynslip.physics.solver.newton.MotionNewton`, the default) and stiff diffrax solvers
-(:class:`TimeStepping`: Kvaerno5, the reference, and others). A solver object given as
-``Settings.solver`` is used as it is (the full-state Newton baseline,
-:class:`dynslip.physics.solver.loadstep.FullStateLoadStep`, in the tests). Every object has
-``segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``;
+r"""The driver's numerics (:class:`Settings`) and the stiff diffrax segment solver
+(:class:`TimeStepping`: Kvaerno5, the reference, and others). ``Settings.solver`` is a solver
+object: load stepping by Newton on the motion alone
+(:class:`dynslip.physics.solver.newton.MotionNewton`, the scenarios' default), a
+:class:`TimeStepping`, or the full-state Newton baseline of the tests
+(:class:`dynslip.physics.solver.loadstep.FullStateLoadStep`). The schema's ``numerics`` builds
+it; the physics never chooses a solver by name. Every solver object has ``segment(model,
+layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput`` and ``max_steps``;
 :mod:`dynslip.physics.driver.simulate` drives them.
 
 diffrax (and :mod:`~dynslip.physics.solver.upstream`, built on it) is imported where a solver that
-uses it is built or run: 0.2 s of every run's start that load stepping, the default, does not
+uses it is run: 0.2 s of every run's start that load stepping, the default, does not
 need.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from dynslip.physics.field import Layout, heal, vector_field
 from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
-from dynslip.physics.solver.newton import MotionNewton, SegmentOutput, zero_rate
+from dynslip.physics.solver.newton import SegmentOutput, zero_rate
 from dynslip.physics.solver.upstream import VeryChord
 
-__all__ = ["DIFFRAX_METHODS", "SOLVERS", "Settings", "TimeStepping", "solver_for"]
-
-
-@dataclasses.dataclass(frozen=True)
-class Settings:
-    """Numerics of the driver (nondimensional except times in s)."""
-
-    solver: str = "kvaerno5"
-    rtol: float = 1e-5
-    atol: float = 1e-7
-    pcoeff: float = 0.3
-    icoeff: float = 0.3
-    max_steps: int = 20000  # per segment
-    save_interval: float = 1.0  # s
-    contact_threshold: float = 1e-2  # G h0 / R
-    heal_rate: float = (
-        0.0  # R/s: a node heals (slip distance reset) where its slip rate is at most this
-    )
-    linear_solver: str = "structured"  # "structured" (block tridiagonal + border) or "dense" (LU)
-    # solver "load_step" (dynslip.physics.solver.newton): Newton iteration limit per increment, and
-    # the
-    # increment bound in drag times, driven stages / stages with the ball or clamp under a force
-    newton_max_iter: int = 20
-    newton_backtrack: int = (
-        4  # halvings of a Newton correction that would raise the residual (0: plain Newton)
-    )
-    # the complementarity parameter c (G h0) of the ball's friction law in its weighted form, in
-    # which Newton iterates (dynslip.physics.solver.increment.weighted_slip: the law's roots for
-    # every
-    # c; a node's weight max(1, c dt / (eta A)); 0: the law's own form)
-    newton_weight: float = 1e3
-    max_increment: float = 20.0
-    max_increment_free: float = 5.0
-    # a run stops as failed when an element chord dips deeper than this into the ball or a held
-    # body, or the pole passes through the ball (the mesh no longer resolves the contact);
-    # None: never checked
-    max_chord_depth: float | None = None
-    # the held bodies' names (in held order), for the failure's message; () : "held body k"
-    body_names: tuple = ()
+__all__ = ["DIFFRAX_METHODS", "Settings", "TimeStepping", "counts_newton", "solver_name"]
 
 
 class TimeStepping(eqx.Module):
-    """A stiff diffrax solver (``method``: :class:`diffrax.Kvaerno5`, the reference, or another
-    implicit one) with a PID controller over a save segment; at the segment's end the friction
-    law's reset (healing, :func:`dynslip.physics.field.heal`, ``heal_rate``): a reset inside
-    the steps would be a discontinuity in an adaptive error-controlled step."""
+    """A stiff diffrax solver (``scheme``: a name of :data:`DIFFRAX_METHODS`; ``kvaerno5``,
+    :class:`diffrax.Kvaerno5`, the reference) with a PID controller over a save segment, at
+    most ``max_steps`` steps; at the segment's end the friction law's reset (healing,
+    :func:`dynslip.physics.field.heal`, ``heal_rate``): a reset inside the steps would be a
+    discontinuity in an adaptive error-controlled step."""
 
-    method: type = eqx.field(static=True)
-    max_steps: int = eqx.field(static=True)
+    scheme: str = eqx.field(static=True, default="kvaerno5")
+    max_steps: int = eqx.field(static=True, default=20000)
     linear_solver: str = eqx.field(static=True, default="structured")
     pcoeff: float = eqx.field(static=True, default=0.3)
     icoeff: float = eqx.field(static=True, default=0.3)
     heal_rate: float = eqx.field(static=True, default=0.0)
 
-    @classmethod
-    def from_settings(cls, s: Settings) -> TimeStepping:
-        """The diffrax solver of ``s.solver`` (:data:`DIFFRAX_METHODS`) with the step limit,
-        linear solver, PID coefficients and healing rate of ``s``."""
+    def __check_init__(self):
+        if self.scheme not in DIFFRAX_METHODS:
+            raise ValueError(
+                f"TimeStepping.scheme = {self.scheme!r}: allowed: {', '.join(DIFFRAX_METHODS)}"
+            )
+
+    @property
+    def name(self) -> str:
+        """The run's ``method`` in its statistics: the scheme."""
+        return self.scheme
+
+    @property
+    def method(self) -> type:
+        """The diffrax solver class of ``scheme``, imported when a run needs it."""
         import diffrax
 
-        return cls(
-            method=getattr(diffrax, DIFFRAX_METHODS[s.solver]),
-            max_steps=s.max_steps,
-            linear_solver=s.linear_solver,
-            pcoeff=s.pcoeff,
-            icoeff=s.icoeff,
-            heal_rate=s.heal_rate,
-        )
+        return getattr(diffrax, DIFFRAX_METHODS[self.scheme])
 
     def _diffrax_solver(self, layout: Layout):
         import diffrax
 
-
-        # VeryChord with the termination fix of diffrax PR #754 (dynslip.physics.solver.upstream),
-        # on
-        # both paths: the dense path otherwise builds diffrax's own VeryChord.
+        # VeryChord with the termination fix of diffrax PR #754
+        # (dynslip.physics.solver.upstream), on both paths: the dense path otherwise builds
+        # diffrax's own VeryChord.
         chord = diffrax.with_stepsize_controller_tols(VeryChord)
         if self.linear_solver == "dense":
             return self.method(root_finder=chord())
@@ -149,32 +116,34 @@ DIFFRAX_METHODS = {
     "implicit_euler": "ImplicitEuler",
 }
 
-#: The segment solver classes by the schema's ``numerics.solver`` name: each builds its solver
-#: object from the :class:`Settings` (``from_settings``). Every object has ``segment(model,
-#: layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``.
-SOLVERS: dict[str, type[MotionNewton] | type[TimeStepping]] = {
-    "load_step": MotionNewton,
-    **{name: TimeStepping for name in DIFFRAX_METHODS},
-}
 
-
-def solver_for(settings: Settings):
-    """The segment solver object of ``settings.solver``: the object itself, or the one
-    class :data:`SOLVERS` names builds from ``settings`` (``load_step``, the default,
-    :class:`dynslip.physics.solver.newton.MotionNewton`; a diffrax solver,
-    :class:`TimeStepping`)."""
-    if not isinstance(settings.solver, str):
-        return settings.solver
-    try:
-        cls = SOLVERS[settings.solver]
-    except KeyError:
-        raise ValueError(
-            f"Settings.solver = {settings.solver!r}: allowed: {', '.join(SOLVERS)} or a solver "
-            "object"
-        ) from None
-    return cls.from_settings(settings)
+def solver_name(solver) -> str:
+    """The ``method`` a run's statistics give for its segment solver: the solver's ``name``
+    (``load_step``, a diffrax scheme), else its class's name."""
+    return getattr(solver, "name", type(solver).__name__)
 
 
 def counts_newton(solver) -> bool:
     """Whether the solver's ``newton_iterations`` count anything (load stepping)."""
     return not isinstance(solver, TimeStepping)
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """Numerics of the driver (nondimensional except times in s): the segment solver object
+    (``segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput`` and
+    ``max_steps``, the step limit per segment), its tolerances, the save interval and the
+    checks on each saved frame. The schema's ``numerics`` builds the solver
+    (:meth:`dynslip.schema.forming.FormingNumerics.build_solver`)."""
+
+    solver: Any = dataclasses.field(default_factory=TimeStepping)
+    rtol: float = 1e-5
+    atol: float = 1e-7
+    save_interval: float = 1.0  # s
+    contact_threshold: float = 1e-2  # G h0 / R
+    # a run stops as failed when an element chord dips deeper than this into the ball or a held
+    # body, or the pole passes through the ball (the mesh no longer resolves the contact);
+    # None: never checked
+    max_chord_depth: float | None = None
+    # the held bodies' names (in held order), for the failure's message; () : "held body k"
+    body_names: tuple = ()

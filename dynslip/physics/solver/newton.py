@@ -85,7 +85,7 @@ as one.
 
 from __future__ import annotations
 
-from typing import NamedTuple, cast
+from typing import ClassVar, NamedTuple, cast
 
 import equinox as eqx
 import jax
@@ -115,6 +115,7 @@ __all__ = [
     "SegmentOutput",
     "Trial",
     "increment_cap",
+    "segment_output",
     "zero_rate",
 ]
 
@@ -254,6 +255,22 @@ class SegmentOutput(eqx.Module):
     ball_velocity: jax.Array | None = None
 
 
+def segment_output(end, t1, rate, **extra) -> SegmentOutput:
+    """The :class:`SegmentOutput` of an increment loop that ended in the carry ``end`` (its
+    time ``t``, state ``y`` and counts ``accepted``, ``rejected``, ``iterations``): it reached
+    ``t1`` with a finite state, or failed; ``rate`` and ``extra`` as the loop keeps them."""
+    return SegmentOutput(
+        y=end.y,
+        ok=(end.t >= t1) & jnp.all(jnp.isfinite(end.y)),
+        steps=end.accepted + end.rejected,
+        accepted=end.accepted,
+        rejected=end.rejected,
+        newton_iterations=end.iterations,
+        rate=rate,
+        **extra,
+    )
+
+
 # --------------------------------------------------------------------------- the solver object
 
 
@@ -290,24 +307,8 @@ class MotionNewton(eqx.Module):
     fail_relax: float = eqx.field(static=True, default=FAIL_RELAX)
     weight: float = eqx.field(static=True, default=0.0)
 
-    @classmethod
-    def from_settings(cls, s) -> MotionNewton:
-        """The solver of the driver's numerics ``s`` (a
-        :class:`dynslip.physics.solver.methods.Settings`): its Newton iteration limit, backtracking,
-        weight, increment bounds, step limit and healing rate; the linear solver ``s``
-        names where it is ``"thomas"`` or ``"cyclic"``, else (the schema's ``"structured"``,
-        the default) by the mesh's size. The increment controller and the residual floor keep
-        their defaults."""
-        return cls(
-            max_iter=s.newton_max_iter,
-            backtrack=s.newton_backtrack,
-            linear=s.linear_solver if s.linear_solver in ("thomas", "cyclic") else "auto",
-            max_increment=s.max_increment,
-            max_increment_free=s.max_increment_free,
-            heal_rate=s.heal_rate,
-            max_steps=s.max_steps,
-            weight=s.newton_weight,
-        )
+    #: the run's ``method`` in its statistics (the schema's ``numerics.solver``)
+    name: ClassVar[str] = "load_step"
 
     def increment(
         self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol
@@ -566,18 +567,8 @@ class MotionNewton(eqx.Module):
             forces=unset, ball_velocity=vb_unset, fresh=jnp.array(True),
         )
         end = jax.lax.while_loop(cond, body, init)
-        ok = (end.t >= t1) & jnp.all(jnp.isfinite(end.y))
-        return SegmentOutput(
-            y=end.y,
-            ok=ok,
-            steps=end.accepted + end.rejected,
-            accepted=end.accepted,
-            rejected=end.rejected,
-            newton_iterations=end.iterations,
-            rate=end.rate,
-            forces=end.forces,
-            ball_velocity=end.ball_velocity,
-        )
+        return segment_output(end, t1, end.rate, forces=end.forces,
+                              ball_velocity=end.ball_velocity)
 
 
 def _unset_projections(model, n: int, fill):
