@@ -183,7 +183,8 @@ def study_release(only: str | None) -> None:
             continue
         # the pocket at this N (the main job's run at N), then the release from it
         run_run("scenarios/method2.yaml", [f"numerics.nodes={n}"], _slug("pocket", n))
-        start = OUT / _slug("pocket", n) / "trajectory.nc"
+        # relative to the checkout, where the runs start (start_from reads it from there)
+        start = (OUT / _slug("pocket", n) / "trajectory.nc").relative_to(ROOT)
         sets = [f"numerics.nodes={n}", f"start_from={start}"]
         data.setdefault("release", {})[key] = run_run("scenarios/release_pull_tube.yaml", sets,
                                                       _slug("rel", n))
