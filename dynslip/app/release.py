@@ -2,7 +2,8 @@ r"""Forming runs that start from a formed pocket (``start_from``), and the relea
 
 ``start_from`` names a saved ``trajectory.nc`` (its last frame is the start) or a
 forming scenario, which is run first into ``outputs/<stem>/`` unless a complete result
-of the same resolved scenario is already there (then it is reused). The start must
+of the same resolved scenario, made by the same dynslip version at the same commit, is
+already there (then it is reused). The start must
 share the run's geometry, material and mesh; a missing file, another format version, an
 incomplete run or another geometry is bad input (exit 2).
 
@@ -22,13 +23,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from dynslip.data.files import provenance
 from dynslip.data.folders import StagedRun
 from dynslip.data.trajectory import TRAJECTORY_FILE, open_trajectory
 from dynslip.errors import InputError
 from dynslip.schema import base as scn
 from dynslip.schema.paths import get_path
 
-__all__ = ["load_start", "GEOMETRY_FIELDS"]
+__all__ = ["load_start", "reusable", "GEOMETRY_FIELDS"]
 
 GEOMETRY_FIELDS = (
     "physics.ball_radius_mm",
@@ -50,6 +52,16 @@ def _resolve(path: str, base: Path | None) -> Path:
     if p.is_absolute() or base is None or (Path.cwd() / p).exists():
         return p
     return base / p
+
+
+def reusable(attrs, scenario_json: str) -> bool:
+    """Whether a saved run with the global attributes ``attrs`` can stand for a run of the
+    resolved scenario ``scenario_json`` now: it finished, and the same scenario was run by
+    the same dynslip version at the same commit (another package may form another pocket)."""
+    here = provenance(scenario_json, "forming")
+    return int(attrs.get("complete", 0)) == 1 and all(
+        attrs.get(k) == here[k] for k in ("scenario", "dynslip_version", "git_commit")
+    )
 
 
 def _start_dataset(sc, console, run) -> tuple:
@@ -77,12 +89,10 @@ def _start_dataset(sc, console, run) -> tuple:
     if traj.is_file():
         try:
             ds = open_trajectory(traj)
-            if (
-                ds.attrs.get("scenario") == start_sc.to_json()
-                and int(ds.attrs.get("complete", 0)) == 1
-            ):
+            if reusable(ds.attrs, start_sc.to_json()):
                 if console is not None:
-                    console.print(f"start_from: reusing {traj} (same resolved scenario)")
+                    console.print(f"start_from: reusing {traj} (same resolved scenario, "
+                                  "dynslip version and commit)")
                 return ds, traj
         except InputError:
             pass
