@@ -496,6 +496,7 @@ class FormingNumerics(Strict):
             heal_rate=heal_rate,
         )
 
+
 class FormingScenario(ScenarioBase):
     """Whole-sheet forming (method 2 by default): the pocket as the end state of a loading path."""
 

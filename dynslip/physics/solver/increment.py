@@ -120,9 +120,9 @@ def law_area(friction: AbstractFriction, inc: Increment, i, area):
 
 class NodeLaw(NamedTuple):
     """What the ball's friction law reads at one node: the driving forces, normal and tangent
-    and the penalty's normal force of :func:`node_contact`, the node's reference area, its drag
-    ``eta_a`` and smoothing ``eps`` (both per area), and its area as the law reads its pressure
-    (:func:`law_area`)."""
+    and the penalty's normal force of :func:`node_contact`, the node's reference area, the drag
+    ``eta_a`` and the smoothing ``eps`` over that area, and its area as the law reads its
+    pressure (:func:`law_area`)."""
 
     fn: jax.Array
     ft: jax.Array
