@@ -66,13 +66,14 @@ FRICTIONLESS = _model(None, None)
 SPEED = 0.2
 
 
-def _run(model, solver="load_step", hold=4.0, depth=-1.5, **settings):
+def _run(model, solver="load_step", hold=4.0, depth=-1.5, heal_rate=0.0):
     """The flat sheet pulled down over the held bodies to ``depth`` (R) at SPEED and held for
-    ``hold`` s, the ball far above; frames every 0.5 s (more Settings in ``settings``)."""
+    ``hold`` s, the ball far above; frames every 0.5 s; the segment solver ``solver`` heals
+    slip distances at ``heal_rate`` (R/s)."""
     protocol = Protocol(
         push_and_hold(0.0, depth, SPEED, hold), clamp_rho0=RIM, clamp_z0=0.0, ball_z0=6.0
     )
-    settings = Settings(solver=named_solver(solver), save_interval=0.5, **settings)
+    settings = Settings(solver=named_solver(solver, heal_rate=heal_rate), save_interval=0.5)
     return run_sheet(model, protocol, _coulomb(0.5), settings, pre=PRE, z_sheet=0.0, tau=TAU,
                      eps=EPS)
 

@@ -25,6 +25,7 @@ from dynslip.physics.solver import newton_matrix as nm
 from dynslip.physics.solver.linalg import bordered_solve, cyclic_reduction
 from dynslip.physics.solver.loadstep import load_step_solver
 from helpers import dense_blocks, dense_tridiagonal, draped, increment_args, small_model
+from numerics import named_solver
 
 N = 9
 MODEL = small_model(N)
@@ -174,7 +175,7 @@ def test_slip_weakening_push_down_agrees_with_the_full_state_newton():
             settings=Settings(solver=solver, save_interval=1.0),
         )
 
-    a, b = run("load_step"), run(FullStateLoadStep())
+    a, b = run(named_solver()), run(FullStateLoadStep())
     assert a.failed is None and b.failed is None
     fa, fb = a.frames[-1], b.frames[-1]
     d = max(np.max(np.abs(fa["rho"] - fb["rho"])), np.max(np.abs(fa["z"] - fb["z"])))
