@@ -207,6 +207,8 @@ def _validate(tmp_path, capsys, data):
     return rc, capsys.readouterr().err
 
 
+@pytest.mark.slow  # three validations of a world with bodies (10 s); the quick loop measures
+# shared_face itself (above)
 def test_bodies_sharing_a_face_are_refused(tmp_path, capsys):
     """``dynslip validate``: a cap standing on a post (its bottom face on the post's top face)
     is refused, exit 2, one line naming the body, the other and the shared length (the cap's

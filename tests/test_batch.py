@@ -205,6 +205,8 @@ def sequential(tmp_path_factory):
     return seq, _records(tmp / "seq")
 
 
+@pytest.mark.slow  # 14 s; the quick loop compares batched and sequential sweeps in
+# test_sweep.py::test_sequential_batched_and_dask_give_identical_datasets
 def test_batched_sweep_equals_sequential(tmp_path, sequential, monkeypatch):
     """``--mode batched`` on forming members differing in mu_s, mu_k, in this process: the same
     outcome, end state and solver counts as ``sequential``, member by member; the summary

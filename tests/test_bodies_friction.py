@@ -140,6 +140,8 @@ def test_at_rest_every_node_is_inside_its_cone(frictional_run):
     assert ratio.max() > 2 * MU_POST, ratio  # the ring holds past what the post could
 
 
+@pytest.mark.slow  # two runs (17 s); the quick loop runs held Coulomb friction in
+# test_bodies_weakening.py::test_equal_coefficients_are_coulomb
 def test_friction_raises_the_pull(frictional_run, frictionless_run):
     """The clamp's pull while sliding over two frictional bodies exceeds the frictionless one,
     and each body's friction force, summed along the axis, makes up the difference at the end

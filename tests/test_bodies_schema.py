@@ -227,6 +227,10 @@ def test_a_stage_moved_body_builds_with_its_velocities_in_r_per_s():
     assert all(st.body_vz == () for st in build_core(plain)[1].stages)
 
 
+# with the slow tests: validating four bodies of four kinds checks every pair for overlap and
+# shared faces, op by op (15 s of small compiles); the quick loop builds the coin, the band's
+# tube and a free body below
+@pytest.mark.slow
 def test_bodies_build_as_held_entries_in_units_of_r():
     """Each entry of physics.bodies becomes a Held entry of the model: its geometry in units of
     R (the file's mm over ball_radius_mm), its friction and its motion as given."""

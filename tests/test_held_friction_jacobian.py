@@ -132,6 +132,10 @@ def _supported(args):
                        support_z=ZB + 4e-4, support_k=1e3)
 
 
+# with the slow tests: the block Jacobian's compile with three bodies (10 s). The quick loop
+# checks the held node terms (above) and the blocks with a frictional held body against jacfwd
+# (test_weighted_friction.py::test_a_node_pinched_by_a_held_body_keeps_the_laws_form)
+@pytest.mark.slow
 @pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE, "supported"])
 def test_newton_blocks_with_several_frictional_bodies_equal_jacfwd(ball_mode):
     """Newton's matrix with three frictional held bodies (at rest, with the ball, moved by the

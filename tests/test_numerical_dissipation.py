@@ -138,7 +138,8 @@ def _measure(solver):
 
 @pytest.mark.parametrize(
     "solver",
-    [named_solver(), FullStateLoadStep(newton_max_iter=16)],
+    # the full-state baseline is the slower cross-check (its own compile): with the slow tests
+    [named_solver(), pytest.param(FullStateLoadStep(newton_max_iter=16), marks=pytest.mark.slow)],
     ids=["motion_newton", "full_state"],
 )
 def test_numerical_dissipation_closes_the_balance_to_second_order(solver):

@@ -93,7 +93,13 @@ def test_netcdf_round_trip(neo, tmp_path):
         xr.testing.assert_identical(ds, back.load())
 
 
-@pytest.mark.parametrize("name", ["paper_hookean", "paper_gent", "paper_mooney_rivlin"])
+# the quick loop runs one hyperelastic model's scenario through the command line; the other two
+# (about 10 s each, the static search compiled per model) run with the slow tests
+@pytest.mark.parametrize("name", [
+    "paper_hookean",
+    pytest.param("paper_gent", marks=pytest.mark.slow),
+    pytest.param("paper_mooney_rivlin", marks=pytest.mark.slow),
+])
 def test_other_static_scenarios(scenarios_dir, tmp_path_factory, name):
     out, s = _run(scenarios_dir, tmp_path_factory, name, SMALL)
     assert s["status"] == "ok" and s["equilibrium_ok"]
