@@ -186,7 +186,7 @@ def test_dragged_node_closed_form():
                           area, drag, 0.0, jnp.asarray([True]), 0.0, jnp.asarray([[delta]]))
 
     @jax.jit
-    def friction_and_next(delta, h):
+    def friction_and_next(delta, g_t, h):
         """The friction the node carries at ``delta`` and its slip distance one return-map
         increment ``h`` later (compiled once: the loops below take 600 increments)."""
         hf = frame(delta, g_t)
@@ -212,7 +212,7 @@ def test_dragged_node_closed_form():
     for steps in (200, 400):
         h, delta, t, fr = t_c / steps, 0.0, 0.0, []
         while t < 0.999 * t_c:
-            f_now, d_next = friction_and_next(delta, h)
+            f_now, d_next = friction_and_next(delta, g_t, h)
             fr.append(float(f_now))
             delta = float(d_next)
             t += h
