@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import functools
 import io
 import json
 import math
@@ -82,9 +83,16 @@ def _branch(node: dict, defs: dict, key, data) -> dict:
     return cands[0]
 
 
+@functools.cache
+def _kind_schema(kind: str) -> dict:
+    """The JSON schema of a scenario kind, made once (pydantic makes it anew on each call, and
+    the cases below ask once per leaf: 16 s of each worker's collection)."""
+    return kind_classes()[kind].model_json_schema()
+
+
 def leaf_schema(kind: str, path: tuple, data: dict) -> dict:
     """The JSON schema of the number, string, ... at ``path`` of scenario ``data``."""
-    sch = kind_classes()[kind].model_json_schema()
+    sch = _kind_schema(kind)
     defs = sch.get("$defs", {})
     node, d = sch, data
     for k in path:

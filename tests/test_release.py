@@ -7,14 +7,13 @@ release starts from it, the clamp held, the held ball moved along the axis.
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import xarray as xr
 
 from dynslip.app.forming import build_core, run_forming
+from dynslip.cli import main
 from dynslip.schema.base import validate_data
 
 
@@ -129,10 +128,15 @@ def test_release_force_converges_under_mesh_refinement(tmp_path):
 # ----------------------------------------------------------------------------- bad input
 
 
-def _cli(*args, cwd=None):
-    return subprocess.run(
-        [sys.executable, "-m", "dynslip.cli", *args], capture_output=True, text=True, cwd=cwd
-    )
+def _cli(capsys, *args):
+    """The command line in this process (its exit status and stderr); tests/test_cli.py runs
+    the entry point as a child process."""
+    capsys.readouterr()
+    try:
+        rc = main(list(args))
+    except SystemExit as err:
+        rc = err.code
+    return rc, capsys.readouterr().err
 
 
 def _write(path, data):
@@ -143,7 +147,7 @@ def _write(path, data):
 
 
 @pytest.mark.parametrize("case", ["missing", "not_netcdf", "format_version", "geometry"])
-def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, case):
+def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, capsys, case):
     start = pocket
     if case == "missing":
         start = tmp_path / "nope" / "trajectory.nc"
@@ -158,10 +162,10 @@ def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, case):
     data = _release(start, nodes=41 if case == "geometry" else 40)
     scen = _write(tmp_path / "rel.yaml", data)
     out = tmp_path / "out"
-    r = _cli("run", str(scen), "--out", str(out))
-    assert r.returncode == 2, r.stderr
-    lines = [x for x in r.stderr.strip().splitlines() if x]
-    assert len(lines) == 1 and "Traceback" not in r.stderr, r.stderr
+    rc, err = _cli(capsys, "run", str(scen), "--out", str(out))
+    assert rc == 2, err
+    lines = [x for x in err.strip().splitlines() if x]
+    assert len(lines) == 1 and "Traceback" not in err, err
     assert "start_from" in lines[0] or "trajectory" in lines[0]
     if case == "geometry":
         assert "numerics.nodes" in lines[0]
@@ -176,12 +180,12 @@ def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, case):
         ({"law": "slip_weakening", "d_c_mm": -1.0}, "d_c_mm"),
     ],
 )
-def test_bad_weakening_parameters_exit_2(tmp_path, friction, needle):
+def test_bad_weakening_parameters_exit_2(tmp_path, capsys, friction, needle):
     data = _forming()
     data["physics"]["friction"] = friction
-    r = _cli("validate", str(_write(tmp_path / "s.yaml", data)))
-    assert r.returncode == 2 and needle in r.stderr and "Traceback" not in r.stderr, r.stderr
-    assert len(r.stderr.strip().splitlines()) == 1
+    rc, err = _cli(capsys, "validate", str(_write(tmp_path / "s.yaml", data)))
+    assert rc == 2 and needle in err and "Traceback" not in err, err
+    assert len(err.strip().splitlines()) == 1
 
 
 def test_release_geometry_fields_are_checked_by_name(pocket):
