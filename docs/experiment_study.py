@@ -112,16 +112,39 @@ def _commit() -> str:
     return r.stdout.strip()
 
 
+def _recorded_commits() -> dict[str, str]:
+    """The commit each recorded command was measured at, by command."""
+    out: dict[str, str] = {}
+
+    def walk(x):
+        if isinstance(x, dict):
+            if "command" in x and "commit" in x:
+                out[x["command"]] = x["commit"]
+            for v in x.values():
+                walk(v)
+
+    walk(_load())
+    return out
+
+
+def _commit_of(command: str, ran: bool) -> str:
+    """The commit a case was measured at: this checkout's when it ran now, else the one
+    recorded beside its command (a reused folder keeps its provenance)."""
+    return _commit() if ran else _recorded_commits().get(command, _commit())
+
+
 def run_run(scenario: str, sets: list[str], name: str) -> dict:
     """One ``dynslip run``: its command and the numbers the tables read."""
     folder = OUT / name
     cmd = ["dynslip", "run", scenario, "--out", str(folder), "--force", *_sets(sets)]
-    if _summary(folder) is None:
+    ran = _summary(folder) is None
+    if ran:
         _run(cmd, OUT / f"{name}.log")
     s = _summary(folder) or {}
     ls = s.get("largest_stretch", {})
+    command = " ".join(["dynslip", "run", scenario, *_sets(sets)])
     return {
-        "command": " ".join(["dynslip", "run", scenario, *_sets(sets)]),
+        "command": command,
         "trapped": s.get("trapped"),
         "unknown": s.get("trapped_unknown_reasons"),
         "theta_max": s.get("theta_max"),
@@ -130,7 +153,7 @@ def run_run(scenario: str, sets: list[str], name: str) -> dict:
         "largest_stretch_i1_uniaxial": ls.get("path_max_i1_uniaxial"),
         "energy_residual": s.get("energy_balance", {}).get("relative_residual"),
         "release_force_N": s.get("release_force"),
-        "commit": _commit(),
+        "commit": _commit_of(command, ran),
     }
 
 
@@ -139,10 +162,11 @@ def run_window(scenario: str, nodes: str, sets: list[str], name: str, window=Non
     folder = OUT / name
     cmd = ["dynslip", "window", scenario, "--nodes", nodes, *(window or WINDOW), *_sets(sets)]
     found = folder / "window.json"
-    if not found.is_file():
+    ran = not found.is_file()
+    if ran:
         _run([*cmd, "--out", str(folder), "--force"], OUT / f"{name}.log")
     w = json.loads(found.read_text()) if found.is_file() else {}
-    return {"command": " ".join(cmd), "window": w, "commit": _commit()}
+    return {"command": " ".join(cmd), "window": w, "commit": _commit_of(" ".join(cmd), ran)}
 
 
 def study_jm(only: str | None) -> None:

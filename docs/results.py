@@ -1056,20 +1056,28 @@ def last(cell: Callable[[Path], str]) -> Cell:
 
 
 def _release(pocket_nodes: tuple[int, int, int]):
-    """The release rows from the main job's pocket: at the file's N (150), with the ramp twice
-    as slow and with the drag time halved, from the pocket formed at the file's N; then from
-    the pockets formed at N = 100 and 200 (``pocket_nodes``: the N of the three pockets)."""
+    """The release rows from the main job's pocket: at the file's N (150) with the file's
+    settings, the ramp twice as slow, the drag time halved, both, and the drag time quartered;
+    then from the pockets formed at N = 100 and 200 (``pocket_nodes``: the N of the three
+    pockets), at 200 with the drag time halved, and with the ramp twice as slow too. Each row
+    runs its pocket, then its release (the ``{run:K}`` of its start: the row's first
+    command)."""
     n0, n1, n2 = pocket_nodes
-    pocket = [run("method2", nodes=n) for n in pocket_nodes]
+    slow = " --set physics.stages.pull.duration_s=570"
+    half, quarter = " --set numerics.drag_time_s=0.0125", " --set numerics.drag_time_s=0.00625"
+    cases = [("the file (N = 150)", n0, ""),
+             ("ramp twice as slow (`physics.stages.pull.duration_s=570`)", n0, slow),
+             ("drag time halved (`numerics.drag_time_s=0.0125`)", n0, half),
+             ("drag time halved, ramp twice as slow", n0, half + slow),
+             ("drag time quartered (`numerics.drag_time_s=0.00625`)", n0, quarter),
+             ("N = 100 (start formed at N = 100)", n1, ""),
+             ("N = 200 (start formed at N = 200)", n2, ""),
+             ("N = 200, drag time halved", n2, half),
+             ("N = 200, drag time halved, ramp twice as slow", n2, half + slow)]
     rel = "dynslip run scenarios/release_pull_tube.yaml --set numerics.nodes={} --set " \
           "start_from={{run:{}}}/trajectory.nc"
-    rows = [(("the file (N = 150)",), (pocket[0], rel.format(n0, 0))),
-            (("ramp twice as slow (`physics.stages.pull.duration_s=570`)",),
-             (pocket[0], rel.format(n0, 2) + " --set physics.stages.pull.duration_s=570")),
-            (("drag time halved (`numerics.drag_time_s=0.0125`)",),
-             (pocket[0], rel.format(n0, 4) + " --set numerics.drag_time_s=0.0125")),
-            (("N = 100 (start formed at N = 100)",), (pocket[1], rel.format(n1, 6))),
-            (("N = 200 (start formed at N = 200)",), (pocket[2], rel.format(n2, 8)))]
+    rows = [((label,), (run("method2", nodes=n), rel.format(n, 2 * i) + extra))
+            for i, (label, n, extra) in enumerate(cases)]
     return spec(rows, last(release_cell("release_force_N", ".3g")),
                 last(release_cell("ball_speed_mm_s", ".2g")),
                 last(release_cell("drag_share", percent=True)),
