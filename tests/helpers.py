@@ -189,6 +189,18 @@ def set_field(dotted: str, value):
     return edit
 
 
+def cli_in_process(capsys, argv) -> tuple[int, str, str]:
+    """``dynslip ARGV`` through :func:`dynslip.cli.main` in this process: (exit status, stdout,
+    stderr). tests/test_cli.py runs the installed entry point as a child process."""
+    capsys.readouterr()
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as err:  # argparse
+        rc = err.code
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
 def run_refused(tmp_path, capsys, scenario, edit, *words):
     """``dynslip run`` on ``scenario`` with ``edit`` applied to its data: exit 2, one line naming
     every one of ``words``, nothing written beside the bad file."""
@@ -197,11 +209,7 @@ def run_refused(tmp_path, capsys, scenario, edit, *words):
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     out = tmp_path / "out"
-    try:
-        rc = main(["run", str(path), "--out", str(out)])
-    except SystemExit as err:
-        rc = err.code
-    err = capsys.readouterr().err
+    rc, _, err = cli_in_process(capsys, ["run", path, "--out", out])
     assert rc == 2, err
     line = one_line(err)
     for w in words:

@@ -20,7 +20,7 @@ from dynslip.physics.bodies import Cone, Cylinder, Profile, Sphere, shared_face
 from dynslip.physics.bodies.apparatus import bottle, deepest_rim, tube_wall
 from dynslip.physics.bodies.base import BodyGeometryError, check_profile
 from dynslip.physics.bodies.segments import Line
-from helpers import one_line, run_refused, set_field
+from helpers import cli_in_process, one_line, run_refused, set_field
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 R = 20.0
@@ -196,15 +196,10 @@ def test_shared_face_is_a_length_along_a_face_and_zero_at_a_point():
 
 
 def _validate(tmp_path, capsys, data):
-    from dynslip.cli import main
-
     path = tmp_path / "world.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
-    try:
-        rc = main(["validate", str(path)])
-    except SystemExit as err:
-        rc = err.code
-    return rc, capsys.readouterr().err
+    rc, _, err = cli_in_process(capsys, ["validate", path])
+    return rc, err
 
 
 @pytest.mark.slow  # three validations of a world with bodies (10 s); the quick loop measures

@@ -16,7 +16,6 @@ import pytest
 
 from conftest import assert_energy_closes
 from dynslip.app.kinds import run as run_scenario
-from dynslip.cli import main
 from dynslip.errors import ComputationError, InputError
 from dynslip.physics import static
 from dynslip.physics.driver.simulate import simulate
@@ -26,7 +25,7 @@ from dynslip.physics.protocols import BALL_FORCE, CLAMP_FORCE, Duration, Protoco
 from dynslip.physics.sheet import Penalty, SheetModel, make_mesh
 from dynslip.physics.solver.methods import Settings
 from dynslip.schema.base import validate_data
-from helpers import run_sheet
+from helpers import cli_in_process, run_sheet
 
 NODES = 40
 RIM = 2.54
@@ -342,17 +341,12 @@ def test_shipped_method2_validates(scenarios_dir):
 
 def test_cli_bad_input_exit_2(tmp_path, scenarios_dir, capsys):
     """In this process (tests/test_cli.py runs the entry point as a child process)."""
-    argv = ["run", str(scenarios_dir / "method2_pinned.yaml"), "--out", str(tmp_path / "o"),
-            "--set", "physics.rim_radius_mm=10"]
-    try:
-        rc = main(argv)
-    except SystemExit as err:
-        rc = err.code
-    cap = capsys.readouterr()
-    assert rc == 2, cap.err
-    assert "Traceback" not in cap.err + cap.out
-    assert len((cap.err + cap.out).strip().splitlines()) == 1
-    assert "rim_radius_mm = 10.0" in cap.err  # the field and its value
+    rc, out, err = cli_in_process(capsys, ["run", scenarios_dir / "method2_pinned.yaml", "--out",
+                                           tmp_path / "o", "--set", "physics.rim_radius_mm=10"])
+    assert rc == 2, err
+    assert "Traceback" not in err + out
+    assert len((err + out).strip().splitlines()) == 1
+    assert "rim_radius_mm = 10.0" in err  # the field and its value
     assert not (tmp_path / "o").exists()
 
 

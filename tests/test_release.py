@@ -13,8 +13,8 @@ import pytest
 import xarray as xr
 
 from dynslip.app.forming import build_core, run_forming
-from dynslip.cli import main
 from dynslip.schema.base import validate_data
+from helpers import cli_in_process
 
 
 def _forming(nodes=40, mu=0.8):
@@ -128,17 +128,6 @@ def test_release_force_converges_under_mesh_refinement(tmp_path):
 # ----------------------------------------------------------------------------- bad input
 
 
-def _cli(capsys, *args):
-    """The command line in this process (its exit status and stderr); tests/test_cli.py runs
-    the entry point as a child process."""
-    capsys.readouterr()
-    try:
-        rc = main(list(args))
-    except SystemExit as err:
-        rc = err.code
-    return rc, capsys.readouterr().err
-
-
 def _write(path, data):
     import yaml
 
@@ -162,7 +151,7 @@ def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, capsys, case):
     data = _release(start, nodes=41 if case == "geometry" else 40)
     scen = _write(tmp_path / "rel.yaml", data)
     out = tmp_path / "out"
-    rc, err = _cli(capsys, "run", str(scen), "--out", str(out))
+    rc, _, err = cli_in_process(capsys, ["run", scen, "--out", out])
     assert rc == 2, err
     lines = [x for x in err.strip().splitlines() if x]
     assert len(lines) == 1 and "Traceback" not in err, err
@@ -183,7 +172,7 @@ def test_bad_start_from_exits_2_with_one_line(pocket, tmp_path, capsys, case):
 def test_bad_weakening_parameters_exit_2(tmp_path, capsys, friction, needle):
     data = _forming()
     data["physics"]["friction"] = friction
-    rc, err = _cli(capsys, "validate", str(_write(tmp_path / "s.yaml", data)))
+    rc, _, err = cli_in_process(capsys, ["validate", _write(tmp_path / "s.yaml", data)])
     assert rc == 2 and needle in err and "Traceback" not in err, err
     assert len(err.strip().splitlines()) == 1
 
