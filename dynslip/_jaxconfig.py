@@ -19,8 +19,8 @@ environment, and JAX reads its settings from it when imported):
   (tracing and lowering still cost: they are what the cache cannot save); none when that
   folder cannot be made (a read-only home).
 
-The platform, the XLA flags and equinox's checks are read when JAX starts its backend and
-when equinox is imported: call it first, before any JAX computation.
+The platform and the XLA flags are read when JAX starts its backend, and equinox's checks
+when they are traced: call it first, before any JAX computation.
 """
 
 from __future__ import annotations
@@ -67,8 +67,6 @@ def _too_late() -> list[str]:
             late.append("JAX's backend (the platform and XLA_FLAGS)")
     except (ImportError, AttributeError):  # a jax without this private function: not checked
         pass
-    if "equinox" in sys.modules and "EQX_ON_ERROR" not in os.environ:
-        late.append("equinox (EQX_ON_ERROR)")
     return late
 
 
@@ -95,8 +93,14 @@ def configure_runtime() -> Path | None:
     # default, and JAX never writes executables with host callbacks to the persistent cache:
     # the segment solve would be recompiled by every process. With "nan" a failed check poisons
     # the result instead, which the driver reports as a non-finite state (exit 3). Read when
-    # equinox is imported.
-    os.environ.setdefault("EQX_ON_ERROR", "nan")
+    # equinox is imported, into ``equinox._errors.EQX_ON_ERROR`` (equinox/_config.py), which
+    # its checks read when they are traced. ``import dynslip`` imports equinox, so every caller
+    # of this function comes after that read: a mode the user did not choose is set there too.
+    if "EQX_ON_ERROR" not in os.environ:
+        os.environ["EQX_ON_ERROR"] = "nan"
+        errors = sys.modules.get("equinox._errors")
+        if errors is not None:
+            errors.EQX_ON_ERROR = "nan"  # type: ignore[attr-defined]
 
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_cpu_use_fusion_emitters" not in flags:

@@ -76,12 +76,14 @@ def test_import_keeps_the_default_cache_folder_uncreated(tmp_path):
 
 
 CONFIGURE = """
-    import os, subprocess, sys
+    import os, subprocess, sys, warnings
+    import equinox as eqx
     import jax
     import dynslip
     from dynslip._jaxconfig import XLA_FLAG, configure_runtime
 
     xla_before = os.environ.get("XLA_FLAGS")
+    warnings.simplefilter("error")  # after `import dynslip` (and equinox), nothing is too late
     cache = configure_runtime()
     assert configure_runtime() == cache  # idempotent
     expected = os.environ.get("EXPECTED_CACHE") or None
@@ -93,6 +95,9 @@ CONFIGURE = """
         assert jax.config.jax_persistent_cache_min_entry_size_bytes == 0
     assert jax.config.jax_platforms == "cpu" == os.environ["JAX_PLATFORMS"]
     assert os.environ["EQX_ON_ERROR"] == "nan"
+    # equinox, imported before, checks as NaN all the same: a failed check poisons, not raises
+    checked = jax.jit(lambda x: eqx.error_if(x, x > 0, "a failed check"))(jax.numpy.ones(2))
+    assert bool(jax.numpy.isnan(checked).all())
     if xla_before and "xla_cpu_use_fusion_emitters" in xla_before:
         assert os.environ["XLA_FLAGS"] == xla_before  # the user's choice wins
     else:
@@ -132,6 +137,7 @@ def test_the_command_line_configures_the_runtime(tmp_path):
                           str(ROOT / "scenarios" / "method2.yaml")], cwd=tmp_path, env=env,
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-4000:]
+    assert "Warning" not in run.stderr, run.stderr[-4000:]
     assert cache.is_dir()
 
 
@@ -142,3 +148,6 @@ def test_the_suite_runs_with_the_runtime():
     assert os.environ["XLA_FLAGS"].count("xla_cpu_use_fusion_emitters") == 1
     assert jax.config.jax_platforms == os.environ["JAX_PLATFORMS"]
     assert os.environ["EQX_ON_ERROR"]
+    import equinox._errors
+
+    assert equinox._errors.EQX_ON_ERROR == os.environ["EQX_ON_ERROR"]  # the mode checks use

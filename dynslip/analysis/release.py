@@ -166,8 +166,9 @@ def free_span_check(ds: xr.Dataset, model) -> dict:
             scale == 0 or abs(hold) < 1e-2 * scale
         ):  # a slack span: relative measures are meaningless
             continue
-        mean = float(np.mean(p))
-        spreads.append(float(np.ptp(p) / abs(mean)))
+        mean, ptp = float(np.mean(p)), float(np.ptp(p))
+        # a span whose mean force vanishes under a taut hold is spread without bound
+        spreads.append(ptp / abs(mean) if mean else math.inf)
         mismatch.append(abs(abs(mean) - abs(hold)) / abs(hold))
     return {"frames": len(spreads), "max_relative_spread": max(spreads) if spreads else None,
             "max_relative_mismatch_to_hold": max(mismatch) if mismatch else None}

@@ -165,7 +165,10 @@ def plot_theta(ds: xr.Dataset, ax, indices):
         c, ls, _ = _stage_style(ds, i)
         ax.plot(rbar, th, marker="o", ls=ls, ms=2.5, color=c, label=_label(ds, i))
     ax.axhline(np.pi / 2, color="k", lw=0.6, ls="--")
-    ax.text(0.02, np.pi / 2 + 0.03, "equator", fontsize=7)
+    # at the axes' left edge whatever the rbar range (in data x it fell outside the axes,
+    # unseen, and its extent collapsed the constrained layout)
+    ax.text(0.01, np.pi / 2, "equator", fontsize=7, va="bottom",
+            transform=ax.get_yaxis_transform())
     rough = ROUGH_END_STATE
     ax.plot(
         [rough["rbar_max"]],

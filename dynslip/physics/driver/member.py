@@ -27,7 +27,7 @@ from dynslip.physics.friction import AbstractFriction
 from dynslip.physics.layout import N_ACC, N_ACC_MOVED, Layout, f64
 from dynslip.physics.protocols import Protocol
 from dynslip.physics.sheet import SheetModel
-from dynslip.physics.solver.methods import Settings, counts_newton, solver_name
+from dynslip.physics.solver.methods import Settings
 from dynslip.physics.solver.newton import zero_rate
 
 __all__ = ["MemberRun", "Result", "Segment", "stage_args", "static_key"]
@@ -182,7 +182,7 @@ class MemberRun:
         self.layout = Layout(model.mesh.n, friction.n_internal(), n_acc, nf,
                              n_memory(model.bodies))
         self.solver = settings.solver
-        if nf and not counts_newton(self.solver):
+        if nf and not self.solver.counts_newton:
             raise ValueError(
                 "a held body free along the axis needs load stepping (solver load_step): its "
                 "height is a border unknown of Newton's system"
@@ -202,8 +202,8 @@ class MemberRun:
             "compile_s": 0.0,
             "run_s": 0.0,
             "segments": 0,
-            "method": solver_name(self.solver),
-            "newton_iterations": 0 if counts_newton(self.solver) else None,
+            "method": self.solver.name,
+            "newton_iterations": 0 if self.solver.counts_newton else None,
         }
         self.dt_guess = 1e-3 * settings.save_interval
         self.reaction = 0.0
@@ -256,7 +256,7 @@ class MemberRun:
         (and the run done, with ``failed`` set) where the solver did not reach the segment's
         end."""
         y1, ok, nst, nacc, nrej = out.y, out.ok, out.steps, out.accepted, out.rejected
-        if counts_newton(self.solver):
+        if self.solver.counts_newton:
             self.stats["newton_iterations"] += int(out.newton_iterations)
         ok = bool(ok)
         self.stats["run_s"] += run_s

@@ -72,7 +72,7 @@ the reference (``numerics.solver: kvaerno5``).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import diffrax
 import equinox as eqx
@@ -86,6 +86,7 @@ from equinox.internal import ω
 from dynslip.physics.field import heal, vector_field
 from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
 from dynslip.physics.solver.newton import (
+    AbstractSegmentSolver,
     SegmentOutput,
     increment_cap,
     segment_output,
@@ -234,7 +235,7 @@ def load_step_solver(
     return LoadStepEuler(root_finder=newton, root_find_max_steps=max_iter)
 
 
-class FullStateLoadStep(eqx.Module):
+class FullStateLoadStep(AbstractSegmentSolver):
     """The segment solver of this module (a ``Settings.solver`` object): load increments of the
     sheet by :class:`LoadStepEuler` (Newton on the whole state) at most ``max_steps`` per
     segment, at most ``newton_max_iter`` Newton corrections each, ``newton_backtrack`` halvings
@@ -250,6 +251,10 @@ class FullStateLoadStep(eqx.Module):
     heal_rate: float = eqx.field(static=True, default=0.0)
     max_increment: float = 20.0
     max_increment_free: float = 5.0
+
+    #: the run's ``method`` in its statistics (no scenario offers it: a Python API solver)
+    name: ClassVar[str] = "load_step_full"
+    counts_newton: ClassVar[bool] = True
 
     def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
         """Increments from ``t0`` to ``t1`` (``dt0`` the first tried), ending exactly on ``t1``;

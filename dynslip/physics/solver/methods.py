@@ -4,9 +4,10 @@ object: load stepping by Newton on the motion alone
 (:class:`dynslip.physics.solver.newton.MotionNewton`, the scenarios' default), a
 :class:`TimeStepping`, or the full-state Newton baseline of the tests
 (:class:`dynslip.physics.solver.loadstep.FullStateLoadStep`). The schema's ``numerics`` builds
-it; the physics never chooses a solver by name. Every solver object has ``segment(model,
-layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput`` and ``max_steps``;
-:mod:`dynslip.physics.driver.simulate` drives them.
+it; the physics never chooses a solver by name. Every solver object is a
+:class:`~dynslip.physics.solver.newton.AbstractSegmentSolver` (``segment(model, layout, y0,
+t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput``, ``max_steps``, ``name``,
+``counts_newton``); :mod:`dynslip.physics.driver.simulate` drives them.
 
 diffrax (and :mod:`~dynslip.physics.solver.upstream`, built on it) is imported where a solver that
 uses it is run: 0.2 s of every run's start that load stepping, the default, does not
@@ -16,20 +17,20 @@ need.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import ClassVar
 
 import equinox as eqx
 import jax.numpy as jnp
 
 from dynslip.physics.field import Layout, heal, vector_field
 from dynslip.physics.solver.linalg import BorderedBlockTridiagonal, sheet_structure
-from dynslip.physics.solver.newton import SegmentOutput, zero_rate
+from dynslip.physics.solver.newton import AbstractSegmentSolver, SegmentOutput, zero_rate
 from dynslip.physics.solver.upstream import VeryChord
 
-__all__ = ["DIFFRAX_METHODS", "Settings", "TimeStepping", "counts_newton", "solver_name"]
+__all__ = ["DIFFRAX_METHODS", "Settings", "TimeStepping"]
 
 
-class TimeStepping(eqx.Module):
+class TimeStepping(AbstractSegmentSolver):
     """A stiff diffrax solver (``scheme``: a name of :data:`DIFFRAX_METHODS`; ``kvaerno5``,
     :class:`diffrax.Kvaerno5`, the reference) with a PID controller over a save segment, at
     most ``max_steps`` steps; at the segment's end the friction law's reset (healing,
@@ -42,6 +43,8 @@ class TimeStepping(eqx.Module):
     pcoeff: float = eqx.field(static=True, default=0.3)
     icoeff: float = eqx.field(static=True, default=0.3)
     heal_rate: float = eqx.field(static=True, default=0.0)
+
+    counts_newton: ClassVar[bool] = False
 
     def __check_init__(self):
         if self.scheme not in DIFFRAX_METHODS:
@@ -117,26 +120,14 @@ DIFFRAX_METHODS = {
 }
 
 
-def solver_name(solver) -> str:
-    """The ``method`` a run's statistics give for its segment solver: the solver's ``name``
-    (``load_step``, a diffrax scheme), else its class's name."""
-    return getattr(solver, "name", type(solver).__name__)
-
-
-def counts_newton(solver) -> bool:
-    """Whether the solver's ``newton_iterations`` count anything (load stepping)."""
-    return not isinstance(solver, TimeStepping)
-
-
 @dataclasses.dataclass(frozen=True)
 class Settings:
-    """Numerics of the driver (nondimensional except times in s): the segment solver object
-    (``segment(model, layout, y0, t0, t1, dt0, args, rtol, atol, rate) -> SegmentOutput`` and
-    ``max_steps``, the step limit per segment), its tolerances, the save interval and the
-    checks on each saved frame. The schema's ``numerics`` builds the solver
+    """Numerics of the driver (nondimensional except times in s): the segment solver (an
+    :class:`~dynslip.physics.solver.newton.AbstractSegmentSolver`), its tolerances, the save
+    interval and the checks on each saved frame. The schema's ``numerics`` builds the solver
     (:meth:`dynslip.schema.forming.FormingNumerics.build_solver`)."""
 
-    solver: Any = dataclasses.field(default_factory=TimeStepping)
+    solver: AbstractSegmentSolver = dataclasses.field(default_factory=TimeStepping)
     rtol: float = 1e-5
     atol: float = 1e-7
     save_interval: float = 1.0  # s

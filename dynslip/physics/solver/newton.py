@@ -85,6 +85,7 @@ as one.
 
 from __future__ import annotations
 
+import abc
 from typing import ClassVar, NamedTuple, cast
 
 import equinox as eqx
@@ -105,6 +106,7 @@ from dynslip.physics.solver.newton_matrix import free_system, newton_blocks
 from dynslip.physics.terms import forces, held_projections
 
 __all__ = [
+    "AbstractSegmentSolver",
     "EndState",
     "Forces",
     "IncrementResult",
@@ -255,6 +257,36 @@ class SegmentOutput(eqx.Module):
     ball_velocity: jax.Array | None = None
 
 
+class AbstractSegmentSolver(eqx.Module):
+    """A segment solver of the driver (``Settings.solver``): load stepping
+    (:class:`MotionNewton`), a stiff diffrax scheme
+    (:class:`dynslip.physics.solver.methods.TimeStepping`), the full-state baseline
+    (:class:`dynslip.physics.solver.loadstep.FullStateLoadStep`), or one written outside the
+    package. An equinox module, so that equal settings hash equal: the driver keys its
+    compiled steps by the solver."""
+
+    #: whether ``SegmentOutput.newton_iterations`` counts anything (False for the time-stepped
+    #: solvers, whose Newton iterations diffrax keeps to itself)
+    counts_newton: eqx.AbstractClassVar[bool]
+
+    @property
+    @abc.abstractmethod
+    def name(self) -> str:
+        """The run's ``method`` in its statistics."""
+
+    # a property, not an abstract field (``eqx.AbstractVar``), which would move the subclasses'
+    # ``max_steps`` field to the front of their fields and reprs
+    @property
+    @abc.abstractmethod
+    def max_steps(self) -> int:
+        """The step (increment) limit of one save segment."""
+
+    @abc.abstractmethod
+    def segment(self, model, layout, y0, t0, t1, dt0, args, rtol, atol, rate=None) -> SegmentOutput:
+        """One save segment from ``y0`` at ``t0`` to ``t1`` (``dt0`` the first step tried;
+        ``rate``: the previous segment's last rate, a predictor, where the solver uses one)."""
+
+
 def segment_output(end, t1, rate, **extra) -> SegmentOutput:
     """The :class:`SegmentOutput` of an increment loop that ended in the carry ``end`` (its
     time ``t``, state ``y`` and counts ``accepted``, ``rejected``, ``iterations``): it reached
@@ -274,7 +306,7 @@ def segment_output(end, t1, rate, **extra) -> SegmentOutput:
 # --------------------------------------------------------------------------- the solver object
 
 
-class MotionNewton(eqx.Module):
+class MotionNewton(AbstractSegmentSolver):
     """Implicit Euler load increments, Newton on the motion alone (module docstring).
 
     ``rtol``/``atol`` (max norm; converged when the last correction is below
@@ -309,6 +341,7 @@ class MotionNewton(eqx.Module):
 
     #: the run's ``method`` in its statistics (the schema's ``numerics.solver``)
     name: ClassVar[str] = "load_step"
+    counts_newton: ClassVar[bool] = True
 
     def increment(
         self, model, layout: Layout, t0, t1, y0, args, rate, rtol, atol
