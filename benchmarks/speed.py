@@ -62,11 +62,11 @@ NEWTON_PER_STEP = 5.0  # Newton iterations per increment, on average
 THETA_TOL = 0.01  # rad: |theta_max difference| and max |dtheta| vs kvaerno5
 
 
-def _scenario(nodes: int, solver: str):
+def _scenario(nodes: int, solver: str, *sets: str):
     from dynslip.schema.base import load
 
     law = [f"physics.friction.law={LAW}"] if LAW else []
-    return load(SCENARIO, [f"numerics.nodes={nodes}", f"numerics.solver={solver}", *law])
+    return load(SCENARIO, [f"numerics.nodes={nodes}", f"numerics.solver={solver}", *law, *sets])
 
 
 def _end(sc, model, protocol, result):
@@ -80,38 +80,19 @@ def _end(sc, model, protocol, result):
 
 
 def _simulate(nodes: int, solver: str) -> tuple[dict, object, object, tuple]:
-    """One whole run; ``load_step_full`` (the full-state Newton baseline, not a schema choice)
-    runs the load_step scenario with that physics solver; ``load_step_law`` runs load_step with
-    Newton on the friction law's own form (``numerics.newton_weight=0``; the default iterates on
-    its weighted form); kvaerno5 with ``KV_MAX_STEPS``."""
-    import dataclasses
-
+    """One whole run of the scenario with ``numerics.solver`` ``solver``; ``load_step_law``
+    runs load_step with Newton on the friction law's own form (``numerics.newton_weight=0``; the
+    default iterates on its weighted form); kvaerno5 with ``KV_MAX_STEPS``."""
     from dynslip.app.forming import build_core
     from dynslip.physics.driver.simulate import simulate
 
-    base = solver in ("load_step_full", "load_step_law")
-    sc = _scenario(nodes, "load_step" if base else solver)
-    model, protocol, kw = build_core(sc)
-    if solver == "load_step_full":
-        from dynslip.physics.solver.loadstep import FullStateLoadStep
-
-        st = kw["settings"]
-        newton = st.solver
-        full = FullStateLoadStep(
-            max_steps=newton.max_steps, newton_max_iter=newton.max_iter,
-            newton_backtrack=newton.backtrack, linear_solver=sc.numerics.linear_solver,
-            heal_rate=newton.heal_rate, max_increment=newton.max_increment,
-            max_increment_free=newton.max_increment_free,
-        )
-        kw["settings"] = dataclasses.replace(st, solver=full)
     if solver == "load_step_law":
-        st = kw["settings"]
-        kw["settings"] = dataclasses.replace(st, solver=dataclasses.replace(st.solver, weight=0.0))
-    if solver == "kvaerno5":
-        st = kw["settings"]
-        kw["settings"] = dataclasses.replace(
-            st, solver=dataclasses.replace(st.solver, max_steps=KV_MAX_STEPS)
-        )
+        sc = _scenario(nodes, "load_step", "numerics.newton_weight=0")
+    elif solver == "kvaerno5":
+        sc = _scenario(nodes, solver, f"numerics.max_steps={KV_MAX_STEPS}")
+    else:
+        sc = _scenario(nodes, solver)
+    model, protocol, kw = build_core(sc)
     w0 = time.perf_counter()
     res = simulate(model, protocol, **kw)
     wall = time.perf_counter() - w0

@@ -20,8 +20,9 @@ from pydantic import PrivateAttr, model_validator
 
 from dynslip.physics.bodies import BodyGeometryError
 from dynslip.physics.bodies.apparatus import bottle, tube_wall
+from dynslip.physics.solver.loadstep import FullStateLoadStep
 from dynslip.physics.solver.methods import TimeStepping
-from dynslip.physics.solver.newton import MotionNewton
+from dynslip.physics.solver.newton import AbstractSegmentSolver, MotionNewton
 from dynslip.schema.apparatus import BottleSpec, TubeSpec
 from dynslip.schema.base import F, ScenarioBase, Strict
 from dynslip.schema.bodies import BallSpec, BodySpec, ShapeSpec, ball_core, body_core, check_bodies
@@ -382,30 +383,33 @@ class FormingNumerics(Strict):
     ball_drag: float = F(1.0, gt=0, le=1e6, description="ball drag as a multiple of the sheet "
                                                         "drag over the ball's area 4 pi R^2, in "
                                                         "(0, 1e6]")
-    solver: Literal["load_step", "kvaerno5", "kvaerno4", "kvaerno3", "implicit_euler"] = F(
+    solver: Literal["load_step", "load_step_full", "kvaerno5", "kvaerno4", "kvaerno3",
+                    "implicit_euler"] = F(
         "load_step", description="load_step (default): quasi-static implicit Euler load "
                                  "increments controlled by Newton's iteration count (first order "
                                  "in time: for slow paths; rtol, atol are Newton's tolerances); "
-                                 "kvaerno5: the adaptive 5th-order reference (docs/speed.md says "
-                                 "when each is right)")
-    max_increment: float = F(20.0, gt=0, le=1e4, description="load_step: largest increment in "
-                                                             "drag times, driven stages, in (0, "
-                                                             "1e4] (the drag eta A / dt keeps "
-                                                             "Newton's matrix regular on slack "
-                                                             "sheet)")
-    max_increment_free: float = F(5.0, gt=0, le=1e4, description="load_step: largest increment in "
-                                                                 "drag times where the ball or "
-                                                                 "the clamp moves under a force "
-                                                                 "(let-go, release, rest), in (0, "
-                                                                 "1e4]")
-    newton_max_iter: int = F(20, ge=2, le=100, description="load_step: Newton iterations before "
-                                                           "an increment is cut, 2..100")
-    newton_backtrack: int = F(4, ge=0, le=20, description="load_step: at most this many halvings "
-                                                          "of a Newton correction that would "
-                                                          "raise the residual's max norm (a "
-                                                          "backtracking safeguard that breaks "
-                                                          "stick/slip cycles at the contact edge; "
-                                                          "0: plain Newton), 0..20")
+                                 "load_step_full: the same increments by Newton on the whole "
+                                 "state (the reference load_step is checked against; slower, no "
+                                 "free body); kvaerno5: the adaptive 5th-order reference "
+                                 "(docs/speed.md says when each is right)")
+    max_increment: float = F(20.0, gt=0, le=1e4,
+                             description="load_step and load_step_full: largest increment in drag "
+                                         "times, driven stages, in (0, 1e4] (the drag eta A / dt "
+                                         "keeps Newton's matrix regular on slack sheet)")
+    max_increment_free: float = F(5.0, gt=0, le=1e4,
+                                  description="load_step and load_step_full: largest increment in "
+                                              "drag times where the ball or the clamp moves "
+                                              "under a force (let-go, release, rest), in (0, "
+                                              "1e4]")
+    newton_max_iter: int = F(20, ge=2, le=100,
+                             description="load_step and load_step_full: Newton iterations before "
+                                         "an increment is cut, 2..100")
+    newton_backtrack: int = F(4, ge=0, le=20,
+                              description="load_step and load_step_full: at most this many "
+                                          "halvings of a Newton correction that would raise the "
+                                          "residual's max norm (a backtracking safeguard that "
+                                          "breaks stick/slip cycles at the contact edge; 0: plain "
+                                          "Newton), 0..20")
     newton_weight: float = F(1e3, ge=0, le=1e8, unit="1",
                              description="load_step: the complementarity parameter c of the ball "
                                          "friction's weighted form, units G h0 (force per "
@@ -416,9 +420,10 @@ class FormingNumerics(Strict):
                                          "the law's own form, in [0, 1e8]")
     linear_solver: Literal["structured", "dense"] = F(
         "structured",
-        description="Newton linear algebra: structured (block-tridiagonal Jacobian by colouring, "
-                    "Thomas + Schur complement, cost linear in nodes) or dense (diffrax's default "
-                    "LU)",
+        description="Newton linear algebra of load_step_full and the diffrax solvers (load_step "
+                    "picks its own by the mesh's size): structured (block-tridiagonal Jacobian by "
+                    "colouring, Thomas + Schur complement, cost linear in nodes) or dense "
+                    "(diffrax's default LU)",
     )
     rtol: float = F(1e-5, gt=0, lt=1, description="relative tolerance")
     atol: float = F(1e-7, gt=0, lt=1, description="absolute tolerance")
@@ -473,10 +478,21 @@ class FormingNumerics(Strict):
                                       "in (0, 1e6] mm")
 
 
-    def build_solver(self, heal_rate: float) -> MotionNewton | TimeStepping:
+    def build_solver(self, heal_rate: float) -> AbstractSegmentSolver:
         """The segment solver that ``solver`` names, built with the settings of this spec that
         it runs on, and the healing rate ``heal_rate`` (R/s). Load stepping's linear algebra
-        is chosen by the mesh's size (``linear_solver`` is the diffrax solvers')."""
+        is chosen by the mesh's size (``linear_solver`` is the full-state and the diffrax
+        solvers')."""
+        if self.solver == "load_step_full":
+            return FullStateLoadStep(
+                max_steps=self.max_steps,
+                newton_max_iter=self.newton_max_iter,
+                newton_backtrack=self.newton_backtrack,
+                linear_solver=self.linear_solver,
+                heal_rate=heal_rate,
+                max_increment=self.max_increment,
+                max_increment_free=self.max_increment_free,
+            )
         if self.solver == "load_step":
             return MotionNewton(
                 max_iter=self.newton_max_iter,

@@ -252,7 +252,7 @@ class FullStateLoadStep(AbstractSegmentSolver):
     max_increment: float = 20.0
     max_increment_free: float = 5.0
 
-    #: the run's ``method`` in its statistics (no scenario offers it: a Python API solver)
+    #: the run's ``method`` in its statistics, and the schema's ``numerics.solver``
     name: ClassVar[str] = "load_step_full"
     counts_newton: ClassVar[bool] = True
 
