@@ -6,6 +6,7 @@
     python docs/results.py --small             # each at a small mesh: printed, nothing rewritten
     python docs/results.py --check             # no run: the tables measured before a code change
     python docs/results.py --unmarked          # no run: tables of numbers outside the manifest
+    python docs/results.py --mark-outdated     # no run: stale tables say they are not today's
 
 :data:`TABLES` is the manifest: each measured table of the docs, the markdown file it lies
 in, the commands that measure it, the function of this module that turns their output
@@ -28,7 +29,9 @@ Everything between the markers is rewritten. The key is :func:`key` of what the 
 depends on: the package's source files (:data:`PACKAGE`, less :data:`NOT_PHYSICS`: the
 plotting, the command line and the end-of-run table print nothing into a table) and the
 scenario files its commands read, each file hashed, combined in sorted path order. A table
-whose recorded key differs from today's is stale (``--check``; ``tests/test_docs.py``).
+whose recorded key differs from today's is stale (``--check``; ``tests/test_docs.py``), unless
+it says so under its provenance line, naming today's key (``--mark-outdated``: a table not
+measured again after a change, shown as such rather than as today's).
 :data:`REFERENCE` lists the tables with digits that are not measured (the commands, the
 schema's fields and units), each with its reason; every other table of numbers in the docs
 must be under the manifest.
@@ -1670,12 +1673,56 @@ def recorded_key(name: str) -> str | None:
     return m.group(1) if m else None
 
 
+#: the line a table measured before a change to its code carries until it is measured again
+#: (:func:`mark_outdated`), naming the key of the code it has not been measured at
+OUTDATED_TEXT = "Not measured again since its code changed: today's key is {key}"
+OUTDATED = re.compile(OUTDATED_TEXT.format(key=rf"([0-9a-f]{{{KEY_LEN}}})"))
+
+
+def outdated_key(name: str) -> str | None:
+    """The key that table ``name``'s "not measured again" line names, None without one."""
+    text = (ROOT / TABLES[name].doc).read_text()
+    span = block(text, name)
+    m = OUTDATED.search(text[span[0] : span[1]]) if span else None
+    return m.group(1) if m else None
+
+
+def outdated() -> dict[str, str]:
+    """Each table measured before a change to its code that says so, naming today's key: its
+    numbers are those of the code at its recorded key, and its doc says they are not today's."""
+    return {name: f"{t.doc}: measured with key {recorded_key(name)}"
+            for name, t in TABLES.items()
+            if recorded_key(name) != t.key() and outdated_key(name) == t.key()}
+
+
+def mark_outdated(names: Iterable[str]) -> list[str]:
+    """Add, under the provenance line of each table of ``names`` measured before a change to
+    its code, the line that says so (:data:`OUTDATED_TEXT`, today's key; an earlier such line
+    replaced). Measuring the table again rewrites the block and drops the line. Returns the
+    tables marked."""
+    done = []
+    for name in names:
+        t = TABLES[name]
+        if recorded_key(name) in (None, t.key()):
+            continue
+        text = (ROOT / t.doc).read_text()
+        span = block(text, name)
+        kept = "".join(x for x in text[span[0] : span[1]].splitlines(keepends=True)
+                       if not OUTDATED.search(x)).rstrip("\n")
+        line = (f"**{OUTDATED_TEXT.format(key=t.key())}**: the numbers above are those of the "
+                f"code at the key above; `python docs/results.py {name}` measures them again.")
+        write(name, re.sub(r"^[ \t]+", "", kept, flags=re.MULTILINE) + "\n\n" + line + "\n")
+        done.append(name)
+    return done
+
+
 def stale() -> dict[str, str]:
-    """Each table of the manifest whose recorded key is not today's, with what is wrong."""
+    """Each table of the manifest whose recorded key is not today's and that does not say so
+    (:func:`outdated`), with what is wrong."""
     out = {}
     for name, t in TABLES.items():
         now, was = t.key(), recorded_key(name)
-        if was != now:
+        if was != now and outdated_key(name) != now:
             text = (ROOT / t.doc).read_text()
             why = ("no markers" if block(text, name) is None else "no key" if was is None
                    else f"measured with key {was}")
@@ -1817,12 +1864,19 @@ def main(argv=None) -> int:
     p.add_argument("--check", action="store_true", help="no run: list the stale tables")
     p.add_argument("--unmarked", action="store_true",
                    help="no run: list the tables of numbers not under the manifest")
+    p.add_argument("--mark-outdated", action="store_true",
+                   help="no run: say under each stale table (of NAMEs, default all) that it was "
+                        "not measured again at today's code")
     p.add_argument("--runs", type=Path, default=None,
                    help="folder of the runs (default: a temporary folder)")
     args = p.parse_args(argv)
     unknown = sorted(set(args.names) - set(TABLES))
     if unknown:
         p.error(f"not in the manifest: {', '.join(unknown)}")
+    if args.mark_outdated:
+        for name in mark_outdated(args.names or list(TABLES)):
+            print(f"{TABLES[name].doc}: {name} marked as not measured at today's code")
+        return 0
     if args.check or args.unmarked:
         bad = {}
         if args.check:
