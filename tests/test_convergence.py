@@ -75,3 +75,47 @@ def test_window_nodes_writes_critical_mu_per_mesh_and_extrapolates(tmp_path):
         == res["critical_mu"]
     )
     assert (tmp_path / "w" / "critical_mu.png").stat().st_size > 0
+
+
+def test_window_nodes_goes_on_past_a_mesh_that_cannot_answer(tmp_path):
+    """At N = 25 every run of the stand-in path has no verdict (the tube's rim unresolved, as
+    method 2 at N = 50): the study reports that mesh as unresolved with its reason and goes
+    on; the finer meshes find their critical mu (1.3 - 4/N) and extrapolate without it. With
+    every mesh unanswered the study fails (ComputationError, exit 3), naming the reason."""
+    import json
+
+    import pytest
+    import yaml
+
+    from dynslip.app.window import run_window_nodes
+    from dynslip.errors import ComputationError
+    from test_sweep import fake_validate
+
+    rim = "the mesh does not resolve the tube wall (a chord 0.31 of its radius deep)"
+
+    def member(data, out_dir, console=None):
+        s = fake_validate(data)
+        n = int(data["numerics"]["nodes"])
+        if n < 40:
+            return {"trapped": None, "trapped_unknown_reasons": [rim]}
+        return {"trapped": bool(s.physics.friction.mu > 1.3 - 4.0 / n)}
+
+    (tmp_path / "s.yaml").write_text(
+        yaml.safe_dump({"kind": "fake", "physics": {"protocol": {"depth": 4.0}}})
+    )
+    kw = dict(lo=0.5, hi=2.0, coarse=7, tol=1e-4, member_fn=member, validate_fn=fake_validate)
+    res = run_window_nodes(tmp_path / "s.yaml", [25, 50, 100, 200], out=tmp_path / "w", **kw)
+    assert res["answered_nodes"] == [50, 100, 200] and res["critical_mu"]["25"] is None
+    u = res["unresolved"]["25"]
+    # the 7 coarse points and the quarter points tried beside each failed one
+    assert u["answered"] is False and u["runs_failed"] >= 7
+    assert u["reasons"] == [{"reason": f"trapped unknown: {rim}", "runs": u["runs_failed"]}]
+    for n in (50, 100, 200):
+        c = res["critical_mu"][str(n)]
+        assert abs(c["value"] - (1.3 - 4.0 / n)) <= c["err"] + 1e-12
+    ex = res["extrapolation"]
+    assert ex["extrapolable"] and abs(ex["order"] - 1.0) < 0.02 and abs(ex["value"] - 1.3) < 2e-3
+    assert "no answer at N = 25" in res["refinement_check"]["says"]
+    assert json.loads((tmp_path / "w" / "window.json").read_text())["unresolved"]["25"] == u
+    with pytest.raises(ComputationError, match="no mesh size of 25, 30 answered.*tube wall"):
+        run_window_nodes(tmp_path / "s.yaml", [25, 30], out=tmp_path / "w2", **kw)

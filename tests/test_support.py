@@ -121,12 +121,15 @@ def test_ball_on_support_carries_the_pull_and_lifts_off():
 
 
 @pytest.mark.parametrize("preload_N", [None, -1.0])
-def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N):
+def test_force_ramp_release_force_is_the_force_at_the_located_event(preload_N):
     """release.force_ramp on a handmade trajectory: the ball creeps (0.01 mm/s) while the
-    pull ramps, then tears out (1 mm/s); the release force is the applied force at the last
-    frame below the threshold, with the drag shares there: the ball's, eta_b |z_b'|, and the
-    sheet's, sum eta A_i (z_i' - z_b') over the nodes that do not move with the ball (here
-    nodes 2 and 3 stay put; node 4 is the held edge), A_i = pi (rbar_{i+1}^2 - rbar_{i-1}^2)/2.
+    pull ramps, then tears out (1 mm/s); the release force is the applied force at the event
+    located between the last frame below the threshold and the next (the speed, centred
+    differences of the heights here, 0.01 then 0.505 mm/s, crosses 0.1 mm/s at
+    t = 12 + 0.09/0.495), with the drag shares at that last slow frame: the ball's,
+    eta_b |z_b'|, and the sheet's, sum eta A_i (z_i' - z_b') over the nodes that do not move
+    with the ball (here nodes 2 and 3 stay put; node 4 is the held edge),
+    A_i = pi (rbar_{i+1}^2 - rbar_{i-1}^2)/2.
     With a preload stage (a pull before the ramp) the ramp, and so the resolution, starts from
     the preload's force."""
     import json
@@ -189,9 +192,13 @@ def test_force_ramp_release_force_is_the_force_at_the_last_slow_frame(preload_N)
     last = int(np.flatnonzero((stage == 1) & (speed < 0.1))[-1])
     assert m["torn_out"] is True
     assert (
-        m["time_s"] == t[last] and last == 12
+        m["last_slow_frame"]["time_s"] == t[last] and last == 12
     )  # frame 13 sees the tear-out step in its centred difference
-    assert m["release_force_N"] == applied[last] * fs
+    assert m["last_slow_frame"]["release_force_N"] == applied[last] * fs
+    t_event = 12.0 + (0.1 - 0.01) / (0.505 - 0.01)
+    assert m["located"] is True
+    assert abs(m["time_s"] - t_event) < 1e-12
+    assert abs(m["release_force_N"] - -0.05 * t_event * fs) < 1e-12  # the ramp at the event
     eta_b = ball_drag_coefficient(tau, 1.0)
     assert abs(m["drag_share"] - eta_b * speed[last] / r_mm / abs(applied[last])) < 1e-12
     area = [np.pi * (rbar[i + 1] ** 2 - rbar[i - 1] ** 2) / 2 for i in (2, 3)]

@@ -23,7 +23,8 @@ from dynslip.analysis.paper import MEASURED_RELEASE_FORCE_N
 from dynslip.physics.protocols import ball_drag_coefficient
 from dynslip.physics.sheet import mesh_from_radii
 
-__all__ = ["release_metrics", "force_ramp_metrics", "sheet_force", "free_span_check"]
+__all__ = ["release_metrics", "force_ramp_metrics", "located_event", "sheet_force",
+           "free_span_check"]
 
 
 def release_metrics(ds: xr.Dataset, model=None) -> dict:
@@ -60,9 +61,14 @@ def release_metrics(ds: xr.Dataset, model=None) -> dict:
 def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     """The release as measured: a force on the ball ramped (``ball: pull``) until the ball's
     speed exceeds a threshold (``until: ball_speed_above``). The release force is the applied
-    force at the last saved frame of that stage where the ball's speed is below the threshold
-    (N); its resolution is the ramp rate times the save interval. The drag's share is the
-    ball's drag eta_b |z_b'| over the applied force there (the regularisation's part of the
+    force at the located event (N): the instant the event function g = |z_b'| - v_threshold
+    crosses zero, located between the last saved frame of the stage with g < 0 and the next one
+    by linear interpolation of g in time (:func:`located_event`), the applied force interpolated
+    there (exact for the linear ramp). The speed is the saved ``ball_velocity`` (what the stop
+    rule reads), or, in a file without it, centred differences of the saved heights.
+    ``last_slow_frame``: the force at that saved frame (the bracket's start); ``resolution_N``
+    the ramp over one save interval, the bracket's width. The drag's share is the ball's drag
+    eta_b |z_b'| over the applied force at that frame (the regularisation's part of the
     measured force). None when the run has no such stage."""
     sc = json.loads(ds.attrs["scenario"])
     stages = sc["physics"]["stages"]
@@ -79,7 +85,11 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     fs = float(ds.attrs["force_scale_N"])
     r_mm = float(ds.attrs["R_m"]) * 1e3
     t = ds["time"].values
-    speed_mm_s = np.abs(np.gradient(ds["ball_z"].values, t)) * r_mm if t.size > 1 else np.zeros(1)
+    if "ball_velocity" in ds:
+        speed_mm_s = np.abs(ds["ball_velocity"].values) * r_mm
+    else:
+        speed_mm_s = (np.abs(np.gradient(ds["ball_z"].values, t)) * r_mm if t.size > 1
+                      else np.zeros(1))
     in_stage = ds["stage"].values == idx
     threshold = float(stages[idx]["until"]["speed_mm_s"])
     slow = np.flatnonzero(in_stage & (speed_mm_s < threshold))
@@ -98,9 +108,18 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
     sheet_drag = float(_sheet_drag_force(ds)[i])
     prev = stages[idx - 1] if idx > 0 else {}
     f_from = float(prev["ball_force_N"]) if prev.get("ball") == "pull" else 0.0  # a preload's force
+    event = located_event(t, speed_mm_s - threshold, i)
+    if event is None:  # no saved frame past the threshold after it: the frame's force
+        located = {"located": False, "release_force_N": applied * fs, "time_s": float(t[i])}
+    else:
+        a = ds["ball_reaction"].values
+        j, w = event
+        located = {"located": True,
+                   "release_force_N": float(((1 - w) * a[j] + w * a[j + 1]) * fs),
+                   "time_s": float((1 - w) * t[j] + w * t[j + 1])}
     return {
-        "release_force_N": applied * fs,
-        "time_s": float(t[i]),
+        **located,
+        "last_slow_frame": {"release_force_N": applied * fs, "time_s": float(t[i])},
         "ball_speed_mm_s": float(speed_mm_s[i]),
         "threshold_mm_s": threshold,
         "torn_out": torn,
@@ -109,6 +128,16 @@ def force_ramp_metrics(ds: xr.Dataset) -> dict | None:
         "resolution_N": float(abs(stages[idx]["ball_force_N"] - f_from) / stages[idx]["duration_s"]
                               * sc["numerics"]["save_interval_s"]),
     }
+
+
+def located_event(t, g, i):
+    """The zero of the event function ``g`` (per saved frame, times ``t``) after frame ``i``
+    (g[i] < 0 <= g[i + 1]), by linear interpolation: ``(i, w)`` with the event at
+    ``(1 - w) t[i] + w t[i + 1]``, w in (0, 1]; None where no frame follows or g does not
+    cross there."""
+    if i + 1 >= len(t) or not (g[i] < 0 <= g[i + 1]):
+        return None
+    return i, float(-g[i] / (g[i + 1] - g[i]))
 
 
 def _ball_drag_force(ds: xr.Dataset):

@@ -96,6 +96,11 @@ def summarize(world, ds: xr.Dataset, result) -> dict:
         "trap_criterion": trap,
         "theta_max": theta_max,
         "rbar_max": rbar_max,
+        "node_based_means": ("theta_max, rbar_max: the last node in contact's (largest polar "
+                             "angle in contact, its material radius): piecewise constant in the "
+                             "parameters, jumping where the contact set changes; the edge "
+                             "located between nodes is in smooth"),
+        "smooth": smooth_observables(end),
         "opening_radius": math.sin(theta_max) if np.isfinite(theta_max) else float("nan"),
         "lip": {
             "sin_theta_max": math.sin(theta_max) if np.isfinite(theta_max) else None,
@@ -203,6 +208,31 @@ def summarize(world, ds: xr.Dataset, result) -> dict:
                 "has no contact between rigid bodies)")
     summary["outcome"] = outcome_words(summary)
     return summary
+
+
+def smooth_observables(end) -> dict:
+    """The end state's observables that are continuous in the parameters
+    (:mod:`dynslip.physics.observables`): the located contact edge and theta at fixed material
+    radii. Files written before them give None."""
+    def val(k):
+        return float(end[k]) if k in end and np.isfinite(float(end[k])) else None
+
+    at = (dict(zip((f"{r:.2f}" for r in end["rbar_at"].values),
+                   (float(v) if np.isfinite(v) else None for v in end["theta_at_rbar"].values),
+                   strict=True)) if "theta_at_rbar" in end else None)
+    return {
+        "theta_edge": val("theta_edge"),
+        "rbar_edge": val("rbar_edge"),
+        "theta_at_rbar": at,
+        "means": ("the contact edge located between the last node in contact and the next, where "
+                  "the contact function (the node's penetration into the ball past the one at "
+                  "which its pressure equals the contact threshold) crosses zero, by linear "
+                  "interpolation: theta_edge (rad) and rbar_edge (R) move continuously through a "
+                  "change of the contact set (theta_max, rbar_max: the node-based values). "
+                  "theta_at_rbar: the polar angle (rad) of the material circle of each radius "
+                  "rbar (R), linear in the material coordinate; on the contact for rbar <= "
+                  "rbar_edge, the circle's angle off the ball beyond it"),
+    }
 
 
 #: latex is damaged past about this stretch in one direction (the paper, Section 2.1)

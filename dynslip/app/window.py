@@ -80,6 +80,9 @@ def scenario_window(
                 f"inside the ball at t = {check['time_s']:.4g} s (limit {check['limit']:g})"
             )
         if t is None or (isinstance(t, float) and math.isnan(t)):
+            if errors is not None:  # no verdict: its reason beside the failed runs'
+                why = summary.get("trapped_unknown_reasons") or ["no verdict"]
+                errors[float(mu)] = f"trapped unknown: {why[0]}"
             return None
         return bool(t)
 
@@ -192,7 +195,8 @@ def _search(out, path, overrides, data, resolved, member_fn, field_name, tied, l
         known=known,
         errors=errors,
     )
-    for mu, err in known_errors.items():  # the reasons of failed points kept by an earlier attempt
+    # the reasons of failed points kept by an earlier attempt, and of runs without a verdict
+    for mu, err in (*known_errors.items(), *errors.items()):
         res.errors.setdefault(mu, err)
 
     result = {
@@ -313,6 +317,27 @@ def refinement_check(per_n: dict, field_name: str) -> dict:
             "says": says}
 
 
+def no_answer(window_json: Path, error: str) -> dict:
+    """A mesh size without an answer: the distinct reasons of its failed runs (from the
+    ``failed`` list of its ``window.json``, written before the search gave up), each with the
+    number of runs that gave it, and one line ``says``."""
+    import json
+
+    failed: list = []
+    try:
+        failed = json.loads(window_json.read_text()).get("failed", [])
+    except (OSError, ValueError):
+        pass
+    counts: dict[str, int] = {}
+    for _, why in failed:
+        counts[str(why)] = counts.get(str(why), 0) + 1
+    reasons = [{"reason": r, "runs": c} for r, c in sorted(counts.items(), key=lambda x: -x[1])]
+    head = reasons[0]["reason"] if reasons else error
+    more = f" (and {len(reasons) - 1} more reasons)" if len(reasons) > 1 else ""
+    return {"answered": False, "error": error, "runs_failed": len(failed), "reasons": reasons,
+            "says": f"every run of its search failed or had no verdict: {head}{more}"}
+
+
 def parse_nodes(text: str) -> list[int]:
     """``--nodes 50,100,200`` as a list of mesh sizes (increasing, each 6..4000)."""
     try:
@@ -339,7 +364,12 @@ def run_window_nodes(
     """``dynslip window SCENARIO --nodes 50,100,200``: the window search at each mesh size
     (``<out>/N<n>/``), then ``<out>/window.json`` with ``critical_mu`` per N (value, err),
     its Richardson extrapolation with the measured order
-    (:func:`dynslip.analysis.convergence.richardson`) and ``<out>/critical_mu.png``."""
+    (:func:`dynslip.analysis.convergence.richardson`) and ``<out>/critical_mu.png``.
+
+    A mesh size where no run of the search answers (every run failed or unresolved, as at a
+    mesh too coarse for the tube's rim) is reported in ``unresolved`` with its reasons
+    (:func:`no_answer`), its ``critical_mu`` None, and the study goes on with the others;
+    :class:`ComputationError` only when no mesh size answers."""
     from rich.console import Console
 
 
@@ -347,44 +377,65 @@ def run_window_nodes(
     path = Path(scenario)
     out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_window"
     check_out(out, force=force, in_place=True)
-    per_n = {}
+    per_n, unresolved = {}, {}
     for n in nodes:
         console.print(f"[bold]N = {n}[/bold]")
-        per_n[n] = run_window(
-            scenario,
-            [*overrides, f"numerics.nodes={n}"],
-            out=out / f"N{n}",
-            console=console,
-            force=force,
-            **kw,
-        )
+        try:
+            per_n[n] = run_window(
+                scenario,
+                [*overrides, f"numerics.nodes={n}"],
+                out=out / f"N{n}",
+                console=console,
+                force=force,
+                **kw,
+            )
+        except ComputationError as err:
+            unresolved[n] = no_answer(out / f"N{n}" / "window.json", str(err))
+            console.print(f"[yellow]N = {n}: no answer ({unresolved[n]['says']}); going on "
+                          "with the other mesh sizes[/yellow]", highlight=False)
     out.mkdir(parents=True, exist_ok=True)
     write_result_marker(out, "window")
-    crit = {str(n): per_n[n]["critical_mu"] for n in nodes}
-    found = [n for n in nodes if per_n[n]["critical_mu"] is not None]
+    if not per_n:
+        first_why = next(iter(unresolved.values()))["says"]
+        raise ComputationError(
+            f"{path}: no mesh size of {', '.join(map(str, nodes))} answered (N = {nodes[0]}: "
+            f"{first_why}; see {out / f'N{nodes[0]}' / 'window.json'})")
+    answered = [n for n in nodes if n in per_n]
+    crit = {str(n): per_n[n]["critical_mu"] if n in per_n else None for n in nodes}
+    found = [n for n in answered if per_n[n]["critical_mu"] is not None]
     extrap = (richardson(found, [per_n[n]["critical_mu"]["value"] for n in found],
                          [per_n[n]["critical_mu"]["err"] for n in found])
               if found else {"extrapolable": False, "reason": "no window at any mesh size"})
-    first = per_n[nodes[0]]
+    first = per_n[answered[0]]
     result = {
         "scenario": str(path),
         "overrides": list(overrides),
         "field": first["field"],
         "tied": first["tied"],
         "nodes": list(nodes),
+        "answered_nodes": answered,
         "critical_mu": crit,
         "extrapolation": extrap,
-        "windows": {str(n): per_n[n]["windows"] for n in nodes},
+        "windows": {str(n): per_n[n]["windows"] for n in answered},
+        "unresolved": {str(n): u for n, u in unresolved.items()},
+        "unresolved_means": ("mesh sizes where no run of the search answered (each failed or "
+                             "had no verdict): their reasons, distinct, with how many runs "
+                             "gave each; the study goes on with the other sizes, whose "
+                             "extrapolation and refinement check leave these out"),
         "upper_edges": "reported as found; an upper edge is an artefact unless it survives "
             "refinement",
     }
     result["refinement_check"] = refinement_check(per_n, first["field"])
+    if unresolved:
+        result["refinement_check"]["says"] += (
+            "; no answer at N = " + ", ".join(map(str, unresolved)) + " (unresolved)")
     write_json(out / "window.json", result)
     plot_critical_mu(result, out / "critical_mu.png")
     console.print(
         f"critical {result['field']} per N: "
         + ", ".join(
-            f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c else f"{n}: none"
+            f"{n}: {c['value']:.4g} +- {c['err']:.2g}" if c
+            else f"{n}: {'unresolved' if n in result['unresolved'] else 'none'}"
             for n, c in crit.items()
         )
     )

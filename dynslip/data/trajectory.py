@@ -94,6 +94,12 @@ PER_TIME = {
                            "G*h0*R"),
     "theta_max": ("1", "largest polar angle in contact", None),
     "rbar_max": ("1", "material radius of the outermost node in contact", "R"),
+    "theta_edge": ("1", "polar angle of the contact edge located between the last node in contact "
+                   "and the next, where the contact function (penetration past the threshold's) "
+                   "crosses zero: continuous in the parameters (NaN without contact)", None),
+    "rbar_edge": ("1", "material radius of the located contact edge (theta_edge's; NaN without "
+                  "contact)", "R"),
+    "ball_velocity": ("1/s", "the ball's axial velocity, + up (R/s)", "R"),
     "work_clamp": ("1", "accumulated work of the clamp on the sheet", "G*h0*R^2"),
     "work_ball": ("1", "accumulated work of the hold (and gravity) on the ball", "G*h0*R^2"),
     "work_bodies": ("1", "accumulated work on the sheet of the held bodies moved by the stages "
@@ -105,6 +111,13 @@ PER_TIME = {
     "energy_residual": ("1", "work - (change of stored energy) - dissipation", "G*h0*R^2"),
 }
 """Per-frame variables (time) of the contract: name -> (units, long_name, scale)."""
+OPTIONAL_PER_TIME = ("theta_edge", "rbar_edge", "ball_velocity")
+"""Per-frame variables that files written before them lack (readers fall back)."""
+
+THETA_AT_RBAR = ("1", "polar angle, seen from the ball's centre, of the material circle of radius "
+                 "rbar_at (linear in the material coordinate): theta(rbar) on the contact "
+                 "(rbar_at <= rbar_edge), the circle's angle off the ball beyond it", None)
+"""The per-frame theta at fixed material radii (time, rbar_at): (units, long_name, scale)."""
 
 BODY_STATE_MEANINGS = ("free", "stuck", "slipping_toward_decreasing_s",
                        "slipping_toward_increasing_s", "touching_frictionless")
@@ -141,6 +154,7 @@ def frames_to_dataset(
     friction_smoothing: float,
     extra_attrs=None,
     body_names=None,
+    rbar_at=None,
 ) -> xr.Dataset:
     """The trajectory contract (docs/trajectory-contract.md) from the driver's frames.
 
@@ -151,7 +165,9 @@ def frames_to_dataset(
     (``mu``, ``friction_law``, ``mu_s``, ``mu_k``, ``d_c``) and ``friction_smoothing``;
     ``extra_attrs`` last (e.g. the provenance of a start state). Frames with per-body fields
     (a model with held bodies) add them on a ``body`` dimension, its coordinate
-    ``body_names`` (default ``body 0``, ...); without them there is no ``body`` dimension."""
+    ``body_names`` (default ``body 0``, ...); without them there is no ``body`` dimension.
+    Frames with ``theta_at_rbar`` add it on an ``rbar_at`` dimension, its coordinate the fixed
+    radii ``rbar_at`` (:data:`dynslip.physics.observables.OBS_RBAR`)."""
     time = np.array([f["time"] for f in frames])
     data = {}
     for name, (units, long_name, scale) in PER_NODE.items():
@@ -173,6 +189,15 @@ def frames_to_dataset(
     for name, (units, long_name, scale) in PER_TIME.items():
         data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
     coords = {}
+    if frames and "theta_at_rbar" in frames[0]:
+        if rbar_at is None:
+            raise ValueError("rbar_at: frames carry theta_at_rbar but no radii were given")
+        units, long_name, _ = THETA_AT_RBAR
+        data["theta_at_rbar"] = io.variable(
+            np.stack([np.asarray(f["theta_at_rbar"], float) for f in frames]),
+            ("time", "rbar_at"), units, long_name)
+        coords["rbar_at"] = io.variable(np.asarray(rbar_at, float), ("rbar_at",), "1",
+                                        "fixed material radius / R of theta_at_rbar", scale="R")
     if frames and "body_s" in frames[0]:
         data.update(_per_body(frames))
         k = data["body_s"].shape[1]

@@ -19,6 +19,7 @@ from dynslip.physics.field import (
     place_state,
 )
 from dynslip.physics.layout import f64
+from dynslip.physics.observables import contact_function, located_edge, theta_at
 from dynslip.physics.sheet import SheetModel
 
 __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
@@ -55,6 +56,10 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
     theta_max = jnp.where(any_c, jnp.max(jnp.where(contact, theta_all, -jnp.inf)), jnp.nan)
     rbar_max = jnp.where(any_c, model.mesh.rbar[jnp.maximum(last, 0)], jnp.nan)
     slip_max = jnp.max(jnp.abs(d["slip_velocity"]))
+    # the smooth observables (physics.observables): the edge located between nodes, theta at
+    # fixed material radii
+    edge = located_edge(model.mesh.rbar, theta_all,
+                        contact_function(model, rho, z, zb, contact_threshold), contact)
     # per held body (none without held bodies: the ball's fields alone)
     g_rho, g_z, _ = aux.kin.grads
     per_body = body_observables(model, rho, z, zb, -jnp.stack([g_rho, g_z]), aux.ball_v,
@@ -75,6 +80,9 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         "ball_velocity": aux.ball_v,
         "theta_max": theta_max,
         "rbar_max": rbar_max,
+        "theta_edge": edge.theta,
+        "rbar_edge": edge.rbar,
+        "theta_at_rbar": theta_at(model.mesh.rbar, theta_all),
         "work_clamp": acc[0],
         "work_ball": acc[1],
         "dissipation_drag": acc[2],
