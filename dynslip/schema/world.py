@@ -187,6 +187,8 @@ def build_world(sc) -> World:
     # the penalty's parameters as arrays: leaves of the model's pytree, not compiled constants
     stiffness: Any = jnp.asarray(nu.penalty_stiffness)
     width: Any = jnp.asarray(nu.penalty_width)
+    # the ball's penalty carries the ball law's cohesive well (normal adhesion; none: no well)
+    adhesion, reach = p.friction.cohesion(r, kpa)
     model = SheetModel(
         mesh,
         p.material.core(),
@@ -194,6 +196,8 @@ def build_world(sc) -> World:
         ball=p.ball_body(),
         bodies=held,
         band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
+        ball_penalty=Penalty(stiffness, width, jnp.asarray(adhesion), jnp.asarray(reach))
+        if p.friction.ball_only else None,
     )
     names = tuple(name for name, *_ in specs)
     loads = dict(
