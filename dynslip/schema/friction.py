@@ -29,7 +29,8 @@ from dynslip.schema.base import F, Strict
 from dynslip.schema.registry import Registry
 
 __all__ = ["FrictionSpec", "FrictionLaw", "FRICTION_SPECS", "CoulombSpec", "SlipWeakeningSpec",
-           "PressureSpec", "FrictionlessSpec", "AdhesiveSpec", "CAPSTAN_TEST", "capstan_reference_pressure_kPa"]
+           "PressureSpec", "FrictionlessSpec", "AdhesiveSpec", "CAPSTAN_TEST",
+           "capstan_reference_pressure_kPa"]
 
 #: the paper's capstan strip test (Section 2.1) as this model reads it: 5 mm wide strips over the
 #: 40 mm ball, a mass at each end, hanging vertically (wrap angle pi). The paper gives no masses:
@@ -225,18 +226,24 @@ DEFAULT_REACH_MM = 0.02
 
 
 @FRICTION_SPECS.add
-class AdhesiveSpec(SlipWeakeningSpec):
+class AdhesiveSpec(FrictionSpec):
     """Slip weakening with adhesion (docs/adhesion.md): the friction threshold per node is
     tau_0 A + mu N (Bowden-Tabor, tau_0 from tau0_s_kPa to tau0_k_kPa as mu from mu_s to mu_k
     over d_c_mm), A the node's deformed contact area within the cohesive range; and a cohesive
     well of energy w_J_m2 over the gap reach_mm in the ball's contact penalty (normal adhesion,
     peeling at Kendall's condition). On the ball only. Zero tau_0 and w: slip_weakening exactly."""
 
-    law: Literal["adhesive"] = F(  # type: ignore[assignment]
+    law: Literal["adhesive"] = F(
         "adhesive", description="adhesive: slip_weakening plus an interfacial shear strength "
                                 "tau_0 (kPa, static and kinetic) added to the threshold and an "
                                 "adhesion energy w (J/m^2) by a cohesive law over reach_mm; the "
                                 "ball only")
+    mu_s: float = F(MEASURED_MU_S, ge=0, le=10,
+                    description=f"static coefficient, in [0, 10] (paper: {MEASURED_MU_S:g})")
+    mu_k: float = F(MEASURED_MU_K, ge=0, le=10,
+                    description=f"kinetic coefficient, in [0, mu_s] (paper: {MEASURED_MU_K:g})")
+    d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
+                      description="weakening slip distance of mu and tau_0, in (0, 1e4] mm")
     tau0_s_kPa: float = F(0.0, unit="kPa", ge=0, le=1e4,
                           description="static interfacial shear strength tau_0, in [0, 1e4] kPa "
                                       "(per deformed contact area; rubber on glass: kPa to "
@@ -261,6 +268,9 @@ class AdhesiveSpec(SlipWeakeningSpec):
 
     @model_validator(mode="after")
     def _tau_order(self):
+        if self.mu_k > self.mu_s:
+            raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction "
+                             f"must not exceed static)")
         if self.tau0_k_kPa > self.tau0_s_kPa:
             raise ValueError(f"tau0_k_kPa = {self.tau0_k_kPa} exceeds tau0_s_kPa = "
                              f"{self.tau0_s_kPa} (the kinetic shear strength must not exceed the "
@@ -282,3 +292,10 @@ class AdhesiveSpec(SlipWeakeningSpec):
                         tau_k=f64(self.tau0_k_kPa / pressure_scale_kPa),
                         reach=f64(self.reach_mm / ball_radius_mm),
                         deformed_area=self.shear_on == "deformed")
+
+    @property
+    def nominal_mu(self) -> float:
+        return self.mu_s
+
+    def static_kinetic(self) -> tuple[float, float, float]:
+        return self.mu_s, self.mu_k, self.d_c_mm

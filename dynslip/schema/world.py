@@ -188,7 +188,8 @@ def build_world(sc) -> World:
     stiffness: Any = jnp.asarray(nu.penalty_stiffness)
     width: Any = jnp.asarray(nu.penalty_width)
     # the ball's penalty carries the ball law's cohesive well (normal adhesion; none: no well)
-    adhesion, reach = p.friction.cohesion(r, kpa)
+    adhesion, reach = (jnp.asarray(v) for v in p.friction.cohesion(r, kpa))
+    cohesive: Any = (adhesion, reach)
     model = SheetModel(
         mesh,
         p.material.core(),
@@ -196,7 +197,7 @@ def build_world(sc) -> World:
         ball=p.ball_body(),
         bodies=held,
         band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
-        ball_penalty=Penalty(stiffness, width, jnp.asarray(adhesion), jnp.asarray(reach))
+        ball_penalty=Penalty(stiffness, width, *cohesive)
         if p.friction.ball_only else None,
     )
     names = tuple(name for name, *_ in specs)
