@@ -60,11 +60,14 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
+from dynslip.physics.penalty import cohesive_fraction
+
 __all__ = [
     "AbstractFriction",
     "Coulomb",
     "SlipWeakening",
     "PressureDependent",
+    "Adhesive",
     "capped_log",
     "capstan_reference_tension",
     "soft_threshold",
@@ -178,9 +181,10 @@ class AbstractFriction(eqx.Module):
         """The current friction coefficient per node (n,)."""
         raise NotImplementedError
 
-    def contact_area(self, area, areal_stretch):
-        """The area the law reads its pressure on, from the node's reference area and its
-        areal stretch $\\lambda_t\\lambda_\\phi$: the reference area (a law that ignores it)."""
+    def contact_area(self, area, areal_stretch, penetration=None):
+        """The area the law reads its pressure on, from the node's reference area, its
+        areal stretch $\\lambda_t\\lambda_\\phi$ and its penetration into the ball (R; None:
+        not known): the reference area (a law that ignores it)."""
         return area
 
     def n_internal(self) -> int:
@@ -246,6 +250,49 @@ class SlipWeakening(AbstractFriction):
         return jnp.where(heals(slip_speed, normal, heal_rate), 0.0, internal)
 
 
+class Adhesive(SlipWeakening):
+    r"""Slip weakening with an interfacial shear strength (Bowden-Tabor) and a contact range
+    (docs/adhesion.md): the threshold per node is
+
+    $$c = \mu(\delta)\max(N, 0) + \tau_0(\delta)\,A_c,\qquad
+      \tau_0(\delta) = \tau_k + (\tau_s - \tau_k)\max(0, 1 - \delta/d_c),$$
+
+    the shear strength weakening with the slip distance as $\mu$ does (``tau_s >= tau_k >= 0``,
+    $G h_0/R$), and $A_c$ the node's contact area: its deformed area $A_0\lambda_t
+    \lambda_\phi$ (``deformed_area``; False: $A_0$) times the fraction $s(d)$ of the cohesive
+    range it is within (:func:`dynslip.physics.penalty.cohesive_fraction`, range ``reach`` R:
+    1 at contact, 0 at a gap of ``reach``). So the threshold stays $\tau_0 A_c > 0$ where the
+    node is held in the cohesive range under a tensile normal force (friction under tension
+    while adhesion holds), and falls continuously to 0 as the gap opens. The normal adhesion
+    itself is the ball's penalty's well (:class:`dynslip.physics.penalty.Penalty`
+    ``adhesion``, same ``reach``). The slip distance advances and heals as
+    :class:`SlipWeakening`'s, where $N > 0$ (a node held under tension keeps its static
+    values). With ``tau_s = tau_k = 0`` it is :class:`SlipWeakening` exactly."""
+
+    tau_s: float | jnp.ndarray = 0.0
+    tau_k: float | jnp.ndarray = 0.0
+    reach: float | jnp.ndarray = 1.0e-3
+    deformed_area: bool = eqx.field(static=True, default=True)
+
+    def contact_area(self, area, areal_stretch, penetration=None):
+        if penetration is None:
+            raise ValueError("Adhesive friction needs the node's penetration into the ball")
+        a = area * areal_stretch if self.deformed_area else area
+        return a * cohesive_fraction(self.reach, penetration)
+
+    def shear_strength(self, internal=None):
+        r"""$\tau_0(\delta)$ per node ($\tau_s$ without a slip distance)."""
+        if internal is None:
+            return self.tau_s
+        w = jnp.clip(1.0 - internal / self.d_c, 0.0, 1.0)
+        return self.tau_k + (self.tau_s - self.tau_k) * w
+
+    def threshold(self, fn, internal=None, area=None):
+        if area is None:
+            raise ValueError("Adhesive friction needs the node's contact area")
+        return super().threshold(fn, internal, area) + self.shear_strength(internal) * area
+
+
 #: width $w$ of the $C^1$ rounding of the cap, in $\ln\mu$: the power law holds exactly where
 #: $\mu \le \mu_\mathrm{max} e^{-w}$ (5% below the cap), the cap where it would exceed
 #: $\mu_\mathrm{max} e^{w}$
@@ -283,7 +330,7 @@ class PressureDependent(AbstractFriction):
     eps: float | jnp.ndarray = 0.0
     deformed_area: bool = eqx.field(static=True, default=True)
 
-    def contact_area(self, area, areal_stretch):
+    def contact_area(self, area, areal_stretch, penetration=None):
         return area * areal_stretch if self.deformed_area else area
 
     def mu(self, p):

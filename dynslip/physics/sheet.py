@@ -60,7 +60,12 @@ from dynslip.physics.mesh import (
     mesh_from_radii,
     node_stretches,
 )
-from dynslip.physics.penalty import Penalty, penalty_energy, penalty_pressure
+from dynslip.physics.penalty import (
+    Penalty,
+    cohesive_fraction,
+    penalty_energy,
+    penalty_pressure,
+)
 
 __all__ = [
     "Kinematics",
@@ -153,6 +158,15 @@ class SheetModel(eqx.Module):
     ball: AbstractBody = eqx.field(default_factory=Sphere)
     bodies: tuple = ()
     band_grip: float | jnp.ndarray = 0.0
+    #: the ball's own penalty where it differs from ``penalty`` (its cohesive well: normal
+    #: adhesion, docs/adhesion.md); None: ``penalty``. The held bodies keep ``penalty``.
+    ball_penalty: Penalty | None = None
+
+    @property
+    def ball_contact(self) -> Penalty:
+        """The penalty between the sheet and the ball (:attr:`ball_penalty`, else
+        :attr:`penalty`)."""
+        return self.penalty if self.ball_penalty is None else self.ball_penalty
 
     def band_slip(self, pull, rho_edge, eps_density=0.0):
         r"""The band's slip force on the edge (clamp mode ``CLAMP_BAND``): the soft threshold
@@ -207,7 +221,15 @@ class SheetModel(eqx.Module):
     def penalty_energy(self, rho, z, zb, projections=None):
         d = self.penetration(rho, z, zb)
         held = self.held_penalty_energy(rho, z, zb, projections)
-        return jnp.sum(self.mesh.area * penalty_energy(self.penalty, d)) + held
+        return jnp.sum(self.mesh.area * penalty_energy(self.ball_contact, d)) + held
+
+    def adhesion_energy(self, rho, z, zb):
+        """The cohesive part of the ball's penalty energy, $-\\sum_i A_i w\\,s(d_i) \\le 0$
+        (G h0 R^2; 0 without normal adhesion): minus the work it would take to part every node
+        from the ball (docs/adhesion.md). Already inside :meth:`penalty_energy`."""
+        pen = self.ball_contact
+        s = cohesive_fraction(pen.reach, self.penetration(rho, z, zb))
+        return -jnp.sum(self.mesh.area * pen.adhesion * s)
 
     def energy(self, rho, z, zb):
         return self.elastic_energy(rho, z) + self.penalty_energy(rho, z, zb)
@@ -237,14 +259,16 @@ class SheetModel(eqx.Module):
         lt, lp = node_stretches(self.mesh, rho, z)
         return lt * lp
 
-    def contact_area(self, friction: AbstractFriction, rho, z):
+    def contact_area(self, friction: AbstractFriction, rho, z, zb=0.0):
         """Each node's area as ``friction`` reads its pressure (its reference area, or the
-        deformed one, :meth:`dynslip.physics.friction.AbstractFriction.contact_area`)."""
-        return friction.contact_area(self.mesh.area, self.areal_stretch(rho, z))
+        deformed one, :meth:`dynslip.physics.friction.AbstractFriction.contact_area`; the
+        ball at ``zb`` for a law that reads the node's gap)."""
+        return friction.contact_area(self.mesh.area, self.areal_stretch(rho, z),
+                                     self.penetration(rho, z, zb))
 
     def normal_force(self, rho, z, zb):
         """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
-        return self.mesh.area * penalty_pressure(self.penalty, self.penetration(rho, z, zb))
+        return self.mesh.area * penalty_pressure(self.ball_contact, self.penetration(rho, z, zb))
 
     def kinematics(
         self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None,
@@ -268,11 +292,24 @@ class SheetModel(eqx.Module):
         normal = self.normal_force(rho, z, zb)
         eps = eps_density * self.mesh.area
         s = friction.slip_force(ft, normal, internal, eps=eps,
-                                area=self.contact_area(friction, rho, z))
+                                area=self.contact_area(friction, rho, z, zb))
         eta_a = drag * self.mesh.area
         u = (fn * n + s * t) / eta_a
         u = u.at[0, 0].set(0.0)
         return Kinematics(u, ft, fn, normal, s, (g_rho, g_z, g_zb), eta_a, t)
+
+    def in_contact(self, pressure, rho, z, zb, contact_threshold=1e-2):
+        """The contact flag per node (not the clamped edge): the penalty presses
+        (``pressure`` per deformed area above ``contact_threshold``), or, with normal adhesion,
+        the node is held within half the cohesive range (gap below ``reach / 2``, the
+        cohesive traction's peak: adhered nodes under tension count as in contact, nodes past
+        the peak are peeling)."""
+        pen = self.ball_contact
+        contact = pressure > contact_threshold
+        if not (isinstance(pen.adhesion, (int, float)) and pen.adhesion == 0.0):
+            held = (pen.adhesion > 0) & (self.penetration(rho, z, zb) > -0.5 * pen.reach)
+            contact = contact | held
+        return contact.at[-1].set(False)
 
     def diagnostics(self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0,
                     contact_threshold=1e-2, internal=None, kin=None):
@@ -286,12 +323,12 @@ class SheetModel(eqx.Module):
         tt, tp = relaxed_tensions(self.material, lt, lp)
         def_area = self.mesh.area * lt * lp
         pressure = k.normal / def_area
-        contact = pressure > contact_threshold
-        contact = contact.at[-1].set(False)
+        contact = self.in_contact(pressure, rho, z, zb, contact_threshold)
         friction_force = (k.slip - k.ft) / def_area  # density, + toward the equator
         slip = k.slip / k.eta_a
+        pressed = contact & (pressure > 0)
         mu_mob = jnp.where(
-            contact, jnp.abs(friction_force) / jnp.where(contact, pressure, 1.0), jnp.nan
+            pressed, jnp.abs(friction_force) / jnp.where(pressed, pressure, 1.0), jnp.nan
         )
         theta = jnp.where(contact, jnp.arctan2(rho, z - zb), jnp.nan)
         slipping = k.slip != 0.0

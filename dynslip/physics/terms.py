@@ -88,7 +88,7 @@ def forces(model: SheetModel, q, zb, projections=None):
         return jax.value_and_grad(element_energy, argnums=(4, 5))(model.material, dr, rs, a, xa, xb)
 
     e, (ga, gb) = jax.vmap(el)(m.dr, rsum, m.area_el, q[:-1], q[1:])
-    ep, gp = _penalty(model.penalty, m.area, model.ball.project(q))
+    ep, gp = _penalty(model.ball_contact, m.area, model.ball.project(q))
     load = jnp.zeros(())
     if model.bodies:
         parts = _held_parts(model, q, zb, projections=projections)
@@ -118,7 +118,7 @@ def forces_and_hessians(model: SheetModel, q, zb, projections=None):
 
     e, ge, he = jax.vmap(el)(m.dr, rsum, m.area_el, jnp.concatenate([q[:-1], q[1:]], axis=1))
 
-    ep, gp, hp = _penalty(model.penalty, m.area, model.ball.project(q), hessian=True)
+    ep, gp, hp = _penalty(model.ball_contact, m.area, model.ball.project(q), hessian=True)
     load, hh = jnp.zeros(()), None
     if model.bodies:
         # per body, summed here: the Hessian of the bodies at rest is the part that moves with

@@ -316,6 +316,11 @@ class HeldFields(Strict):
 
     @model_validator(mode="after")
     def _free_only(self):
+        if self.friction.ball_only:
+            raise ValueError(f"body {self.name!r}: friction.law = {self.friction.law} acts on the "
+                             f"ball only (a held body shares the sheet's repulsive penalty, with "
+                             f"no gap to bound an adhesive range); allowed here: none, coulomb, "
+                             f"slip_weakening, pressure")
         if self.motion != "free":
             given = [k for k in ("force_N", "drag") if getattr(self, k) is not None]
             if given:

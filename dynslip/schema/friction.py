@@ -11,12 +11,13 @@ outside the package)."""
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import model_validator
 
 from dynslip.physics.friction import (
     CAP_BLEND,
+    Adhesive,
     Coulomb,
     PressureDependent,
     SlipWeakening,
@@ -28,7 +29,8 @@ from dynslip.schema.base import F, Strict
 from dynslip.schema.registry import Registry
 
 __all__ = ["FrictionSpec", "FrictionLaw", "FRICTION_SPECS", "CoulombSpec", "SlipWeakeningSpec",
-           "PressureSpec", "FrictionlessSpec", "CAPSTAN_TEST", "capstan_reference_pressure_kPa"]
+           "PressureSpec", "FrictionlessSpec", "AdhesiveSpec", "CAPSTAN_TEST",
+           "capstan_reference_pressure_kPa"]
 
 #: the paper's capstan strip test (Section 2.1) as this model reads it: 5 mm wide strips over the
 #: 40 mm ball, a mass at each end, hanging vertically (wrap angle pi). The paper gives no masses:
@@ -62,6 +64,15 @@ class FrictionSpec(Strict):
     other fields are its parameters."""
 
     law: str
+
+    #: whether the law may act on the ball only (not on a held body: adhesion,
+    #: :class:`AdhesiveSpec`)
+    ball_only: ClassVar[bool] = False
+
+    def cohesion(self, ball_radius_mm: float, pressure_scale_kPa: float) -> tuple[float, float]:
+        """The ball penalty's cohesive well ``(adhesion, reach)`` in core units (G h0, R): no
+        well for a law without normal adhesion."""
+        return 0.0, 1e-3
 
     def build(self, ball_radius_mm: float, eps, pressure_scale_kPa: float | None = None):
         """The core law (:class:`~dynslip.physics.friction.AbstractFriction`, None: frictionless):
@@ -207,3 +218,84 @@ class PressureSpec(FrictionSpec):
     @property
     def nominal_mu(self) -> float:
         return self.mu_ref
+
+
+#: the range of the cohesive law by default (mm): the penalty's width at the default 1e-3 R on the
+#: 20 mm ball, so that the well and the repulsion act over the same small gap
+DEFAULT_REACH_MM = 0.02
+
+
+@FRICTION_SPECS.add
+class AdhesiveSpec(FrictionSpec):
+    """Slip weakening with adhesion (docs/adhesion.md): the friction threshold per node is
+    tau_0 A + mu N (Bowden-Tabor, tau_0 from tau0_s_kPa to tau0_k_kPa as mu from mu_s to mu_k
+    over d_c_mm), A the node's deformed contact area within the cohesive range; and a cohesive
+    well of energy w_J_m2 over the gap reach_mm in the ball's contact penalty (normal adhesion,
+    peeling at Kendall's condition). On the ball only. Zero tau_0 and w: slip_weakening exactly."""
+
+    law: Literal["adhesive"] = F(
+        "adhesive", description="adhesive: slip_weakening plus an interfacial shear strength "
+                                "tau_0 (kPa, static and kinetic) added to the threshold and an "
+                                "adhesion energy w (J/m^2) by a cohesive law over reach_mm; the "
+                                "ball only")
+    mu_s: float = F(MEASURED_MU_S, ge=0, le=10,
+                    description=f"static coefficient, in [0, 10] (paper: {MEASURED_MU_S:g})")
+    mu_k: float = F(MEASURED_MU_K, ge=0, le=10,
+                    description=f"kinetic coefficient, in [0, mu_s] (paper: {MEASURED_MU_K:g})")
+    d_c_mm: float = F(0.4, unit="mm", gt=0, le=1e4,
+                      description="weakening slip distance of mu and tau_0, in (0, 1e4] mm")
+    tau0_s_kPa: float = F(0.0, unit="kPa", ge=0, le=1e4,
+                          description="static interfacial shear strength tau_0, in [0, 1e4] kPa "
+                                      "(per deformed contact area; rubber on glass: kPa to "
+                                      "0.1 MPa, docs/adhesion.md)")
+    tau0_k_kPa: float = F(0.0, unit="kPa", ge=0, le=1e4,
+                          description="kinetic shear strength, in [0, tau0_s_kPa] kPa, reached "
+                                      "over d_c_mm of slip as mu_k")
+    w_J_m2: float = F(0.0, unit="J/m^2", ge=0, le=1e2,
+                      description="adhesion energy w of the sheet on the ball, in [0, 100] J/m^2 "
+                                  "(the area of the cohesive traction-separation curve; per "
+                                  "reference area; rubber on glass 0.01-0.1 by JKR, more in peel, "
+                                  "docs/adhesion.md)")
+    reach_mm: float = F(DEFAULT_REACH_MM, unit="mm", gt=0, le=10,
+                        description="range of the cohesive law: the gap at which the adhesion "
+                                    "and tau_0 vanish, in (0, 10] mm; the largest tension is "
+                                    "15 w / (8 reach)")
+    shear_on: Literal["deformed", "reference"] = F(
+        "deformed", description="the area tau_0 acts on: deformed (the true contact area) or "
+                                "reference (the undeformed area)")
+
+    ball_only: ClassVar[bool] = True
+
+    @model_validator(mode="after")
+    def _tau_order(self):
+        if self.mu_k > self.mu_s:
+            raise ValueError(f"mu_k = {self.mu_k} exceeds mu_s = {self.mu_s} (kinetic friction "
+                             f"must not exceed static)")
+        if self.tau0_k_kPa > self.tau0_s_kPa:
+            raise ValueError(f"tau0_k_kPa = {self.tau0_k_kPa} exceeds tau0_s_kPa = "
+                             f"{self.tau0_s_kPa} (the kinetic shear strength must not exceed the "
+                             f"static)")
+        return self
+
+    def cohesion(self, ball_radius_mm, pressure_scale_kPa):
+        # G h0 in N/m is the pressure scale (kPa) times R (mm)
+        return self.w_J_m2 / (pressure_scale_kPa * ball_radius_mm), self.reach_mm / ball_radius_mm
+
+    def build(self, ball_radius_mm, eps, pressure_scale_kPa=None):
+
+        if pressure_scale_kPa is None or not pressure_scale_kPa > 0:
+            raise ValueError(f"law: adhesive needs the pressure scale G h0 / R (kPa) > 0, got "
+                             f"{pressure_scale_kPa}")
+        return Adhesive(mu_s=f64(self.mu_s), mu_k=f64(self.mu_k),
+                        d_c=f64(self.d_c_mm / ball_radius_mm), eps=f64(eps),
+                        tau_s=f64(self.tau0_s_kPa / pressure_scale_kPa),
+                        tau_k=f64(self.tau0_k_kPa / pressure_scale_kPa),
+                        reach=f64(self.reach_mm / ball_radius_mm),
+                        deformed_area=self.shear_on == "deformed")
+
+    @property
+    def nominal_mu(self) -> float:
+        return self.mu_s
+
+    def static_kinetic(self) -> tuple[float, float, float]:
+        return self.mu_s, self.mu_k, self.d_c_mm

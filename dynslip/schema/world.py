@@ -189,13 +189,20 @@ def build_world(sc) -> World:
     # arrays (traced): leaves of the model's pytree, inputs of the compiled step rather than
     # constants compiled into it, so that a sweep over any of them compiles once and jax.jvp
     # reaches them (the held bodies' geometry stays static)
+    stiffness: Any = jnp.asarray(nu.penalty_stiffness)
+    width: Any = jnp.asarray(nu.penalty_width)
+    # the ball's penalty carries the ball law's cohesive well (normal adhesion; none: no well)
+    adhesion, reach = (jnp.asarray(v) for v in p.friction.cohesion(r, kpa))
+    cohesive: Any = (adhesion, reach)
     model = SheetModel(
         mesh,
         traced(p.material.core()),
-        traced(Penalty(float(nu.penalty_stiffness), float(nu.penalty_width))),
+        traced(Penalty(stiffness, width)),
         ball=p.ball_body(),
         bodies=held,
         band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
+        ball_penalty=Penalty(stiffness, width, *cohesive)
+        if p.friction.ball_only else None,
     )
     names = tuple(name for name, *_ in specs)
     loads = dict(

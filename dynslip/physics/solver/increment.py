@@ -103,19 +103,25 @@ class Increment(eqx.Module):
 def node_contact(model: SheetModel, i, q, g):
     """Node ``i``'s normal and tangential driving forces against the ball, its normal and
     tangent, the penalty's normal force and the node's area."""
+    return _node_contact(model, i, q, g)[:6]
+
+
+def _node_contact(model: SheetModel, i, q, g):
+    # node_contact's and the node's penetration into the ball (an adhesive law reads it)
     f = -g
     d, n, t = contact_gap(model.ball, q)
     pole = i == 0
     fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
     ft = jnp.where(pole, 0.0, f @ t)
     area = model.mesh.area[i]
-    return fn, ft, n, t, area * penalty_pressure(model.penalty, d), area
+    return fn, ft, n, t, area * penalty_pressure(model.ball_contact, d), area, d
 
 
-def law_area(friction: AbstractFriction, inc: Increment, i, area):
-    """Node ``i``'s area as the ball's law reads its pressure (``area`` its reference area)."""
-    return area if inc.areal_stretch is None else friction.contact_area(area,
-                                                                        inc.areal_stretch[i])
+def law_area(friction: AbstractFriction, inc: Increment, i, area, d=None):
+    """Node ``i``'s area as the ball's law reads its pressure (``area`` its reference area,
+    ``d`` its penetration into the ball, for a law that reads its gap)."""
+    stretch = 1.0 if inc.areal_stretch is None else inc.areal_stretch[i]
+    return friction.contact_area(area, stretch, d)
 
 
 class NodeLaw(NamedTuple):
@@ -138,9 +144,9 @@ class NodeLaw(NamedTuple):
 def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q, g) -> NodeLaw:
     """The :class:`NodeLaw` of node ``i`` at relative position ``q`` under the energy gradient
     ``g``."""
-    fn, ft, n, t, normal, area = node_contact(model, i, q, g)
+    fn, ft, n, t, normal, area, d = _node_contact(model, i, q, g)
     return NodeLaw(fn, ft, n, t, normal, area, inc.args.drag * area, inc.args.eps * area,
-                   law_area(friction, inc, i, area))
+                   law_area(friction, inc, i, area, d))
 
 
 def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
