@@ -15,6 +15,7 @@ import jax
 import jax.numpy as jnp
 
 from dynslip.physics import conditions
+from dynslip.physics.bodies.corners import corner_normal, corners_of
 from dynslip.physics.bodies.held import frictional, held_frame
 from dynslip.physics.conditions import Edge
 from dynslip.physics.field import StageArgs
@@ -27,6 +28,7 @@ __all__ = [
     "NodeLaw",
     "ball_rate",
     "ball_velocity",
+    "corner_shares",
     "edge_rate",
     "increment_rates",
     "law_area",
@@ -100,16 +102,32 @@ class Increment(eqx.Module):
     weight: float | None = None
 
 
-def node_contact(model: SheetModel, i, q, g):
+def corner_shares(model: SheetModel, q):
+    """Each node's share of the ball's corners' normal force at relative positions ``q`` (n,)
+    (:func:`dynslip.physics.bodies.corners.corner_normal`), or None when the ball has no
+    corners: the ball's friction law reads it beside the node's own penalty force. The Newton
+    matrix holds it at the iterate's value (its derivative through the segment's other node
+    left out: an inexact Jacobian for the corners' friction only, which changes Newton's path,
+    not its root)."""
+    if corners_of(model.ball) is None:
+        return None
+    return corner_normal(model.ball, q, model.penalty)
+
+
+def node_contact(model: SheetModel, i, q, g, corner=None):
     """Node ``i``'s normal and tangential driving forces against the ball, its normal and
-    tangent, the penalty's normal force and the node's area."""
+    tangent, the penalty's normal force (with ``corner``, the node's share of the ball's
+    corners', :func:`corner_shares`) and the node's area."""
     f = -g
     d, n, t = contact_gap(model.ball, q)
     pole = i == 0
     fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
     ft = jnp.where(pole, 0.0, f @ t)
     area = model.mesh.area[i]
-    return fn, ft, n, t, area * penalty_pressure(model.penalty, d), area
+    normal = area * penalty_pressure(model.penalty, d)
+    if corner is not None:
+        normal = normal + corner
+    return fn, ft, n, t, normal, area
 
 
 def law_area(friction: AbstractFriction, inc: Increment, i, area):
@@ -135,10 +153,11 @@ class NodeLaw(NamedTuple):
     a_law: jax.Array
 
 
-def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q, g) -> NodeLaw:
+def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q, g,
+             corner=None) -> NodeLaw:
     """The :class:`NodeLaw` of node ``i`` at relative position ``q`` under the energy gradient
-    ``g``."""
-    fn, ft, n, t, normal, area = node_contact(model, i, q, g)
+    ``g`` (``corner``: its share of the ball's corners' normal force, :func:`corner_shares`)."""
+    fn, ft, n, t, normal, area = node_contact(model, i, q, g, corner)
     return NodeLaw(fn, ft, n, t, normal, area, inc.args.drag * area, inc.args.eps * area,
                    law_area(friction, inc, i, area))
 
@@ -154,16 +173,18 @@ def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=
 
 
 def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None,
-              held=True, projections=None, alone=None):
+              held=True, projections=None, alone=None, corner=None):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
     ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
     (:mod:`dynslip.physics.bodies.held`), needed only when one has friction; ``held=False``
     leaves that friction out (the ball's part alone); ``projections`` the held bodies' of the
     node (None: projected here); ``alone``: whether no frictional held body touches the node
-    (:func:`untouched`; None: found here with held friction, else True)."""
+    (:func:`untouched`; None: found here with held friction, else True); ``corner``: the node's
+    share of the ball's corners' normal force (:func:`corner_shares`; None: no corners)."""
     pole = i == 0
-    fn, ft, n, t, normal, area, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g)
+    fn, ft, n, t, normal, area, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g,
+                                                             corner)
     hf = None
     if held and frictional(model.bodies):
         hf = node_held_frame(model, inc, i, q, g, zb, projections)
@@ -196,7 +217,7 @@ def untouched(hf):
 
 
 def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, delta0,
-                        alone=None):
+                        alone=None, corner=None):
     r"""$\partial u_i/\partial g_i$ of :func:`node_rate` without held friction, in closed form:
     the rate reads the force only through $F_n = f\cdot n$ and $F_t = f\cdot t$ ($f = -g$; at
     the pole $F_n = f_z\,{\rm sign}\,n_z$, $F_t = 0$), so
@@ -206,7 +227,7 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     ``jacfwd`` in $g$ (the Newton matrix's largest part at large N); checked against it in
     tests/test_newton.py."""
     pole = i == 0
-    _, ft, n, t, normal, _, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g)
+    _, ft, n, t, normal, _, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g, corner)
 
     w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a, alone)
 
@@ -348,15 +369,17 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load, projections
         # the law's pressure at the increment's end, as every other force of implicit Euler
         inc = eqx.tree_at(lambda c: c.areal_stretch, inc, model.areal_stretch(q[:, 0], q[:, 1]))
     vb = ball_velocity(model, inc, q, zb, g, load, ps)
+    cs = corner_shares(model, q)
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi, pi: node_rate(model, friction, inc, i, qi, gi, None,
-                                                        zb, vb, projections=pi))(idx, q, g, ps)
+        u, _ = jax.vmap(lambda i, qi, gi, pi, ci: node_rate(model, friction, inc, i, qi, gi, None,
+                                                            zb, vb, projections=pi, corner=ci)
+                        )(idx, q, g, ps, cs)
         delta1 = None
     else:
         u, delta1 = jax.vmap(
-            lambda i, qi, gi, di, pi: node_rate(model, friction, inc, i, qi, gi, di, zb, vb,
-                                                projections=pi)
-        )(idx, q, g, d0, ps)
+            lambda i, qi, gi, di, pi, ci: node_rate(model, friction, inc, i, qi, gi, di, zb, vb,
+                                                    projections=pi, corner=ci)
+        )(idx, q, g, d0, ps, cs)
         delta1 = delta1.at[-1].set(d0[-1])
     u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load, vb, q[-1, 0]))
     return u, vb, delta1

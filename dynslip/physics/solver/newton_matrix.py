@@ -20,6 +20,7 @@ from dynslip.physics.solver.increment import (
     Increment,
     ball_rate,
     ball_velocity,
+    corner_shares,
     edge_rate,
     node_force_jacobian,
     node_held_frame,
@@ -50,14 +51,16 @@ def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(n)
     mem = inc.delta0 is not None
 
-    def local(i, qi, gi, di):
-        return node_rate(model, friction, inc, i, qi, gi, di if mem else None)[0]
+    cs = corner_shares(model, q)  # held at the iterate's value (corner_shares)
 
-    lq = jax.vmap(jax.jacfwd(local, argnums=1))(idx, q, g, d0)  # (n, 2, 2)
+    def local(i, qi, gi, di, ci):
+        return node_rate(model, friction, inc, i, qi, gi, di if mem else None, corner=ci)[0]
+
+    lq = jax.vmap(jax.jacfwd(local, argnums=1))(idx, q, g, d0, cs)  # (n, 2, 2)
     lg = jax.vmap(
-        lambda i, qi, gi, di: node_force_jacobian(model, friction, inc, i, qi, gi,
-                                                  di if mem else None)
-    )(idx, q, g, d0)
+        lambda i, qi, gi, di, ci: node_force_jacobian(model, friction, inc, i, qi, gi,
+                                                      di if mem else None, corner=ci)
+    )(idx, q, g, d0, cs)
     # the clamped edge: rate from its force and the ball height only
     eg, ez, el, er = jax.jacfwd(
         lambda ge, z, ld, r: edge_rate(model, inc, ge, z, ld, None, r), argnums=(0, 1, 2, 3)
@@ -98,7 +101,7 @@ def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
 
 
 def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, zb, vb,
-                     projections):
+                     projections, corner=None):
     r"""Node ``i``'s rate's derivatives in $(q_i, g_i, z_b, v_b)$ with held friction, and
     those of the axial friction force on it, $\sum_k f_{ik} t_{k,z}$ (the ball's velocity
     reads them): ``(lq, lg, lz, lv, aq, ag, az, av)``. The held bodies' friction $f_k = (S_k -
@@ -122,7 +125,8 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
         hf = node_held_frame(model, inc, i, qi, g, zb, ps)
         # the ball's law in its weighted form where no held friction acts on the node
         alone = untouched(hf)
-        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False, alone=alone)[0]
+        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False, alone=alone,
+                      corner=corner)[0]
         gk, sk = hf.slip(vb)
         fk = jnp.where(hf.live, sk - gk, 0.0)[:, None] * hf.t  # (K, 2)
         # the slopes at the primal point (no derivative of them is taken)
@@ -138,7 +142,7 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     fz = jnp.einsum("k,ki->i", rest, fq[:, :, 1])
     fq, fg, fv = jnp.sum(fq, axis=0), jnp.sum(fg, axis=0), jnp.sum(fv, axis=0)
     lq = uq + fq / eta_a
-    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0, alone) + fg / eta_a
+    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0, alone, corner) + fg / eta_a
     return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1]
 
 
@@ -175,11 +179,13 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, e
     moving = tuple(e.moves_with_ball for e in held_entries(model.bodies)
                    if e.friction is not None)
 
-    def local(i, qi, gi, di, pi):
-        return _held_node_terms(model, friction, inc, moving, i, qi, gi, di if mem else None,
-                                zb, vb, pi)
+    cs = corner_shares(model, q)  # held at the iterate's value (corner_shares)
 
-    lq, lg, lz, lv, aq, ag, az, av = jax.vmap(local)(idx, q, g, d0, ps)
+    def local(i, qi, gi, di, pi, ci):
+        return _held_node_terms(model, friction, inc, moving, i, qi, gi, di if mem else None,
+                                zb, vb, pi, ci)
+
+    lq, lg, lz, lv, aq, ag, az, av = jax.vmap(local)(idx, q, g, d0, ps, cs)
     eg, ev, er = jax.jacfwd(
         lambda ge, v, r: edge_rate(model, inc, ge, zb, load, v, r), argnums=(0, 1, 2)
     )(g[-1], vb, q[-1, 0])
