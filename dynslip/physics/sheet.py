@@ -50,7 +50,7 @@ import numpy as np
 from dynslip.physics.bodies.base import AbstractBody
 from dynslip.physics.bodies.chords import chord_depths as body_chord_depths
 from dynslip.physics.bodies.corners import corner_energy, corner_normal
-from dynslip.physics.bodies.held import held_entries, held_frame
+from dynslip.physics.bodies.held import held_corner_normal, held_entries, held_frame
 from dynslip.physics.bodies.sphere import Sphere
 from dynslip.physics.friction import AbstractFriction, soft_threshold
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
@@ -207,7 +207,8 @@ class SheetModel(eqx.Module):
         live = (idx > 0) & (idx < rho.shape[0] - 1)
         x, area, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
         return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
-                          eps_density, live, zb, delta, projections)  # fmt: skip
+                          eps_density, live, zb, delta, projections,
+                          held_corner_normal(self.bodies, x, pen, zb))  # fmt: skip
 
     def penalty_energy(self, rho, z, zb, projections=None):
         d = self.penetration(rho, z, zb)

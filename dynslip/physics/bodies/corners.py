@@ -60,7 +60,8 @@ import numpy as np
 from dynslip.physics.bodies.segments import Arc
 from dynslip.physics.penalty import Penalty, penalty_energy, penalty_pressure
 
-__all__ = ["CORNER_RADIUS", "corner_energy", "corner_normal", "corner_terms", "corners_of"]
+__all__ = ["CORNER_RADIUS", "corner_energy", "corner_normal", "corner_normal_jacobian",
+           "corner_terms", "corners_of"]
 
 #: arcs of this radius or smaller (units of R) are corners; an arc this small is crossed by one
 #: element of the meshes the scenarios run (0.02-0.03 R of material stretched 3-5 times), and
@@ -165,3 +166,28 @@ def corner_terms(body, x, pen: Penalty, z=0.0, hessian=False):
         return jnp.sum(e), grad
     h_diag = jnp.zeros((n, 2, 2)).at[:-1].add(h[:, :2, :2]).at[1:].add(h[:, 2:, 2:])
     return jnp.sum(e), grad, (h_diag, h[:, :2, 2:])
+
+
+def corner_normal_jacobian(body, x, pen: Penalty, z=0.0):
+    r"""The derivatives of each node's share of the corners' normal force
+    (:func:`corner_normal`) in the nodes it reads: ``(self, up, low)``, each (n, 2),
+    $\partial N_i/\partial x_i$, $\partial N_i/\partial x_{i+1}$ and $\partial N_i/\partial
+    x_{i-1}$ (a share reads the two segments at node $i$: block tridiagonal). Zeros without
+    corners."""
+    n = x.shape[0]
+    zero = jnp.zeros((n, 2))
+    if corners_of(body) is None:
+        return zero, zero, zero
+    c, r, w, ab = _pairs(body, x, z)
+
+    def seg(v):
+        def one(ci, ri, wi):
+            sj, dist = _closest(ci, v[:2], v[2:])
+            f = wi * penalty_pressure(pen, ri - dist)
+            return jnp.stack([(1.0 - sj) * f, sj * f])
+
+        return jnp.sum(jax.vmap(one)(c, r, w), axis=0)
+
+    j = jax.vmap(jax.jacfwd(seg))(ab)  # (n - 1, 2, 4): (lo, hi) in (a, b)
+    own = zero.at[:-1].add(j[:, 0, :2]).at[1:].add(j[:, 1, 2:])
+    return own, zero.at[:-1].set(j[:, 0, 2:]), zero.at[1:].set(j[:, 1, :2])

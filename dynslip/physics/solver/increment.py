@@ -15,8 +15,8 @@ import jax
 import jax.numpy as jnp
 
 from dynslip.physics import conditions
-from dynslip.physics.bodies.corners import corner_normal, corners_of
-from dynslip.physics.bodies.held import frictional, held_frame
+from dynslip.physics.bodies.corners import corner_normal, corner_normal_jacobian, corners_of
+from dynslip.physics.bodies.held import frictional, held_corner_normal, held_entries, held_frame
 from dynslip.physics.conditions import Edge
 from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import AbstractFriction
@@ -28,7 +28,10 @@ __all__ = [
     "NodeLaw",
     "ball_rate",
     "ball_velocity",
+    "corner_share_jacobians",
     "corner_shares",
+    "held_share_jacobians",
+    "held_shares",
     "edge_rate",
     "increment_rates",
     "law_area",
@@ -114,6 +117,28 @@ def corner_shares(model: SheetModel, q):
     return corner_normal(model.ball, q, model.penalty)
 
 
+def corner_share_jacobians(model: SheetModel, q):
+    """:func:`corner_shares`' derivatives in the nodes, ``(own, up, low)`` (n, 2) each
+    (:func:`dynslip.physics.bodies.corners.corner_normal_jacobian`), or None without corners:
+    the Newton matrix's corner friction terms."""
+    if corners_of(model.ball) is None:
+        return None
+    return corner_normal_jacobian(model.ball, q, model.penalty)
+
+
+def held_share_jacobians(model: SheetModel, q, zb):
+    """:func:`held_shares`' derivatives in the nodes, ``(own, up, low)`` (K, n, 2) each, or
+    None where :func:`held_shares` is None."""
+    if not frictional(model.bodies):
+        return None
+    entries = held_entries(model.bodies)
+    if all(corners_of(e.body) is None for e in entries):
+        return None
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    parts = [corner_normal_jacobian(e.body, x, model.penalty, e.shift(zb)) for e in entries]
+    return tuple(jnp.stack([p[j] for p in parts]) for j in range(3))
+
+
 def node_contact(model: SheetModel, i, q, g, corner=None):
     """Node ``i``'s normal and tangential driving forces against the ball, its normal and
     tangent, the penalty's normal force (with ``corner``, the node's share of the ball's
@@ -162,18 +187,33 @@ def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q
                    law_area(friction, inc, i, area))
 
 
-def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
+def held_shares(model: SheetModel, q, zb):
+    """Each node's share of each held body's corners' normal force at relative positions
+    ``q``, (n, K), or None when no held body has corners or none has friction
+    (:func:`dynslip.physics.bodies.held.held_corner_normal`; held at the iterate's value in the
+    Newton matrix, as :func:`corner_shares`)."""
+    if not frictional(model.bodies):
+        return None
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    c = held_corner_normal(model.bodies, x, model.penalty, zb)
+    return None if c is None else c.T
+
+
+def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None,
+                    corner=None):
     """The held bodies' friction frame of node ``i`` at relative position ``q`` under the
     energy gradient ``g``, the ball at ``zb`` (held friction acts on neither the pole nor the
-    clamped edge); ``projections`` the held bodies' of the node (None: projected here)."""
+    clamped edge); ``projections`` the held bodies' of the node (None: projected here);
+    ``corner`` (K,) its shares of the held bodies' corners' normal force (:func:`held_shares`;
+    None: none)."""
     live = (i > 0) & (i < model.mesh.n - 1)
     hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
     return _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), -g, model.mesh.area[i],
-                       inc.args, live, zb, hd, projections)
+                       inc.args, live, zb, hd, projections, corner)
 
 
 def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None,
-              held=True, projections=None, alone=None, corner=None):
+              held=True, projections=None, alone=None, corner=None, held_corner=None):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
     ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
@@ -181,13 +221,14 @@ def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=N
     leaves that friction out (the ball's part alone); ``projections`` the held bodies' of the
     node (None: projected here); ``alone``: whether no frictional held body touches the node
     (:func:`untouched`; None: found here with held friction, else True); ``corner``: the node's
-    share of the ball's corners' normal force (:func:`corner_shares`; None: no corners)."""
+    share of the ball's corners' normal force (:func:`corner_shares`; None: no corners), and
+    ``held_corner`` of the held bodies' (:func:`held_shares`)."""
     pole = i == 0
     fn, ft, n, t, normal, area, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g,
                                                              corner)
     hf = None
     if held and frictional(model.bodies):
-        hf = node_held_frame(model, inc, i, q, g, zb, projections)
+        hf = node_held_frame(model, inc, i, q, g, zb, projections, held_corner)
         alone = untouched(hf) if alone is None else alone
     delta1, delta_mu = None, None
     if inc.weight is None:
@@ -290,7 +331,8 @@ def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, 
                                area=area if a_law is None else a_law, weight=gamma) - shift
 
 
-def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None):
+def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None,
+                corners=None):
     """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
     ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory),
     the held bodies' ``projections`` of ``x`` (None: projected here)."""
@@ -306,6 +348,7 @@ def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, proje
         zb,
         delta,
         projections,
+        corners,
     )
 
 
@@ -318,7 +361,8 @@ def sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None, projections=
     idx = jnp.arange(n)
     x = q + jnp.stack([jnp.zeros(()), zb])
     return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb,
-                       delta, projections)
+                       delta, projections, held_corner_normal(model.bodies, x, model.penalty,
+                                                              zb))
 
 
 def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load, projections=None):
@@ -369,17 +413,18 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load, projections
         # the law's pressure at the increment's end, as every other force of implicit Euler
         inc = eqx.tree_at(lambda c: c.areal_stretch, inc, model.areal_stretch(q[:, 0], q[:, 1]))
     vb = ball_velocity(model, inc, q, zb, g, load, ps)
-    cs = corner_shares(model, q)
+    cs, hs = corner_shares(model, q), held_shares(model, q, zb)
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi, pi, ci: node_rate(model, friction, inc, i, qi, gi, None,
-                                                            zb, vb, projections=pi, corner=ci)
-                        )(idx, q, g, ps, cs)
+        u, _ = jax.vmap(lambda i, qi, gi, pi, ci, hi: node_rate(
+            model, friction, inc, i, qi, gi, None, zb, vb, projections=pi, corner=ci,
+            held_corner=hi))(idx, q, g, ps, cs, hs)
         delta1 = None
     else:
         u, delta1 = jax.vmap(
-            lambda i, qi, gi, di, pi, ci: node_rate(model, friction, inc, i, qi, gi, di, zb, vb,
-                                                    projections=pi, corner=ci)
-        )(idx, q, g, d0, ps, cs)
+            lambda i, qi, gi, di, pi, ci, hi: node_rate(model, friction, inc, i, qi, gi, di, zb,
+                                                        vb, projections=pi, corner=ci,
+                                                        held_corner=hi)
+        )(idx, q, g, d0, ps, cs, hs)
         delta1 = delta1.at[-1].set(d0[-1])
     u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load, vb, q[-1, 0]))
     return u, vb, delta1
