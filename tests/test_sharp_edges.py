@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from dynslip.physics.bodies.corners import (
+    corner_crossed,
     corner_energy,
     corner_normal,
     corner_terms,
@@ -252,3 +253,19 @@ def test_smooth_body_adds_nothing():
         np.testing.assert_allclose(np.asarray(hd[i]), np.asarray(full[i, :, i, :]),
                                    rtol=1e-9, atol=1e-9)
     assert hu.shape == (n - 1, 2, 2)
+
+
+def test_a_segment_through_a_corner_is_caught():
+    """A segment that passes through the knife's centre between two states is caught (the
+    penalty's distance is unsigned, so the solver refuses such an increment); one that slides
+    along over it, or moves far from it, is not."""
+    c = np.array([RING, TOP - EDGE])
+    over = jnp.asarray([[0.0, 0.0], [RING - 0.05, c[1] + 0.004], [RING + 0.05, c[1] + 0.004],
+                        [2.0, -0.5]])
+    through = over.at[1:3, 1].set(c[1] - 0.004)
+    slid = over.at[1:3, 0].add(0.03)
+    assert bool(corner_crossed(KNIFE, over, through))
+    assert bool(corner_crossed(KNIFE, over, over.at[1:3, 1].set(c[1] - 0.5)))  # a jump past it
+    assert not bool(corner_crossed(KNIFE, over, slid))
+    assert not bool(corner_crossed(KNIFE, over, over.at[1:3, 1].add(0.3)))
+    assert not bool(corner_crossed(Sphere(), over, through))  # no corners

@@ -12,12 +12,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from dynslip.physics.bodies.corners import corner_terms, corners_of
+from dynslip.physics.bodies.corners import corner_crossed, corner_terms, corners_of
 from dynslip.physics.bodies.held import held_entries, projected
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["contact_gap", "corner_parts", "element_energy", "forces", "forces_and_hessians",
+__all__ = ["contact_gap", "corner_parts", "corners_crossed", "element_energy", "forces", "forces_and_hessians",
            "held_projections"]
 
 
@@ -117,6 +117,20 @@ def corner_parts(model: SheetModel, q, zb, hessian=False):
                            sum((r[1] for r in rest), jnp.zeros((n - 1, 2, 2))))
         hz = hz.at[:, :, 1].set(col)
     return ball, held + ((hd, hu), (hl, hz))
+
+
+def corners_crossed(model: SheetModel, q0, zb0, q, zb):
+    """Whether a segment passed through a corner's centre of the ball or of a held body
+    between the increment's start ``(q0, zb0)`` and ``(q, zb)``
+    (:func:`~dynslip.physics.bodies.corners.corner_crossed`, each body's corners against the
+    nodes relative to it); False without corners (nothing traced)."""
+    out = corner_crossed(model.ball, q0, q)
+    for e in held_entries(model.bodies):
+        if corners_of(e.body) is not None:
+            x0 = q0 + jnp.stack([jnp.zeros(()), zb0 - e.shift(zb0)])
+            x1 = q + jnp.stack([jnp.zeros(()), zb - e.shift(zb)])
+            out = out | corner_crossed(e.body, x0, x1)
+    return out
 
 
 def forces(model: SheetModel, q, zb, projections=None):

@@ -60,8 +60,8 @@ import numpy as np
 from dynslip.physics.bodies.segments import Arc
 from dynslip.physics.penalty import Penalty, penalty_energy, penalty_pressure
 
-__all__ = ["CORNER_RADIUS", "corner_energy", "corner_normal", "corner_normal_jacobian",
-           "corner_terms", "corners_of"]
+__all__ = ["CORNER_RADIUS", "corner_crossed", "corner_energy", "corner_normal",
+           "corner_normal_jacobian", "corner_terms", "corners_of"]
 
 #: arcs of this radius or smaller (units of R) are corners; an arc this small is crossed by one
 #: element of the meshes the scenarios run (0.02-0.03 R of material stretched 3-5 times), and
@@ -191,3 +191,30 @@ def corner_normal_jacobian(body, x, pen: Penalty, z=0.0):
     j = jax.vmap(jax.jacfwd(seg))(ab)  # (n - 1, 2, 4): (lo, hi) in (a, b)
     own = zero.at[:-1].add(j[:, 0, :2]).at[1:].add(j[:, 1, 2:])
     return own, zero.at[:-1].set(j[:, 0, 2:]), zero.at[1:].set(j[:, 1, :2])
+
+
+def corner_crossed(body, x0, x1, z=0.0):
+    """Whether a segment of the sheet passed through a corner's centre between the node
+    positions ``x0`` and ``x1`` (n, 2) (the body displaced by ``z``): the centre changed sides
+    of the segment's line while projecting inside the segment at both. The penalty's distance
+    is unsigned (module docstring), so such a state would be pushed on through; an increment
+    that reaches one is refused (:class:`dynslip.physics.solver.newton.MotionNewton`). False
+    without corners."""
+    if corners_of(body) is None:
+        return jnp.array(False)
+    centre = jnp.asarray(corners_of(body)[0]) + jnp.stack([jnp.zeros(()),
+                                                           jnp.asarray(z, float)])
+
+    def side(x, c):
+        a, b = x[:-1], x[1:]
+        d = b - a
+        s = jnp.einsum("ij,ij->i", c - a, d) / jnp.maximum(jnp.einsum("ij,ij->i", d, d), _TINY)
+        cross = d[:, 0] * (c[1] - a[:, 1]) - d[:, 1] * (c[0] - a[:, 0])
+        return jnp.sign(cross), (s >= 0.0) & (s <= 1.0)
+
+    def one(c):
+        s0, in0 = side(x0, c)
+        s1, in1 = side(x1, c)
+        return jnp.any((s0 * s1 < 0) & in0 & in1)
+
+    return jnp.any(jax.vmap(one)(centre))
