@@ -49,7 +49,8 @@ import numpy as np
 
 from dynslip.physics.bodies.base import AbstractBody
 from dynslip.physics.bodies.chords import chord_depths as body_chord_depths
-from dynslip.physics.bodies.held import held_entries, held_frame
+from dynslip.physics.bodies.corners import corner_energy, corner_normal
+from dynslip.physics.bodies.held import held_corner_normal, held_entries, held_frame
 from dynslip.physics.bodies.sphere import Sphere
 from dynslip.physics.friction import AbstractFriction, soft_threshold
 from dynslip.physics.materials import AbstractMaterial, relaxed_energy, relaxed_tensions
@@ -191,9 +192,13 @@ class SheetModel(eqx.Module):
         ``projections`` the bodies' of the nodes where the caller has them
         (:func:`dynslip.physics.terms.held_projections`; None: projected here)."""
         x, a, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
-        ds = ([e.body.distance(x, e.shift(zb)) for e in held_entries(self.bodies)]
+        entries = held_entries(self.bodies)
+        ds = ([e.body.distance(x, e.shift(zb)) for e in entries]
               if projections is None else [p.distance for p in projections])
-        return sum((jnp.sum(a * penalty_energy(pen, -d)) for d in ds), jnp.zeros(()))
+        # the held bodies' corners against the segments (physics/bodies/corners.py; 0 without)
+        corners = sum((corner_energy(e.body, x, pen, e.shift(zb)) for e in entries),
+                      jnp.zeros(()))
+        return sum((jnp.sum(a * penalty_energy(pen, -d)) for d in ds), corners)
 
     def held_load(self, rho, z, zb=0.0):
         """Axial force of the sheet on the held bodies by contact pressure,
@@ -216,12 +221,14 @@ class SheetModel(eqx.Module):
         live = (idx > 0) & (idx < rho.shape[0] - 1)
         x, area, pen = jnp.stack([rho, z], axis=-1), self.mesh.area, self.penalty
         return held_frame(self.bodies, x, f.T, lambda d: penalty_pressure(pen, -d), area, drag,
-                          eps_density, live, zb, delta, projections)  # fmt: skip
+                          eps_density, live, zb, delta, projections,
+                          held_corner_normal(self.bodies, x, pen, zb))  # fmt: skip
 
     def penalty_energy(self, rho, z, zb, projections=None):
         d = self.penetration(rho, z, zb)
         held = self.held_penalty_energy(rho, z, zb, projections)
-        return jnp.sum(self.mesh.area * penalty_energy(self.ball_contact, d)) + held
+        corners = corner_energy(self.ball, jnp.stack([rho, z], axis=-1), self.penalty, zb)
+        return jnp.sum(self.mesh.area * penalty_energy(self.ball_contact, d)) + held + corners
 
     def adhesion_energy(self, rho, z, zb):
         """The cohesive part of the ball's penalty energy, $-\\sum_i A_i w\\,s(d_i) \\le 0$
@@ -267,8 +274,11 @@ class SheetModel(eqx.Module):
                                      self.penetration(rho, z, zb))
 
     def normal_force(self, rho, z, zb):
-        """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R)."""
-        return self.mesh.area * penalty_pressure(self.ball_contact, self.penetration(rho, z, zb))
+        """Penalty (normal) force per node, N_i = A_i phi'(d_i) >= 0 (units G h0 R), plus the
+        node's share of the ball's corners' normal force (physics/bodies/corners.py; none
+        without corners)."""
+        nodes = self.mesh.area * penalty_pressure(self.ball_contact, self.penetration(rho, z, zb))
+        return nodes + corner_normal(self.ball, jnp.stack([rho, z], axis=-1), self.penalty, zb)
 
     def kinematics(
         self, rho, z, zb, friction: AbstractFriction, eps_density=0.0, drag=1.0, internal=None,

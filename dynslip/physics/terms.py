@@ -12,11 +12,13 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from dynslip.physics.bodies.corners import corner_crossed, corner_terms, corners_of
 from dynslip.physics.bodies.held import held_entries, projected
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["contact_gap", "element_energy", "forces", "forces_and_hessians", "held_projections"]
+__all__ = ["contact_gap", "corner_parts", "corners_crossed", "element_energy", "forces", "forces_and_hessians",
+           "held_projections"]
 
 
 def element_energy(material, dr, rsum, area_el, xa, xb):
@@ -76,6 +78,61 @@ def _held_parts(model: SheetModel, q, zb, hessian=False, projections=None):
     return [_penalty(model.penalty, model.mesh.area, p, hessian) for p in ps]
 
 
+def _column_sums(h_diag, h_up):
+    r"""$\sum_j H_{ij}[:, 1]$ per node (n, 2) of a symmetric block-tridiagonal Hessian: the
+    derivative of node $i$'s force under a shift of every node along $z$, and (by symmetry) of
+    the axial load $\sum_j g_{j,z}$ in $x_i$."""
+    col = h_diag[:, :, 1]
+    col = col.at[:-1].add(h_up[:, :, 1])
+    return col.at[1:].add(h_up[:, 1, :])
+
+
+def corner_parts(model: SheetModel, q, zb, hessian=False):
+    r"""The second pass (:mod:`dynslip.physics.bodies.corners`): the corners of the ball (at
+    ``q``'s origin) and of each held body (seeing the nodes at $q + z_b e_z$) against the
+    sheet's segments, as ``(ball, held)``: each None without corners, else
+    :func:`~dynslip.physics.bodies.corners.corner_terms`' ``(energy, grad[, (h_diag, h_up)])``
+    summed; ``held`` with ``hessian`` also the pair ``(hl, hz)`` of :func:`forces_and_hessians`'
+    ``h_held`` (the load's derivative in each node and the force's in ``zb``, from the
+    Hessian's column sums: exact for a segment coupling two nodes)."""
+    pen = model.penalty
+    ball = corner_terms(model.ball, q, pen, 0.0, hessian)
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    parts = [(e, corner_terms(e.body, x, pen, e.shift(zb), hessian))
+             for e in held_entries(model.bodies) if corners_of(e.body) is not None]
+    if not parts:
+        return ball, None
+    held = tuple(sum((p[j] for _, p in parts), jnp.zeros(())) for j in range(2))
+    if not hessian:
+        return ball, held
+    n = q.shape[0]
+    hd = sum((p[2][0] for _, p in parts), jnp.zeros((n, 2, 2)))
+    hu = sum((p[2][1] for _, p in parts), jnp.zeros((n - 1, 2, 2)))
+    hl = jnp.zeros((n, 2, 2)).at[:, 1, :].set(_column_sums(hd, hu))
+    # a body that moves with the ball sees q alone: its corners' force does not move with zb
+    rest = [p[2] for e, p in parts if not e.moves_with_ball]
+    hz = jnp.zeros((n, 2, 2))
+    if rest:
+        col = _column_sums(sum((r[0] for r in rest), jnp.zeros((n, 2, 2))),
+                           sum((r[1] for r in rest), jnp.zeros((n - 1, 2, 2))))
+        hz = hz.at[:, :, 1].set(col)
+    return ball, held + ((hd, hu), (hl, hz))
+
+
+def corners_crossed(model: SheetModel, q0, zb0, q, zb):
+    """Whether a segment passed through a corner's centre of the ball or of a held body
+    between the increment's start ``(q0, zb0)`` and ``(q, zb)``
+    (:func:`~dynslip.physics.bodies.corners.corner_crossed`, each body's corners against the
+    nodes relative to it); False without corners (nothing traced)."""
+    out = corner_crossed(model.ball, q0, q)
+    for e in held_entries(model.bodies):
+        if corners_of(e.body) is not None:
+            x0 = q0 + jnp.stack([jnp.zeros(()), zb0 - e.shift(zb0)])
+            x1 = q + jnp.stack([jnp.zeros(()), zb - e.shift(zb)])
+            out = out | corner_crossed(e.body, x0, x1)
+    return out
+
+
 def forces(model: SheetModel, q, zb, projections=None):
     """$\\partial E/\\partial x$ per node, (n, 2), NaN everywhere where the energy is not finite
     (as :meth:`SheetModel.gradients`), and the held bodies' load
@@ -94,6 +151,12 @@ def forces(model: SheetModel, q, zb, projections=None):
         parts = _held_parts(model, q, zb, projections=projections)
         eh, gh = (sum((p[j] for p in parts), jnp.zeros(())) for j in range(2))
         ep, gp, load = ep + eh, gp + gh, jnp.sum(gh[:, 1])
+    ball, held = corner_parts(model, q, zb)
+    for c in (ball, held):
+        if c is not None:
+            ep, gp = ep + c[0], gp + c[1]
+    if held is not None:
+        load = load + jnp.sum(held[1][:, 1])
     g = gp.at[:-1].add(ga).at[1:].add(gb)
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
     return jnp.where(bad, jnp.nan, g), load
@@ -104,7 +167,10 @@ def forces_and_hessians(model: SheetModel, q, zb, projections=None):
     ``h_diag[i] = d2E/dx_i^2``, ``h_up[i] = d2E/dx_i dx_{i+1}`` (n-1 of them), ``h_held`` the
     pair ``(hh, hz)``: ``hh[i]`` the held bodies' part of ``h_diag[i]``, ``hz[i]`` its part that
     moves with ``zb`` at fixed ``q`` (the bodies at rest: a body that moves with the ball sees
-    ``q`` alone) (None without held bodies)."""
+    ``q`` alone) (None without held bodies). The Newton matrix reads row 1 of ``hh[i]`` (the
+    load's derivative in ``x_i``) and column 1 of ``hz[i]`` (node ``i``'s force's in ``zb``);
+    the held corners, whose segments couple two nodes, add their exact values there
+    (:func:`corner_parts`)."""
     m = model.mesh
     rsum = m.rbar[1:] + m.rbar[:-1]
 
@@ -133,5 +199,13 @@ def forces_and_hessians(model: SheetModel, q, zb, projections=None):
     g = gp.at[:-1].add(ge[:, :2]).at[1:].add(ge[:, 2:])
     h_diag = hp.at[:-1].add(he[:, :2, :2]).at[1:].add(he[:, 2:, 2:])
     h_up = he[:, :2, 2:]
+    ball, held = corner_parts(model, q, zb, hessian=True)
+    for c in (ball, held):
+        if c is not None:
+            ep, g = ep + c[0], g + c[1]
+            h_diag, h_up = h_diag + c[2][0], h_up + c[2][1]
+    if held is not None:
+        load = load + jnp.sum(held[1][:, 1])
+        hh = (hh[0] + held[3][0], hh[1] + held[3][1])
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
     return jnp.where(bad, jnp.nan, g), h_diag, h_up, load, hh

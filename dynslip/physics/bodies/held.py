@@ -61,12 +61,14 @@ import jax
 import jax.numpy as jnp
 
 from dynslip.physics.bodies.base import AbstractBody
+from dynslip.physics.bodies.corners import corner_normal, corners_of
 from dynslip.physics.friction import AbstractFriction
 
 __all__ = [
     "Held",
     "HeldFrame",
     "free_ball_velocity",
+    "held_corner_normal",
     "held_entries",
     "held_frame",
     "n_free",
@@ -328,8 +330,19 @@ class HeldFrame(eqx.Module):
                                           heal_rate), 0.0))
 
 
+def held_corner_normal(bodies, x, pen, zb=0.0):
+    """Each held body's corners' normal force shared over the nodes ``x`` (n, 2) (absolute)
+    (:func:`~dynslip.physics.bodies.corners.corner_normal`), as (K, n) in held order, or None
+    when no held body has corners: the held friction reads it beside the nodes' own penalty
+    force (:func:`held_frame`'s ``corners``)."""
+    entries = held_entries(bodies)
+    if all(corners_of(e.body) is None for e in entries):
+        return None
+    return jnp.stack([corner_normal(e.body, x, pen, e.shift(zb)) for e in entries])
+
+
 def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
-               delta=None, projections=None) -> HeldFrame | None:
+               delta=None, projections=None, corners=None) -> HeldFrame | None:
     """The :class:`HeldFrame` of the frictional held bodies at node positions ``x`` (..., 2)
     (absolute), driving forces ``f`` (..., 2), reference areas ``area`` (...); ``normal_of(d)``
     the penalty's normal force per reference area of a signed distance; ``live`` where held
@@ -337,7 +350,9 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
     body that moves with the ball); ``delta`` (K_mem, ...) the slip distances of the bodies
     whose law has memory (:func:`n_memory`, in held order; None: none has, or each at 0);
     ``projections`` every held body's projection of ``x`` (in held order: one evaluation shared
-    with the penalty's, :func:`dynslip.physics.terms.held_projections`; None: projected here).
+    with the penalty's, :func:`dynslip.physics.terms.held_projections`; None: projected here);
+    ``corners`` (K, ...) each held body's corners' normal force on the nodes
+    (:func:`held_corner_normal`; None: none), added to the nodes' own.
     None when no held body has friction."""
     laws, ts, ns, fts, moving, speeds, deltas = [], [], [], [], [], [], []
     j = 0
@@ -354,7 +369,8 @@ def held_frame(bodies, x, f, normal_of, area, drag, eps, live, zb=0.0,
         moving.append(e.moves_with_ball)
         speeds.append(e.velocity)
         ts.append(p.tangent)
-        ns.append(area * normal_of(p.distance))
+        normal = area * normal_of(p.distance)
+        ns.append(normal if corners is None else normal + corners[k])
         fts.append(jnp.sum(f * p.tangent, axis=-1))
     if not laws:
         return None

@@ -15,7 +15,8 @@ import jax
 import jax.numpy as jnp
 
 from dynslip.physics import conditions
-from dynslip.physics.bodies.held import frictional, held_frame
+from dynslip.physics.bodies.corners import corner_normal, corner_normal_jacobian, corners_of
+from dynslip.physics.bodies.held import frictional, held_corner_normal, held_entries, held_frame
 from dynslip.physics.conditions import Edge
 from dynslip.physics.field import StageArgs
 from dynslip.physics.friction import AbstractFriction
@@ -27,6 +28,10 @@ __all__ = [
     "NodeLaw",
     "ball_rate",
     "ball_velocity",
+    "corner_share_jacobians",
+    "corner_shares",
+    "held_share_jacobians",
+    "held_shares",
     "edge_rate",
     "increment_rates",
     "law_area",
@@ -100,13 +105,48 @@ class Increment(eqx.Module):
     weight: float | None = None
 
 
-def node_contact(model: SheetModel, i, q, g):
+def corner_shares(model: SheetModel, q):
+    """Each node's share of the ball's corners' normal force at relative positions ``q`` (n,)
+    (:func:`dynslip.physics.bodies.corners.corner_normal`), or None when the ball has no
+    corners: the ball's friction law reads it beside the node's own penalty force. The Newton
+    matrix holds it at the iterate's value (its derivative through the segment's other node
+    left out: an inexact Jacobian for the corners' friction only, which changes Newton's path,
+    not its root)."""
+    if corners_of(model.ball) is None:
+        return None
+    return corner_normal(model.ball, q, model.penalty)
+
+
+def corner_share_jacobians(model: SheetModel, q):
+    """:func:`corner_shares`' derivatives in the nodes, ``(own, up, low)`` (n, 2) each
+    (:func:`dynslip.physics.bodies.corners.corner_normal_jacobian`), or None without corners:
+    the Newton matrix's corner friction terms."""
+    if corners_of(model.ball) is None:
+        return None
+    return corner_normal_jacobian(model.ball, q, model.penalty)
+
+
+def held_share_jacobians(model: SheetModel, q, zb):
+    """:func:`held_shares`' derivatives in the nodes, ``(own, up, low)`` (K, n, 2) each, or
+    None where :func:`held_shares` is None."""
+    if not frictional(model.bodies):
+        return None
+    entries = held_entries(model.bodies)
+    if all(corners_of(e.body) is None for e in entries):
+        return None
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    parts = [corner_normal_jacobian(e.body, x, model.penalty, e.shift(zb)) for e in entries]
+    return tuple(jnp.stack([p[j] for p in parts]) for j in range(3))
+
+
+def node_contact(model: SheetModel, i, q, g, corner=None):
     """Node ``i``'s normal and tangential driving forces against the ball, its normal and
-    tangent, the penalty's normal force and the node's area."""
-    return _node_contact(model, i, q, g)[:6]
+    tangent, the penalty's normal force (with ``corner``, the node's share of the ball's
+    corners', :func:`corner_shares`) and the node's area."""
+    return _node_contact(model, i, q, g, corner)[:6]
 
 
-def _node_contact(model: SheetModel, i, q, g):
+def _node_contact(model: SheetModel, i, q, g, corner=None):
     # node_contact's and the node's penetration into the ball (an adhesive law reads it)
     f = -g
     d, n, t = contact_gap(model.ball, q)
@@ -114,7 +154,10 @@ def _node_contact(model: SheetModel, i, q, g):
     fn = jnp.where(pole, f[1] * jnp.sign(n[1]), f @ n)
     ft = jnp.where(pole, 0.0, f @ t)
     area = model.mesh.area[i]
-    return fn, ft, n, t, area * penalty_pressure(model.ball_contact, d), area, d
+    normal = area * penalty_pressure(model.ball_contact, d)
+    if corner is not None:
+        normal = normal + corner
+    return fn, ft, n, t, normal, area, d
 
 
 def law_area(friction: AbstractFriction, inc: Increment, i, area, d=None):
@@ -141,38 +184,57 @@ class NodeLaw(NamedTuple):
     a_law: jax.Array
 
 
-def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q, g) -> NodeLaw:
+def node_law(model: SheetModel, friction: AbstractFriction, inc: Increment, i, q, g,
+             corner=None) -> NodeLaw:
     """The :class:`NodeLaw` of node ``i`` at relative position ``q`` under the energy gradient
-    ``g``."""
-    fn, ft, n, t, normal, area, d = _node_contact(model, i, q, g)
+    ``g`` (``corner``: its share of the ball's corners' normal force, :func:`corner_shares`)."""
+    fn, ft, n, t, normal, area, d = _node_contact(model, i, q, g, corner)
     return NodeLaw(fn, ft, n, t, normal, area, inc.args.drag * area, inc.args.eps * area,
                    law_area(friction, inc, i, area, d))
 
 
-def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None):
+def held_shares(model: SheetModel, q, zb):
+    """Each node's share of each held body's corners' normal force at relative positions
+    ``q``, (n, K), or None when no held body has corners or none has friction
+    (:func:`dynslip.physics.bodies.held.held_corner_normal`; held at the iterate's value in the
+    Newton matrix, as :func:`corner_shares`)."""
+    if not frictional(model.bodies):
+        return None
+    x = q + jnp.stack([jnp.zeros(()), zb])
+    c = held_corner_normal(model.bodies, x, model.penalty, zb)
+    return None if c is None else c.T
+
+
+def node_held_frame(model: SheetModel, inc: Increment, i, q, g, zb, projections=None,
+                    corner=None):
     """The held bodies' friction frame of node ``i`` at relative position ``q`` under the
     energy gradient ``g``, the ball at ``zb`` (held friction acts on neither the pole nor the
-    clamped edge); ``projections`` the held bodies' of the node (None: projected here)."""
+    clamped edge); ``projections`` the held bodies' of the node (None: projected here);
+    ``corner`` (K,) its shares of the held bodies' corners' normal force (:func:`held_shares`;
+    None: none)."""
     live = (i > 0) & (i < model.mesh.n - 1)
     hd = None if inc.held_delta0 is None else inc.held_delta0[:, i]
     return _held_frame(model, q + jnp.stack([jnp.zeros(()), zb]), -g, model.mesh.area[i],
-                       inc.args, live, zb, hd, projections)
+                       inc.args, live, zb, hd, projections, corner)
 
 
 def node_rate(model: SheetModel, friction, inc: Increment, i, q, g, delta0, zb=None, vb=None,
-              held=True, projections=None, alone=None):
+              held=True, projections=None, alone=None, corner=None, held_corner=None):
     """Rate relative to the ball of node ``i`` at relative position ``q`` under the energy
     gradient ``g``, and its slip distance at the increment's end (None: memoryless law).
     ``zb`` and ``vb`` (the ball's height and velocity) enter the friction of the held bodies
     (:mod:`dynslip.physics.bodies.held`), needed only when one has friction; ``held=False``
     leaves that friction out (the ball's part alone); ``projections`` the held bodies' of the
     node (None: projected here); ``alone``: whether no frictional held body touches the node
-    (:func:`untouched`; None: found here with held friction, else True)."""
+    (:func:`untouched`; None: found here with held friction, else True); ``corner``: the node's
+    share of the ball's corners' normal force (:func:`corner_shares`; None: no corners), and
+    ``held_corner`` of the held bodies' (:func:`held_shares`)."""
     pole = i == 0
-    fn, ft, n, t, normal, area, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g)
+    fn, ft, n, t, normal, area, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g,
+                                                             corner)
     hf = None
     if held and frictional(model.bodies):
-        hf = node_held_frame(model, inc, i, q, g, zb, projections)
+        hf = node_held_frame(model, inc, i, q, g, zb, projections, held_corner)
         alone = untouched(hf) if alone is None else alone
     delta1, delta_mu = None, None
     if inc.weight is None:
@@ -202,7 +264,7 @@ def untouched(hf):
 
 
 def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, delta0,
-                        alone=None):
+                        alone=None, corner=None):
     r"""$\partial u_i/\partial g_i$ of :func:`node_rate` without held friction, in closed form:
     the rate reads the force only through $F_n = f\cdot n$ and $F_t = f\cdot t$ ($f = -g$; at
     the pole $F_n = f_z\,{\rm sign}\,n_z$, $F_t = 0$), so
@@ -212,7 +274,7 @@ def node_force_jacobian(model: SheetModel, friction, inc: Increment, i, q, g, de
     ``jacfwd`` in $g$ (the Newton matrix's largest part at large N); checked against it in
     tests/test_newton.py."""
     pole = i == 0
-    _, ft, n, t, normal, _, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g)
+    _, ft, n, t, normal, _, eta_a, eps, a_law = node_law(model, friction, inc, i, q, g, corner)
 
     w, shift = (1.0, 0.0) if inc.weight is None else _weighting(inc, i, q, t, eta_a, alone)
 
@@ -275,7 +337,8 @@ def weighted_slip(friction, inc: Increment, i, q, t, ft, normal, delta_mu, eps, 
                                area=area if a_law is None else a_law, weight=gamma) - shift
 
 
-def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None):
+def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, projections=None,
+                corners=None):
     """The held bodies' friction frame at absolute node positions ``x`` (one node or all), the
     ball at ``zb``, the held slip distances ``delta`` (K_mem, ...) (None: no law has memory),
     the held bodies' ``projections`` of ``x`` (None: projected here)."""
@@ -291,6 +354,7 @@ def _held_frame(model: SheetModel, x, f, area, args, live, zb, delta=None, proje
         zb,
         delta,
         projections,
+        corners,
     )
 
 
@@ -303,7 +367,8 @@ def sheet_held_frame(model: SheetModel, args, q, zb, g, delta=None, projections=
     idx = jnp.arange(n)
     x = q + jnp.stack([jnp.zeros(()), zb])
     return _held_frame(model, x, -g, model.mesh.area, args, (idx > 0) & (idx < n - 1), zb,
-                       delta, projections)
+                       delta, projections, held_corner_normal(model.bodies, x, model.penalty,
+                                                              zb))
 
 
 def ball_velocity(model: SheetModel, inc: Increment, q, zb, g, load, projections=None):
@@ -354,15 +419,18 @@ def increment_rates(model, friction, inc: Increment, q, zb, g, load, projections
         # the law's pressure at the increment's end, as every other force of implicit Euler
         inc = eqx.tree_at(lambda c: c.areal_stretch, inc, model.areal_stretch(q[:, 0], q[:, 1]))
     vb = ball_velocity(model, inc, q, zb, g, load, ps)
+    cs, hs = corner_shares(model, q), held_shares(model, q, zb)
     if d0 is None:
-        u, _ = jax.vmap(lambda i, qi, gi, pi: node_rate(model, friction, inc, i, qi, gi, None,
-                                                        zb, vb, projections=pi))(idx, q, g, ps)
+        u, _ = jax.vmap(lambda i, qi, gi, pi, ci, hi: node_rate(
+            model, friction, inc, i, qi, gi, None, zb, vb, projections=pi, corner=ci,
+            held_corner=hi))(idx, q, g, ps, cs, hs)
         delta1 = None
     else:
         u, delta1 = jax.vmap(
-            lambda i, qi, gi, di, pi: node_rate(model, friction, inc, i, qi, gi, di, zb, vb,
-                                                projections=pi)
-        )(idx, q, g, d0, ps)
+            lambda i, qi, gi, di, pi, ci, hi: node_rate(model, friction, inc, i, qi, gi, di, zb,
+                                                        vb, projections=pi, corner=ci,
+                                                        held_corner=hi)
+        )(idx, q, g, d0, ps, cs, hs)
         delta1 = delta1.at[-1].set(d0[-1])
     u = u.at[-1].set(edge_rate(model, inc, g[-1], zb, load, vb, q[-1, 0]))
     return u, vb, delta1

@@ -60,6 +60,9 @@ $x_1 = x_0 + \Delta t\, f(t_1, x_1)$ with the overdamped law of
   tolerance while the residual stays at 2-10 ``atol``, until the increment is cut. A bounded
   relaxation of the test: the let-go end states move by at most 1.2e-7 rad (docs/speed.md);
   ``floor_factor = 0`` gives the strict test.
+- **Corners.** An increment in which a segment of the sheet passes through the centre of a
+  body's corner (:func:`dynslip.physics.terms.corners_crossed`) is refused and cut, as a failed
+  one: the corners' penalty is unsigned (:mod:`dynslip.physics.bodies.corners`).
 - **Increment size.** Grown by 1.5 after at most ``grow_below`` iterations, shrunk by 0.7 after
   at least ``shrink_above``, halved on a failure; with ``fail_cap`` the increments that follow a
   failure within a segment are held to at most ``fail_cap`` times the failed size, a bound
@@ -103,7 +106,7 @@ from dynslip.physics.solver.increment import (
 )
 from dynslip.physics.solver.linalg import Blocks, bordered_solve
 from dynslip.physics.solver.newton_matrix import free_system, newton_blocks
-from dynslip.physics.terms import forces, held_projections
+from dynslip.physics.terms import corners_crossed, forces, held_projections
 
 __all__ = [
     "AbstractSegmentSolver",
@@ -512,6 +515,9 @@ class MotionNewton(AbstractSegmentSolver):
         y1 = y1.at[layout.accumulators].set(acc0 + h * dy[layout.accumulators])
         y1 = heal(model, layout, y1, args, self.heal_rate, vb=vb1, forces=f1)
         ok = last.done & ~last.bad & jnp.all(jnp.isfinite(y1))
+        # a segment through a corner's centre: the corners' unsigned penalty would hold it on
+        # the far side (physics/bodies/corners.py), so the increment is refused and cut
+        ok = ok & ~corners_crossed(model, q0, zb0, q, zb)
         return IncrementResult(y=y1, ok=ok, iterations=last.iterations,
                                change=Rate(q - q0, zb - zb0), forces=f1, ball_velocity=vb1)
 

@@ -20,7 +20,11 @@ from dynslip.physics.solver.increment import (
     Increment,
     ball_rate,
     ball_velocity,
+    corner_share_jacobians,
+    corner_shares,
     edge_rate,
+    held_share_jacobians,
+    held_shares,
     node_force_jacobian,
     node_held_frame,
     node_rate,
@@ -50,14 +54,24 @@ def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     d0 = inc.delta0 if inc.delta0 is not None else jnp.zeros(n)
     mem = inc.delta0 is not None
 
-    def local(i, qi, gi, di):
-        return node_rate(model, friction, inc, i, qi, gi, di if mem else None)[0]
+    cs = corner_shares(model, q)  # held at the iterate's value (corner_shares)
 
-    lq = jax.vmap(jax.jacfwd(local, argnums=1))(idx, q, g, d0)  # (n, 2, 2)
+    def local(i, qi, gi, di, ci):
+        return node_rate(model, friction, inc, i, qi, gi, di if mem else None, corner=ci)[0]
+
+    if cs is None:
+        lq = jax.vmap(jax.jacfwd(local, argnums=1))(idx, q, g, d0, cs)  # (n, 2, 2)
+        share = None
+    else:
+        # the rate reads the node's share of the corners' normal force, which reads the
+        # node and its two neighbours (block tridiagonal)
+        lq, ln = jax.vmap(jax.jacfwd(local, argnums=(1, 4)))(idx, q, g, d0, cs)
+        share = _share_blocks(ln, corner_share_jacobians(model, q))
+        lq = lq + share[0]
     lg = jax.vmap(
-        lambda i, qi, gi, di: node_force_jacobian(model, friction, inc, i, qi, gi,
-                                                  di if mem else None)
-    )(idx, q, g, d0)
+        lambda i, qi, gi, di, ci: node_force_jacobian(model, friction, inc, i, qi, gi,
+                                                      di if mem else None, corner=ci)
+    )(idx, q, g, d0, cs)
     # the clamped edge: rate from its force and the ball height only
     eg, ez, el, er = jax.jacfwd(
         lambda ge, z, ld, r: edge_rate(model, inc, ge, z, ld, None, r), argnums=(0, 1, 2, 3)
@@ -73,6 +87,8 @@ def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     diag = eye - h * (lq + small_matmul(lg, h_diag))
     upper = jnp.concatenate([-h * small_matmul(lg[:-1], h_up), jnp.zeros((1, 2, 2))])
     lower = jnp.concatenate([jnp.zeros((1, 2, 2)), -h * small_matmul(lg[1:], h_low)])
+    if share is not None:
+        upper, lower = upper - h * share[1], lower - h * share[2]
     B = jnp.zeros((n, 2, 1)).at[-1, :, 0].set(-h * ez)
     C = jnp.zeros((1, n, 2))
     C = C.at[0, -1].set(-h * bg @ h_diag[-1]).at[0, -2].set(-h * bg @ h_low[-1])
@@ -97,8 +113,19 @@ def newton_blocks(model, friction, inc: Increment, q, zb, vb=None, exact=True):
     return lower, diag, upper, B, C, D
 
 
+def _share_blocks(ln, jac):
+    """The rates' derivatives through the nodes' shares of corner normal forces: ``ln`` (n, 2)
+    or (n, 2, K) the rate's derivative in the node's share(s) (the clamped edge's row left at
+    0), ``jac`` the shares' ``(own, up, low)`` ((n, 2) or (K, n, 2)); returns the (n, 2, 2)
+    blocks on the diagonal, above and below (row i, column i + 1 and i - 1)."""
+    ln = ln.at[-1].set(0.0)
+    if ln.ndim == 2:
+        return tuple(ln[:, :, None] * d[:, None, :] for d in jac)
+    return tuple(jnp.einsum("nik,knj->nij", ln, d) for d in jac)
+
+
 def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, zb, vb,
-                     projections):
+                     projections, corner=None, held_corner=None):
     r"""Node ``i``'s rate's derivatives in $(q_i, g_i, z_b, v_b)$ with held friction, and
     those of the axial friction force on it, $\sum_k f_{ik} t_{k,z}$ (the ball's velocity
     reads them): ``(lq, lg, lz, lv, aq, ag, az, av)``. The held bodies' friction $f_k = (S_k -
@@ -116,13 +143,14 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     derivative, which is all a Jacobian reads)."""
     eta_a = inc.args.drag * model.mesh.area[i]
 
-    def parts(qi):
+    def parts(qi, ci, hi):
         dx = qi - jax.lax.stop_gradient(qi)
         ps = tuple(p.linearised(dx) for p in projections)
-        hf = node_held_frame(model, inc, i, qi, g, zb, ps)
+        hf = node_held_frame(model, inc, i, qi, g, zb, ps, hi)
         # the ball's law in its weighted form where no held friction acts on the node
         alone = untouched(hf)
-        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False, alone=alone)[0]
+        u = node_rate(model, friction, inc, i, qi, g, delta0, held=False, alone=alone,
+                      corner=ci)[0]
         gk, sk = hf.slip(vb)
         fk = jnp.where(hf.live, sk - gk, 0.0)[:, None] * hf.t  # (K, 2)
         # the slopes at the primal point (no derivative of them is taken)
@@ -130,7 +158,17 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
         _, _, ds, dgv = stop.slopes(jax.lax.stop_gradient(vb))
         return (u, fk), (stop.t, stop.live, ds, dgv, alone)
 
-    (uq, fq), (t, live, ds, dgv, alone) = jax.jacfwd(parts, has_aux=True)(q)
+    # the derivatives in the node's shares of the corners' normal forces too, where any
+    nums = (0,) + ((1,) if corner is not None else ()) + ((2,) if held_corner is not None else ())
+    (uj, fj), (t, live, ds, dgv, alone) = jax.jacfwd(parts, argnums=nums, has_aux=True)(
+        q, corner, held_corner)
+    uq, fq = uj[0], fj[0]
+    lnb = uj[1] if corner is not None else None
+    lnh = anh = None
+    if held_corner is not None:
+        fh = fj[-1]  # (K, 2, K'): the held frictions in the node's held shares
+        lnh = uj[-1] + jnp.sum(fh, axis=0) / eta_a
+        anh = jnp.sum(fh, axis=0)[1]
     w = jnp.where(live, 1.0 - ds, 0.0)  # (K,): -df_k/dG_k
     fg = jnp.einsum("k,ki,kj->kij", w, t, t)  # (K, 2, 2)
     fv = -(w * dgv)[:, None] * t  # (K, 2)
@@ -138,8 +176,8 @@ def _held_node_terms(model, friction, inc: Increment, moving, i, q, g, delta0, z
     fz = jnp.einsum("k,ki->i", rest, fq[:, :, 1])
     fq, fg, fv = jnp.sum(fq, axis=0), jnp.sum(fg, axis=0), jnp.sum(fv, axis=0)
     lq = uq + fq / eta_a
-    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0, alone) + fg / eta_a
-    return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1]
+    lg = node_force_jacobian(model, friction, inc, i, q, g, delta0, alone, corner) + fg / eta_a
+    return lq, lg, fz / eta_a, fv / eta_a, fq[1], fg[1], fz[1], fv[1], lnb, lnh, anh
 
 
 def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, exact=True):
@@ -175,11 +213,33 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, e
     moving = tuple(e.moves_with_ball for e in held_entries(model.bodies)
                    if e.friction is not None)
 
-    def local(i, qi, gi, di, pi):
-        return _held_node_terms(model, friction, inc, moving, i, qi, gi, di if mem else None,
-                                zb, vb, pi)
+    # held at the iterate's value (corner_shares)
+    cs, hs = corner_shares(model, q), held_shares(model, q, zb)
 
-    lq, lg, lz, lv, aq, ag, az, av = jax.vmap(local)(idx, q, g, d0, ps)
+    def local(i, qi, gi, di, pi, ci, hi):
+        return _held_node_terms(model, friction, inc, moving, i, qi, gi, di if mem else None,
+                                zb, vb, pi, ci, hi)
+
+    lq, lg, lz, lv, aq, ag, az, av, lnb, lnh, anh = jax.vmap(local)(idx, q, g, d0, ps, cs, hs)
+    # the rates' and the axial friction's derivatives through the nodes' shares of the corners'
+    # normal forces (each reads the node and its two neighbours)
+    share = [jnp.zeros((n, 2, 2))] * 3
+    if lnb is not None:
+        share = [s + b for s, b in zip(share, _share_blocks(lnb, corner_share_jacobians(
+            model, q)), strict=True)]
+    if lnh is not None:
+        hj = held_share_jacobians(model, q, zb)
+        share = [s + b for s, b in zip(share, _share_blocks(lnh, hj), strict=True)]
+        a_own, a_up, a_low = (jnp.einsum("nk,knj->nj", anh.at[-1].set(0.0), d) for d in hj)
+        # dA_i/dq_j summed over the rows i that read q_j
+        aq = aq + a_own
+        aq = aq.at[1:].add(a_up[:-1]).at[:-1].add(a_low[1:])
+        # z_b at fixed q moves every node against a body at rest: the shares move with it
+        rest = jnp.asarray([0.0 if e.moves_with_ball else 1.0 for e in held_entries(model.bodies)])
+        dn_dz = rest[:, None] * (hj[0][..., 1] + hj[1][..., 1] + hj[2][..., 1])  # (K, n)
+        lz = lz + jnp.einsum("nik,kn->ni", lnh.at[-1].set(0.0), dn_dz)
+        az = az + jnp.einsum("nk,kn->n", anh.at[-1].set(0.0), dn_dz)
+    lq = lq + share[0]
     eg, ev, er = jax.jacfwd(
         lambda ge, v, r: edge_rate(model, inc, ge, zb, load, v, r), argnums=(0, 1, 2)
     )(g[-1], vb, q[-1, 0])
@@ -212,8 +272,8 @@ def blocks_with_held_friction(model, friction, inc: Increment, q, zb, vb=None, e
     h = inc.h
     eye = jnp.eye(2)
     diag = eye - h * (lq + small_matmul(lg, h_diag))
-    upper = -h * small_matmul(lg[:-1], h_up)
-    lower = -h * small_matmul(lg[1:], h_low)
+    upper = -h * (small_matmul(lg[:-1], h_up) + share[1][:-1])
+    lower = -h * (small_matmul(lg[1:], h_low) + share[2][1:])
     col = jnp.einsum("nij,nj->ni", lg, dg_dz) + lz
     if exact:
         # the border (z_b, w): w the ball's velocity change, its row sum_j V_j dq_j + V_z dz_b
