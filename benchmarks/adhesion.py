@@ -1,8 +1,9 @@
 """Benchmark of the adhesive contact law against today's on the main job: time per increment of
 ``scenarios/method2.yaml`` (slip weakening), of the same file with ``law: adhesive`` at zero
 adhesion (the same path, so the same increments: the law's own overhead), and of
-``scenarios/method2_adhesive.yaml`` (its own path), in one process, each run once after a
-warm-up compile of its program.
+``scenarios/method2_adhesive.yaml`` (its own path), in one process, interleaved ``repeats``
+times (``DYNSLIP_BENCH_ADHESION_REPEATS``, default 2; the first run of each compiles, its
+compile timed apart); the least time per increment of each is kept (the machine is shared).
 
 ``python benchmarks/adhesion.py`` (``DYNSLIP_BENCH_ADHESION_NODES``: N, default 150, the main
 job's). The target (docs/adhesion.md): at most 1.2 times today's time per increment.
@@ -47,9 +48,13 @@ def run() -> dict:
     zero = ["physics.friction.law=adhesive"]
     cases = {"today": ("method2.yaml", ()), "adhesive_zero": ("method2.yaml", zero),
              "adhesive": ("method2_adhesive.yaml", ())}
-    out = {"nodes": nodes}
-    for key, (name, sets) in cases.items():
-        out[key] = run_one(_scenario(name, nodes, sets))
+    repeats = int(os.environ.get("DYNSLIP_BENCH_ADHESION_REPEATS", "2"))
+    out: dict = {"nodes": nodes, "repeats": repeats}
+    for _ in range(repeats):
+        for key, (name, sets) in cases.items():
+            one = run_one(_scenario(name, nodes, sets))
+            if key not in out or one["time_per_step_ms"] < out[key]["time_per_step_ms"]:
+                out[key] = one
     base = out["today"]["time_per_step_ms"]
     for key in ("adhesive_zero", "adhesive"):
         out[key]["ratio_per_increment"] = out[key]["time_per_step_ms"] / base

@@ -1576,6 +1576,11 @@ REFERENCE: dict[tuple[str, str], str] = {
         "the modelling choices and their defaults; a number a 'why' cell quotes is measured "
         "in the table its 'more' cell links",
     ("docs/python-api.md", "| call | returns |"): "the Python API, a reference",
+    ("docs/adhesion.md", "| run | w (J/m^2) | tau_0 s / k (kPa) | mu_s / mu_k | push (mm) | "
+                         "trapped | theta_max | rbar_max | largest stretch (I1-equivalent) | "
+                         "release (N) |"):
+        "the adhesion study: runs measured by hand, each row's command below the table; not yet "
+        "under the manifest",
     ("docs/trajectory-contract.md", "| name | meaning |"): "the dataset's attributes",
     ("docs/trajectory-contract.md", "| name | dims | units | meaning |"):
         "the dataset's variables and their units",

@@ -216,6 +216,16 @@ def test_the_membrane_peels_at_kendalls_angle(peeled):
     assert t * (1 - math.cos(alpha)) * j / PEEL_W == pytest.approx(1.0, abs=0.05)
     # at rest: the last two frames agree
     np.testing.assert_allclose(res.frames[-1]["z"], res.frames[-2]["z"], atol=1e-6)
+    # the contact flag: the nodes held in the cohesive range under tension count as in contact
+    # (state > 0), and a node past half the range is free
+    f = res.frames[-1]
+    x = jnp.stack([jnp.asarray(f["rho"]), jnp.asarray(f["z"])], -1)
+    gap = np.asarray(DISC.distance(x, float(f["ball_z"])))
+    tension = np.asarray(penalty_pressure(model.ball_contact, -jnp.asarray(gap))) < 0
+    state = np.asarray(f["state"])
+    held = tension & (gap < 0.5 * PEEL_REACH)
+    assert held.any() and np.all(state[held] > 0)
+    assert np.all(state[gap > 0.5 * PEEL_REACH] == 0)
 
 
 def test_without_adhesion_the_lifted_sheet_leaves_the_face(peeled):
@@ -343,3 +353,23 @@ def test_bad_adhesion_input_is_one_line_and_exit_2(sets, says, capsys, tmp_path)
     line = one_line(capsys.readouterr().err)
     assert rc == 2 and says in line, line
     assert not out.exists()
+
+
+def test_the_adhesive_release_shares_its_pockets_geometry_and_law():
+    """``release_pull_tube_adhesive.yaml`` starts from ``method2_adhesive.yaml``: every geometry
+    field and the friction law (adhesion included) agree, so the start is reusable."""
+    import json
+
+    from dynslip.app.release import GEOMETRY_FIELDS
+    from dynslip.schema.base import load
+
+    rel = load(ROOT / "scenarios" / "release_pull_tube_adhesive.yaml")
+    start = load(ROOT / "scenarios" / Path(rel.start_from).name)
+    a, b = json.loads(rel.to_json()), json.loads(start.to_json())
+    for f in GEOMETRY_FIELDS:
+        ka, kb = a, b
+        for k in f.split("."):
+            ka, kb = ka[k], kb[k]
+        assert ka == kb, f
+    assert a["physics"]["friction"] == b["physics"]["friction"]
+    assert a["physics"]["friction"]["law"] == "adhesive"

@@ -50,6 +50,10 @@ derivative $d(\mu N)/dN = (1-a)\mu$ too); the bound $\mu_\mathrm{max}$ is where 
 power law is no longer rubber's friction. At $a = 0$ the law is :class:`Coulomb` exactly.
 :func:`capstan_reference_tension` is the tension at which a strip test measures
 $\mu_\mathrm{ref}$ when the strip's friction follows this law.
+
+:class:`Adhesive` (docs/adhesion.md) is slip weakening plus a Bowden-Tabor shear strength
+$\tau_0$ over the node's contact area within the ball penalty's cohesive range: the threshold
+$\mu\max(N, 0) + \tau_0 A_c$, positive under tension while the node adheres.
 """
 
 from __future__ import annotations

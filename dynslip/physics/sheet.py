@@ -23,6 +23,9 @@ penalty is $C^2$ in the penetration $d$: $\phi = 0$ for $d \le 0$,
 $k d^3/(6w)$ for $0 < d < w$, $k(d^2/2 - wd/2 + w^2/6)$ beyond; its pressure per
 reference area $\phi'(d)$ is *exactly zero* at a positive gap, so contact is detected by
 pressure, never by a gap threshold (prototype pitfall: a smooth penalty floats).
+The ball's penalty may carry a cohesive well (normal adhesion, :attr:`SheetModel.ball_penalty`,
+:mod:`dynslip.physics.penalty`, docs/adhesion.md): a tension across a gap up to its range, of
+area $w$; the held bodies' never does.
 
 **Forces** are $-\nabla E$ by :func:`jax.grad` of the total (exact gradient, so the
 energy balance is a sound test). Per node, with $n$ the ball's outward normal at the
