@@ -14,8 +14,8 @@ otherwise, XLA's flags, equinox's error mode, the persistent compilation cache) 
 JAX computation; a script or notebook may call it too.
 
 The Python API (:mod:`dynslip.api`, docs/python-api.md): :func:`load`, :func:`run`,
-:func:`sweep`, :func:`window`, the figures in :mod:`dynslip.plot`, and the errors
-:class:`InputError` and :class:`ComputationError`.
+:func:`sweep`, :func:`window`, :func:`sensitivities` (docs/sensitivities.md), the figures in
+:mod:`dynslip.plot`, and the errors :class:`InputError` and :class:`ComputationError`.
 """
 
 from dynslip import (
@@ -23,8 +23,8 @@ from dynslip import (
            plot,
 )
 from dynslip._version import FORMAT_VERSION, __version__
-from dynslip.api import RunResult, load, run, sweep, window
+from dynslip.api import RunResult, load, run, sensitivities, sweep, window
 from dynslip.errors import ComputationError, InputError
 
-__all__ = ["load", "run", "sweep", "window", "plot", "RunResult", "InputError", "ComputationError",
-           "__version__", "FORMAT_VERSION"]
+__all__ = ["load", "run", "sensitivities", "sweep", "window", "plot", "RunResult", "InputError",
+           "ComputationError", "__version__", "FORMAT_VERSION"]

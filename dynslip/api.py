@@ -34,13 +34,15 @@ from typing import Any
 from dynslip.app import kinds
 from dynslip.app.fit import FitOptions, run_fit
 from dynslip.app.outputs import Outputs
+from dynslip.app.sensitivities import Sensitivities
+from dynslip.app.sensitivities import sensitivities as _sensitivities
 from dynslip.app.sweep import run_sweep
 from dynslip.app.window import run_window
 from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import ComputationError, InputError, MaterialRangeError
 from dynslip.schema.base import load as load_scenario
 
-__all__ = ["RunResult", "load", "run", "sweep", "window", "fit", "InputError",
+__all__ = ["RunResult", "load", "run", "sensitivities", "sweep", "window", "fit", "InputError",
            "ComputationError"]
 
 
@@ -203,6 +205,30 @@ def window(scn, *, lo: float | None = None, hi: float | None = None, coarse: int
     with tempfile.TemporaryDirectory(prefix="dynslip-window-") as tmp:
         return go(Path(tmp) / "window")
 
+
+def sensitivities(scn, params, *, step: float | None = None, check: bool = True) -> Sensitivities:
+    """The derivatives of a forming run's end-frame scalars in the physical parameters
+    ``params`` (dotted paths, as ``--set`` names them), forward mode through the whole loading
+    path, every direction at once (docs/sensitivities.md).
+
+    ``scn``: a scenario from :func:`load`, or a path to one. ``step``: the relative step of
+    the neighbouring runs that ``check`` makes (default
+    :data:`dynslip.app.sensitivities.STEP`) to find a contact set, a stick/slip branch or an
+    increment count that changes within the step, and to compare the tangents with central
+    differences; where one does, the result's ``defined`` is False and ``reasons`` say why.
+    Returns a :class:`dynslip.app.sensitivities.Sensitivities` (``values``, ``jacobian``,
+    ``defined``, ``reasons``, ``events``). Bad input raises :class:`InputError`.
+
+    Example::
+
+        sens = dynslip.sensitivities("scenarios/method2_let_go.yaml",
+                                     ["physics.material.jm", "physics.friction.mu_s"])
+        sens.values["theta_max"], sens.jacobian["theta_max"]   # value, (d/dJ_m, d/dmu_s)
+    """
+    if isinstance(scn, (str, Path)):
+        scn = load(scn)
+    kw = {} if step is None else {"step": step}
+    return _sensitivities(scn, list(params), check=check, **kw)
 
 def fit(scenario, data, params, *, set: dict[str, Any] | None = None,  # noqa: A002 - as load's
         scan: int = 3, span: float = 0.3, max_steps: int = 15, out=None, force: bool = False,

@@ -4,14 +4,24 @@ accumulators' counts; :mod:`dynslip.physics.field` (the vector field) re-exports
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
-__all__ = ["N_ACC", "N_ACC_MOVED", "Layout", "f64"]
+__all__ = ["N_ACC", "N_ACC_MOVED", "Layout", "f64", "traced"]
 
 
 def f64(x):
     """A float64 JAX array (the package computes in double precision)."""
     return jnp.asarray(x, dtype=jnp.float64)
+
+
+def traced(tree):
+    """``tree`` with every Python ``float`` leaf a 0-d float64 array (:func:`f64`); ints,
+    bools, strings and an equinox module's static fields are kept as they are. A model's
+    physical parameters so converted are inputs of a compiled program, not constants compiled
+    into it: a new value runs the same program, and a transformation (``jax.jvp``) reaches
+    them. Leaves that are arrays already are kept (not copied)."""
+    return jax.tree_util.tree_map(lambda x: f64(x) if isinstance(x, float) else x, tree)
 
 
 N_ACC = 4  # work_clamp, work_ball, dissipation_drag, dissipation_friction

@@ -80,8 +80,9 @@ class AbstractMaterial(eqx.Module):
         """Width under uniaxial stretch ``l`` with zero transverse stress."""
 
     @abc.abstractmethod
-    def max_uniaxial_stretch(self) -> float:
-        """Largest uniaxial stretch where the (relaxed) energy is defined."""
+    def max_uniaxial_stretch(self):
+        """Largest uniaxial stretch where the (relaxed) energy is defined (a float, or a 0-d
+        array where the material's parameters are arrays)."""
 
     def in_range(self, lt, lp):
         """Boolean array: True where the relaxed energy is defined and finite."""
@@ -157,10 +158,13 @@ class Gent(AbstractIncompressible):
         safe = jnp.where(arg > 0, arg, 1.0)
         return jnp.where(arg > 0, -0.5 * self.jm * jnp.log(safe), jnp.inf)
 
-    def max_uniaxial_stretch(self) -> float:
-        # I1 = l^2 + 2/l = jm + 3: the largest real root.
-        roots = np.roots([1.0, 0.0, -(self.jm + 3.0), 2.0])
-        return float(np.max(roots.real))
+    def max_uniaxial_stretch(self):
+        r"""The largest real root of $l^3 - (J_m + 3)l + 2 = 0$ ($I_1 = l^2 + 2/l = J_m + 3$),
+        in the trigonometric closed form of a cubic with three real roots ($J_m > 0$):
+        $l = 2\sqrt{(J_m+3)/3}\,\cos\bigl(\tfrac13\arccos(-(3/(J_m+3))^{3/2})\bigr)$, so
+        that it traces with a traced $J_m$ (1 at $J_m = 0$, the double root)."""
+        s = 3.0 / (jnp.asarray(self.jm, float) + 3.0)
+        return 2.0 * jnp.sqrt(1.0 / s) * jnp.cos(jnp.arccos(-(s**1.5)) / 3.0)
 
 
 def _grad2(fn):
@@ -242,7 +246,7 @@ def check_range(material: AbstractMaterial, lt, lp, where: str = "") -> None:
             f"{material.name}: stretches (lambda_theta={lt.ravel()[idx]:.4g}, "
             f"lambda_phi={lp.ravel()[idx]:.4g}, I1={i1:.4g}) outside the material's range"
             + (f" {where}" if where else "")
-            + f"; largest uniaxial stretch allowed {material.max_uniaxial_stretch():.4g}"
+            + f"; largest uniaxial stretch allowed {float(material.max_uniaxial_stretch()):.4g}"
         )
 
 

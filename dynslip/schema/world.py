@@ -26,6 +26,7 @@ import jax.numpy as jnp
 
 from dynslip.physics.bodies import Sphere
 from dynslip.physics.bodies.held import Held
+from dynslip.physics.layout import traced
 from dynslip.physics.protocols import (
     BALL_FORCE,
     BALL_HOLD,
@@ -184,20 +185,21 @@ def build_world(sc) -> World:
         for name, body, with_ball, law in specs
     )
     g_h0 = fs / r  # N/mm
-    # the penalty's parameters as arrays: leaves of the model's pytree, not compiled constants
-    stiffness: Any = jnp.asarray(nu.penalty_stiffness)
-    width: Any = jnp.asarray(nu.penalty_width)
+    # the physical parameters of the material, the penalty and the ball's friction law as
+    # arrays (traced): leaves of the model's pytree, inputs of the compiled step rather than
+    # constants compiled into it, so that a sweep over any of them compiles once and jax.jvp
+    # reaches them (the held bodies' geometry stays static)
     model = SheetModel(
         mesh,
-        p.material.core(),
-        Penalty(stiffness, width),
+        traced(p.material.core()),
+        traced(Penalty(float(nu.penalty_stiffness), float(nu.penalty_width))),
         ball=p.ball_body(),
         bodies=held,
         band_grip=jnp.asarray(p.band_grip_N_per_mm / g_h0),
     )
     names = tuple(name for name, *_ in specs)
     loads = dict(
-        friction=p.friction.build(r, nu.friction_smoothing, kpa),
+        friction=traced(p.friction.build(r, nu.friction_smoothing, kpa)),
         eps=nu.friction_smoothing,
         drag=nu.drag_time_s,
         ball_drag=ball_drag_coefficient(nu.drag_time_s, nu.ball_drag),
