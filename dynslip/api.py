@@ -11,7 +11,7 @@ Example::
     fig = dynslip.plot.meridian(res.trajectory)
     ds = dynslip.sweep("scenarios/sweep_method2.yaml")   # xarray.Dataset, as sweep.nc
     dynslip.window(scn)                    # the trapping windows, as window.json
-    dynslip.fit("scenarios/method1.yaml", "OBS.yaml", ["physics.material.jm"])  # as fit.json
+    dynslip.api.fit("scenarios/method1.yaml", "OBS.yaml", ["physics.material.jm"])  # fit.json
 
 Bad input raises :class:`~dynslip.errors.InputError` (one line naming the field); a
 computation that ran and failed raises :class:`~dynslip.errors.ComputationError` whose
@@ -232,13 +232,14 @@ def sensitivities(scn, params, *, step: float | None = None, check: bool = True)
 
 def fit(scenario, data, params, *, set: dict[str, Any] | None = None,  # noqa: A002 - as load's
         scan: int = 3, span: float = 0.3, max_steps: int = 15, out=None, force: bool = False,
-        console=None, jacobian=None) -> dict:
+        console=None, jacobian="differences") -> dict:
     """Fit scenario fields to observations (:mod:`dynslip.app.fit`, docs/calibration.md): the
     dictionary of ``fit.json``. ``scenario``: a scenario file; ``data``: an observations file;
     ``params``: dotted scenario fields; ``set``: overrides as :func:`load`'s. ``out``: the fit's
     folder (its runs kept there, so a stopped fit resumes); without it a temporary folder.
-    ``jacobian``: a Jacobian provider ``(p, model, lo, hi) -> dm/dp`` (default: central
-    differences of forward runs)."""
+    ``jacobian``: ``"differences"`` (central differences of forward runs, the default),
+    ``"forward"`` (forward-mode sensitivities, :func:`sensitivities`) or a provider
+    ``(p, model, lo, hi) -> dm/dp``."""
     console = _console(console)
     overrides = [f"{k}={json.dumps(v)}" for k, v in (set or {}).items()]
     opts = dict(scan=scan, span=span, max_steps=max_steps, jacobian=jacobian)

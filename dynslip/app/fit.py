@@ -45,16 +45,20 @@ from dynslip.data.files import write_json
 from dynslip.data.folders import check_out, write_result_marker
 from dynslip.data.lock import out_lock
 from dynslip.errors import ComputationError, InputError
+from dynslip.physics.observables import theta_key
 from dynslip.schema import base as scen
 from dynslip.schema.observations import fit_parameters, load_observations
 from dynslip.schema.paths import get_path, set_path
 
 __all__ = ["run_fit", "FitOptions", "CentralDifferences", "central_differences", "to_params",
-           "tied_fields", "EVALUATIONS_FILE", "FAILED_RESIDUAL", "U_SCALE"]
+           "tied_fields", "ForwardSensitivities", "JACOBIANS",
+           "EVALUATIONS_FILE", "FAILED_RESIDUAL", "U_SCALE"]
 
 EVALUATIONS_FILE = "fit_evaluations.json"
 #: the residual of each observation at a run that failed or left the observations' branch
 FAILED_RESIDUAL = 1e3
+#: the Jacobian providers by name (``--jacobian``)
+JACOBIANS = ("differences", "forward")
 #: the fitted variables' scale: a unit step of u changes each value by about this fraction
 U_SCALE = 0.2
 
@@ -101,6 +105,65 @@ class CentralDifferences:
 def central_differences(rel_step: float = 1e-2) -> CentralDifferences:
     """The default Jacobian provider (:class:`CentralDifferences`) with step ``rel_step``."""
     return CentralDifferences(rel_step)
+
+
+class ForwardSensitivities:
+    """A Jacobian provider from forward-mode sensitivities through the whole loading path
+    (:func:`dynslip.app.sensitivities.sensitivities`): one tangent run at ``p`` gives the
+    derivatives of every end-frame scalar. The located edge (``theta_edge``, ``rbar_edge``) and
+    theta at the fixed radii (:func:`dynslip.physics.observables.theta_key`) are end-frame
+    scalars. The release force (an event of the path) and the path's largest stretch (a
+    maximum over the path) are not; their rows come from :class:`CentralDifferences`, which
+    is run only when such a row is present. A tied field's derivative is added along its
+    ratio. Where the sensitivities report a derivative that is not defined (``defined``
+    False: a contact set, stick/slip branch or increment count changing within the step),
+    every row is listed in :attr:`flags` and the reasons are kept in :attr:`reasons`."""
+
+    def __init__(self, path, overrides, names, tied, rows, check: bool = True,
+                 rel_step: float = 1e-2):
+        self.path, self.overrides, self.names, self.tied = Path(path), list(overrides), names, tied
+        self.rows, self.check = rows, check
+        self.fallback = CentralDifferences(rel_step)
+        self.flags: list[tuple[int, int]] = []
+        self.reasons: list[str] = []
+        self.describe = ("forward-mode sensitivities through the loading path "
+                         f"(check of the neighbouring runs: {check}); central differences "
+                         f"(step {rel_step:g}) for the release force and the path's stretch")
+
+    @staticmethod
+    def frame_key(key: str) -> str | None:
+        if key in ("theta_edge", "rbar_edge"):
+            return key
+        if key.startswith("theta_at_rbar:"):
+            return theta_key(float(key.split(":", 1)[1]))
+        return None
+
+    def __call__(self, p, model, lo, hi):
+        from dynslip.app.sensitivities import sensitivities
+
+        values = dict(zip(self.names, map(float, p), strict=True))
+        for n, ties in self.tied.items():
+            values.update({t: values[n] * ratio for t, ratio in ties})
+        sc = scen.load(self.path, [*self.overrides, *(f"{k}={v!r}" for k, v in values.items())])
+        params = list(values)
+        sens = sensitivities(sc, params, check=self.check)
+        jac = np.full((len(self.rows), len(self.names)), np.nan)
+        for i, r in enumerate(self.rows):
+            key = self.frame_key(r["key"])
+            if key is None or key not in sens.jacobian:
+                continue
+            g = np.asarray(sens.jacobian[key], float)
+            for j, n in enumerate(self.names):
+                jac[i, j] = g[params.index(n)] + sum(
+                    ratio * g[params.index(t)] for t, ratio in self.tied.get(n, []))
+        missing = np.isnan(jac).any(axis=1)
+        if missing.any():
+            jac[missing] = self.fallback(p, model, lo, hi)[missing]
+        self.reasons = [] if sens.defined else list(sens.reasons)
+        self.flags = ([(i, j) for i in range(len(self.rows)) for j in range(len(self.names))]
+                      if self.reasons else [])
+        self.flags += [f for f in self.fallback.flags if missing[f[0]]] if missing.any() else []
+        return jac
 
 
 def to_params(u, start, lo, hi):
@@ -261,8 +324,9 @@ class FitOptions:
     ``rel_step`` the default Jacobian provider's step; ``run_optimum``: write the run at the
     optimum to ``<out>/optimum/`` (False for a ``run_fn`` that is not the scenario's run);
     ``run_fn(data) -> summary`` runs one scenario (None: a forming run in memory);
-    ``jacobian(p, model, lo, hi) -> dm/dp`` the Jacobian provider (None:
-    :func:`central_differences` with ``rel_step``)."""
+    ``jacobian``: the Jacobian provider, ``"differences"`` (:class:`CentralDifferences` with
+    ``rel_step``), ``"forward"`` (:class:`ForwardSensitivities`), or a callable
+    ``(p, model, lo, hi) -> dm/dp``."""
 
     scan: int = 3
     span: float = 0.3
@@ -270,7 +334,7 @@ class FitOptions:
     rel_step: float = 1e-2
     run_optimum: bool = True
     run_fn: Callable | None = None
-    jacobian: Callable | None = None
+    jacobian: Callable | str = "differences"
 
     def check(self) -> None:
         if not (isinstance(self.scan, int) and 1 <= self.scan <= 9):
@@ -279,6 +343,9 @@ class FitOptions:
             raise InputError(f"--span = {self.span!r}: allowed: 0 < span < 1")
         if not (isinstance(self.max_steps, int) and 1 <= self.max_steps <= 200):
             raise InputError(f"--max-steps = {self.max_steps!r}: allowed: an integer 1..200")
+        if isinstance(self.jacobian, str) and self.jacobian not in JACOBIANS:
+            raise InputError(f"--jacobian = {self.jacobian!r}: allowed: "
+                             f"{', '.join(JACOBIANS)}")
 
 
 @dataclass
@@ -332,10 +399,18 @@ def run_fit(scenario, data_file, params: list[str], overrides=(), *, options=Non
     _check_producible(resolved, rows, str(data_file))
     out = Path(out) if out is not None else Path("outputs") / f"{path.stem}_fit"
     check_out(out, force=force, in_place=True)
-    provider = options.jacobian or central_differences(options.rel_step)
     names = [p.path for p in pars]
     data = scen.load_data(path, list(overrides))
     tied = tied_fields(resolved, names)
+    provider: Callable
+    if options.jacobian == "forward":
+        provider = ForwardSensitivities(path, overrides, names, tied, rows,
+                                        rel_step=options.rel_step)
+    elif options.jacobian == "differences":
+        provider = central_differences(options.rel_step)
+    else:
+        assert callable(options.jacobian)
+        provider = options.jacobian
     facts = {"trapped": obs.trapped, "past_equator": obs.past_equator}
     key = search_key(resolved, rows, names, tied, options.scan, options.span, options.rel_step,
                      options.max_steps, getattr(provider, "describe", repr(provider)))
@@ -411,6 +486,7 @@ def _fit(pb: _Problem, console) -> dict:
         "jacobian_means": "d model / d parameter at the optimum (observations x parameters, in "
                           "their units)",
         "derivative_not_defined": flags,
+        "derivative_reasons": list(getattr(provider, "reasons", [])),
         "derivative_not_defined_means": ("entries of the Jacobian at the optimum where a jump "
                                          "lies within the difference step (the one-sided "
                                          "differences disagree): the derivative is not defined "
@@ -499,6 +575,9 @@ def _levenberg_marquardt(ev, provider, p0, lo, hi, m, max_steps):
             refused += 1
             lam *= nu
             nu *= 2
+            if np.max(np.abs(d)) < 1e-6:
+                why = "converged (the refused step fell below 1e-6)"
+                break
             if lam > 1e12:
                 why = "converged (no step reduces the cost further)"
                 break

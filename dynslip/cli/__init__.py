@@ -355,6 +355,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "default 0.3")
     f.add_argument("--max-steps", type=int, default=15,
                    help="Levenberg-Marquardt steps at most (1..200); default 15")
+    f.add_argument("--jacobian", choices=["differences", "forward"], default="differences",
+                   help="the Jacobian: central differences of forward runs (a step of 1%% of each "
+                   "value), or forward-mode sensitivities through the loading path (the release "
+                   "force's and the path stretch's rows by differences); default differences")
     f.add_argument("--out", help="folder for fit.json, fit.png and optimum/; default "
                    "outputs/<scenario stem>_fit/")
     f.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
@@ -524,7 +528,8 @@ def cmd_window(args) -> int:
 def cmd_fit(args) -> int:
     params = [p.strip() for p in str(args.params).split(",") if p.strip()]
     run_fit(Path(args.scenario), Path(args.data), params, args.set or [],
-            options=FitOptions(scan=args.scan, span=args.span, max_steps=args.max_steps),
+            options=FitOptions(scan=args.scan, span=args.span, max_steps=args.max_steps,
+                               jacobian=args.jacobian),
             out=Path(args.out) if args.out else None, force=args.force, console=_console())
     return 0
 
