@@ -330,3 +330,52 @@ def test_real_runs_recover_known_parameters_within_their_confidence_region(tmp_p
     assert res["intervals"]["physics.youngs_modulus_MPa"] is None
     sv = res["singular_values"]
     assert sv[0] > 10 and sv[1] > 10 and sv[2] == sv[3] == 0.0
+
+
+def test_forward_sensitivities_map_end_frame_scalars_to_rows_and_add_tied_fields(monkeypatch):
+    """The forward-mode provider reads each row's end-frame scalar (the located edge, theta at
+    a fixed radius), adds a tied field's derivative along its ratio (d/dmu_s + 0.8 d/dmu_k),
+    takes the rows that are not end-frame scalars (the path's stretch) from central
+    differences, and flags every entry where the sensitivities are not defined."""
+    from types import SimpleNamespace
+
+    import dynslip.app.sensitivities as sens_mod
+    from dynslip.app.fit import ForwardSensitivities
+
+    asked = []
+
+    def fake(sc, params, check=True):
+        asked.append(params)
+        jac = {"theta_edge": np.array([1.0, 2.0, 3.0]), "rbar_edge": np.array([0.1, 0.2, 0.3]),
+               "theta_rbar_50": np.array([5.0, 6.0, 7.0])}
+        return SimpleNamespace(jacobian=jac, defined=False, reasons=["a contact set changes"])
+
+    monkeypatch.setattr(sens_mod, "sensitivities", fake)
+    rows = load_observations(observations_file_with_stretch()).rows()
+    names = ["physics.material.jm", "physics.friction.mu_s"]
+    tied = {"physics.friction.mu_s": [("physics.friction.mu_k", 0.8)]}
+    fs = ForwardSensitivities(SCENARIO, [], names, tied, rows)
+
+    def model(p):  # the path's stretch: 4 + jm / 50 (the stand-in's), other rows unused
+        return np.array([0.0, 0.0, 0.0, 4.0 + p[0] / 50.0])
+
+    jac = fs(np.array([50.0, 1.5]), model, np.zeros(2), np.full(2, 100.0))
+    assert asked == [["physics.material.jm", "physics.friction.mu_s", "physics.friction.mu_k"]]
+    np.testing.assert_allclose(jac[0], [1.0, 2.0 + 0.8 * 3.0])  # theta_max: theta_edge
+    np.testing.assert_allclose(jac[1], [0.1, 0.2 + 0.8 * 0.3])  # rbar_max: rbar_edge
+    np.testing.assert_allclose(jac[2], [5.0, 6.0 + 0.8 * 7.0])  # theta(rbar=0.5)
+    np.testing.assert_allclose(jac[3], [1 / 50.0, 0.0], atol=1e-12)  # by differences
+    assert fs.reasons == ["a contact set changes"] and len(fs.flags) == 8
+
+
+def observations_file_with_stretch(tmp=None):
+    import tempfile
+    from pathlib import Path
+
+    f = Path(tempfile.mkdtemp()) / "o.yaml"
+    f.write_text(yaml.safe_dump({
+        "kind": "observations", "theta_max": {"value": 1.8, "uncertainty": 0.1},
+        "rbar_max": {"value": 0.9, "uncertainty": 0.1},
+        "theta_rbar": [{"rbar": 0.5, "value": 1.0, "uncertainty": 0.1}],
+        "max_stretch": {"max": 6.0, "uncertainty": 0.3}}))
+    return f

@@ -30,9 +30,9 @@ def plot_fit(result: dict, path) -> Path:
             ax.annotate("bound", (v / scale, i), textcoords="offset points", xytext=(4, 6),
                         fontsize=7)
         else:
-            ax.errorbar([v / scale], [i], xerr=[s / scale], fmt="ks", capsize=3,
-                        label="observed +- 1 sd" if i == 0 else None)
-        ax.plot([r["model"] / scale], [i], "o", color="tab:red",
+            ax.errorbar([v / scale], [i], xerr=[s / scale], fmt="s", color="k", mfc="none",
+                        capsize=3, label="observed +- 1 sd" if i == 0 else None)
+        ax.plot([r["model"] / scale], [i], "o", color="tab:red", zorder=3,
                 label="fit" if i == 0 else None)
     ax.set_yticks(y, [f"{r['name']} ({r['unit']})" for r in rows], fontsize=8)
     ax.set_xlabel("value / observed value")
@@ -73,7 +73,8 @@ def _theta_rbar(ax, result: dict) -> None:
     if "theta_max" in obs and "rbar_max" in obs:
         t, rb = obs["theta_max"], obs["rbar_max"]
         ax.errorbar([rb["value"]], [t["value"]], xerr=[rb["uncertainty"]],
-                    yerr=[t["uncertainty"]], fmt="kD", capsize=3, label="observed edge")
+                    yerr=[t["uncertainty"]], fmt="D", color="k", mfc="none", capsize=3,
+                    label="observed edge")
     ax.axhline(np.pi / 2, color="0.8", lw=0.8, ls="--")
     ax.set_xlabel("rbar (material radius / R)")
     ax.set_ylabel("theta (rad)")
