@@ -335,8 +335,9 @@ def test_real_runs_recover_known_parameters_within_their_confidence_region(tmp_p
 def test_forward_sensitivities_map_end_frame_scalars_to_rows_and_add_tied_fields(monkeypatch):
     """The forward-mode provider reads each row's end-frame scalar (the located edge, theta at
     a fixed radius), adds a tied field's derivative along its ratio (d/dmu_s + 0.8 d/dmu_k),
-    takes the rows that are not end-frame scalars (the path's stretch) from central
-    differences, and flags every entry where the sensitivities are not defined."""
+    takes the rows that are not end-frame scalars (the path's stretch past its bound) from
+    central differences (none where the bound holds), and flags every entry where the
+    sensitivities are not defined."""
     from types import SimpleNamespace
 
     import dynslip.app.sensitivities as sens_mod
@@ -356,11 +357,14 @@ def test_forward_sensitivities_map_end_frame_scalars_to_rows_and_add_tied_fields
     tied = {"physics.friction.mu_s": [("physics.friction.mu_k", 0.8)]}
     fs = ForwardSensitivities(SCENARIO, [], names, tied, rows)
 
-    def model(p):  # the path's stretch: 4 + jm / 50 (the stand-in's), other rows unused
-        return np.array([0.0, 0.0, 0.0, 4.0 + p[0] / 50.0])
+    def model(p):  # the path's stretch 5.5 + jm / 50, past the bound 6; other rows unused
+        return np.array([0.0, 0.0, 0.0, 5.5 + p[0] / 50.0])
 
+    held = fs(np.array([50.0, 1.5]), lambda p: np.array([0.0, 0.0, 0.0, 5.0]), np.zeros(2),
+              np.full(2, 100.0))
+    assert np.all(held[3] == 0.0)  # the stretch bound holds (5 <= 6): no gradient, no runs
     jac = fs(np.array([50.0, 1.5]), model, np.zeros(2), np.full(2, 100.0))
-    assert asked == [["physics.material.jm", "physics.friction.mu_s", "physics.friction.mu_k"]]
+    assert asked[-1] == ["physics.material.jm", "physics.friction.mu_s", "physics.friction.mu_k"]
     np.testing.assert_allclose(jac[0], [1.0, 2.0 + 0.8 * 3.0])  # theta_max: theta_edge
     np.testing.assert_allclose(jac[1], [0.1, 0.2 + 0.8 * 0.3])  # rbar_max: rbar_edge
     np.testing.assert_allclose(jac[2], [5.0, 6.0 + 0.8 * 7.0])  # theta(rbar=0.5)

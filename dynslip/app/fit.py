@@ -113,11 +113,12 @@ class ForwardSensitivities:
     derivatives of every end-frame scalar. The located edge (``theta_edge``, ``rbar_edge``) and
     theta at the fixed radii (:func:`dynslip.physics.observables.theta_key`) are end-frame
     scalars. The release force (an event of the path) and the path's largest stretch (a
-    maximum over the path) are not; their rows come from :class:`CentralDifferences`, which
-    is run only when such a row is present. A tied field's derivative is added along its
-    ratio. Where the sensitivities report a derivative that is not defined (``defined``
-    False: a contact set, stick/slip branch or increment count changing within the step),
-    every row is listed in :attr:`flags` and the reasons are kept in :attr:`reasons`."""
+    maximum over the path) are not: their rows come from :class:`CentralDifferences`, run
+    only when such a row is present and is not a bound that holds (whose row is zero). A tied
+    field's derivative is added along its ratio. Where the sensitivities report a derivative
+    that is not defined (``defined`` False: a contact set, stick/slip branch or increment
+    count changing within the step), every entry is listed in :attr:`flags` and the reasons
+    are kept in :attr:`reasons`."""
 
     def __init__(self, path, overrides, names, tied, rows, check: bool = True,
                  rel_step: float = 1e-2):
@@ -157,6 +158,10 @@ class ForwardSensitivities:
                 jac[i, j] = g[params.index(n)] + sum(
                     ratio * g[params.index(t)] for t, ratio in self.tied.get(n, []))
         missing = np.isnan(jac).any(axis=1)
+        m0 = model(p)
+        for i, r in enumerate(self.rows):  # a bound that holds has no gradient: no runs for it
+            if missing[i] and r["kind"] == "bound" and m0[i] <= r["value"]:
+                jac[i], missing[i] = 0.0, False
         if missing.any():
             jac[missing] = self.fallback(p, model, lo, hi)[missing]
         self.reasons = [] if sens.defined else list(sens.reasons)
