@@ -11,6 +11,7 @@ Example::
     fig = dynslip.plot.meridian(res.trajectory)
     ds = dynslip.sweep("scenarios/sweep_method2.yaml")   # xarray.Dataset, as sweep.nc
     dynslip.window(scn)                    # the trapping windows, as window.json
+    dynslip.api.fit("scenarios/method1.yaml", "OBS.yaml", ["physics.material.jm"])  # fit.json
 
 Bad input raises :class:`~dynslip.errors.InputError` (one line naming the field); a
 computation that ran and failed raises :class:`~dynslip.errors.ComputationError` whose
@@ -31,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from dynslip.app import kinds
+from dynslip.app.fit import FitOptions, run_fit
 from dynslip.app.outputs import Outputs
 from dynslip.app.sensitivities import Sensitivities
 from dynslip.app.sensitivities import sensitivities as _sensitivities
@@ -40,7 +42,7 @@ from dynslip.data.trajectory import TRAJECTORY_FILE
 from dynslip.errors import ComputationError, InputError, MaterialRangeError
 from dynslip.schema.base import load as load_scenario
 
-__all__ = ["RunResult", "load", "run", "sensitivities", "sweep", "window", "InputError",
+__all__ = ["RunResult", "load", "run", "sensitivities", "sweep", "window", "fit", "InputError",
            "ComputationError"]
 
 
@@ -227,3 +229,24 @@ def sensitivities(scn, params, *, step: float | None = None, check: bool = True)
         scn = load(scn)
     kw = {} if step is None else {"step": step}
     return _sensitivities(scn, list(params), check=check, **kw)
+
+def fit(scenario, data, params, *, set: dict[str, Any] | None = None,  # noqa: A002 - as load's
+        scan: int = 3, span: float = 0.3, max_steps: int = 15, out=None, force: bool = False,
+        console=None, jacobian="differences") -> dict:
+    """Fit scenario fields to observations (:mod:`dynslip.app.fit`, docs/calibration.md): the
+    dictionary of ``fit.json``. ``scenario``: a scenario file; ``data``: an observations file;
+    ``params``: dotted scenario fields; ``set``: overrides as :func:`load`'s. ``out``: the fit's
+    folder (its runs kept there, so a stopped fit resumes); without it a temporary folder.
+    ``jacobian``: ``"differences"`` (central differences of forward runs, the default),
+    ``"forward"`` (forward-mode sensitivities, :func:`sensitivities`) or a provider
+    ``(p, model, lo, hi) -> dm/dp``."""
+    console = _console(console)
+    overrides = [f"{k}={json.dumps(v)}" for k, v in (set or {}).items()]
+    opts = dict(scan=scan, span=span, max_steps=max_steps, jacobian=jacobian)
+    if out is not None:
+        return run_fit(Path(scenario), Path(data), list(params), overrides,
+                       options=FitOptions(**opts), out=Path(out), force=force, console=console)
+    with tempfile.TemporaryDirectory(prefix="dynslip-fit-") as tmp:
+        return run_fit(Path(scenario), Path(data), list(params), overrides,
+                       options=FitOptions(**opts, run_optimum=False), out=Path(tmp) / "fit",
+                       console=console)

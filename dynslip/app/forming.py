@@ -27,7 +27,7 @@ from dynslip.data import files as io
 from dynslip.data import trajectory
 from dynslip.errors import PARTIAL_KEPT, ComputationError
 from dynslip.physics.driver.simulate import simulate
-from dynslip.physics.observables import OBS_RBAR
+from dynslip.physics.observables import OBS_RBAR, theta_key
 from dynslip.plot.forming import make_figures
 from dynslip.plot.release import plot_release
 from dynslip.plot.world import drawn_ball, world_figure
@@ -69,7 +69,7 @@ def to_dataset(world, frames, e0, complete: bool):
         friction_smoothing=world.limits.friction_smoothing,
         extra_attrs=world.start_info,
         body_names=world.body_names or None,
-        rbar_at=OBS_RBAR,
+        rbar_at={theta_key(r): r for r in OBS_RBAR},
     )
 
 

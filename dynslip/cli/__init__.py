@@ -31,6 +31,7 @@ from dynslip.app import sizes
 from dynslip.app.compare import run_compare
 from dynslip.app.drawn import drawn_bodies_at
 from dynslip.app.export import run_export
+from dynslip.app.fit import FitOptions, run_fit
 from dynslip.app.fronts import run_fronts
 from dynslip.app.kinds import run_into
 from dynslip.app.sweep import run_sweep, validate_sweep
@@ -162,6 +163,17 @@ examples:
   dynslip window scenarios/method2_let_go.yaml --lo 1.0 --hi 1.6 --coarse 4 --tol 0.005
   dynslip window scenarios/method2_let_go.yaml --set numerics.nodes=30
   dynslip window scenarios/method2_let_go.yaml --nodes 50,100,200 --lo 1.0 --hi 1.6""",
+    "fit": """Observations file: docs/calibration.md (the paper's:
+scenarios/observations/paper.yaml).
+A coarse scan (--scan values of each parameter over its value x (1 +- --span)) picks the
+start on the observations' branch (trapped, past the equator), then Levenberg-Marquardt
+with central-difference Jacobians. Writes fit.json, fit.png, optimum/ (the run at the
+optimum); a stopped fit resumes from fit_evaluations.json (run the same command again).
+
+examples:
+  dynslip fit scenarios/method1.yaml --data OBS.yaml \
+      --params physics.material.jm,physics.friction.mu_s
+  dynslip fit scenarios/method1.yaml --data OBS.yaml --params physics.friction.mu_s --scan 1""",
     "export": """examples:
   dynslip export outputs/method2_let_go/trajectory.nc
   dynslip export outputs/method2_let_go/trajectory.nc --format xdmf --out outputs/m2_paraview""",
@@ -325,6 +337,33 @@ def build_parser() -> argparse.ArgumentParser:
     )
     n.set_defaults(fn=cmd_window)
 
+    f = _sub(sub, "fit", "fit scenario fields to observations of a pocket")
+    f.add_argument("scenario", help="scenario file (YAML, a forming scenario)")
+    f.add_argument("--data", required=True, metavar="OBS.yaml",
+                   help="observations file (kind: observations; docs/calibration.md); "
+                   "required, no default")
+    f.add_argument("--params", required=True, metavar="A.B,C.D",
+                   help="comma-separated scenario fields to fit (number fields; their bounds "
+                   "are the schema's), e.g. physics.material.jm,physics.friction.mu_s; "
+                   "required, no default")
+    f.add_argument("--set", action="append", metavar="SECTION.KEY=VALUE", help=SET_HELP)
+    f.add_argument("--scan", type=int, default=3,
+                   help="values of each parameter in the coarse scan (1..9; 1: start from the "
+                   "scenario's values); default 3")
+    f.add_argument("--span", type=float, default=0.3,
+                   help="the scan's half-width as a fraction of each value (0 < span < 1); "
+                   "default 0.3")
+    f.add_argument("--max-steps", type=int, default=15,
+                   help="Levenberg-Marquardt steps at most (1..200); default 15")
+    f.add_argument("--jacobian", choices=["differences", "forward"], default="differences",
+                   help="the Jacobian: central differences of forward runs (a step of 1%% of each "
+                   "value), or forward-mode sensitivities through the loading path (the release "
+                   "force's and the path stretch's rows by differences); default differences")
+    f.add_argument("--out", help="folder for fit.json, fit.png and optimum/; default "
+                   "outputs/<scenario stem>_fit/")
+    f.add_argument("--force", action="store_true", help=FORCE_IN_PLACE_HELP)
+    f.set_defaults(fn=cmd_fit)
+
     c = _sub(sub, "compare", "compare the end states of forming runs")
     c.add_argument("runs", nargs="+", help="run folders (each with trajectory.nc and summary.json)")
     c.add_argument(
@@ -483,6 +522,15 @@ def cmd_window(args) -> int:
         run_window_nodes(Path(args.scenario), parse_nodes(args.nodes), **kw)
     else:
         run_window(Path(args.scenario), **kw)
+    return 0
+
+
+def cmd_fit(args) -> int:
+    params = [p.strip() for p in str(args.params).split(",") if p.strip()]
+    run_fit(Path(args.scenario), Path(args.data), params, args.set or [],
+            options=FitOptions(scan=args.scan, span=args.span, max_steps=args.max_steps,
+                               jacobian=args.jacobian),
+            out=Path(args.out) if args.out else None, force=args.force, console=_console())
     return 0
 
 

@@ -166,8 +166,9 @@ def frames_to_dataset(
     ``extra_attrs`` last (e.g. the provenance of a start state). Frames with per-body fields
     (a model with held bodies) add them on a ``body`` dimension, its coordinate
     ``body_names`` (default ``body 0``, ...); without them there is no ``body`` dimension.
-    Frames with ``theta_at_rbar`` add it on an ``rbar_at`` dimension, its coordinate the fixed
-    radii ``rbar_at`` (:data:`dynslip.physics.observables.OBS_RBAR`)."""
+    ``rbar_at``: the frame's keys of theta at fixed material radii, key -> radius (R)
+    (:func:`dynslip.physics.observables.theta_key`); frames with them add ``theta_at_rbar`` on
+    an ``rbar_at`` dimension, its coordinate the radii."""
     time = np.array([f["time"] for f in frames])
     data = {}
     for name, (units, long_name, scale) in PER_NODE.items():
@@ -189,15 +190,14 @@ def frames_to_dataset(
     for name, (units, long_name, scale) in PER_TIME.items():
         data[name] = io.variable(scal[name], ("time",), units, long_name, **_attrs_scale(scale))
     coords = {}
-    if frames and "theta_at_rbar" in frames[0]:
-        if rbar_at is None:
-            raise ValueError("rbar_at: frames carry theta_at_rbar but no radii were given")
+    if frames and rbar_at and next(iter(rbar_at)) in frames[0]:
         units, long_name, _ = THETA_AT_RBAR
         data["theta_at_rbar"] = io.variable(
-            np.stack([np.asarray(f["theta_at_rbar"], float) for f in frames]),
+            np.array([[float(f[k]) for k in rbar_at] for f in frames]),
             ("time", "rbar_at"), units, long_name)
-        coords["rbar_at"] = io.variable(np.asarray(rbar_at, float), ("rbar_at",), "1",
-                                        "fixed material radius / R of theta_at_rbar", scale="R")
+        coords["rbar_at"] = io.variable(np.asarray(list(rbar_at.values()), float), ("rbar_at",),
+                                        "1", "fixed material radius / R of theta_at_rbar",
+                                        scale="R")
     if frames and "body_s" in frames[0]:
         data.update(_per_body(frames))
         k = data["body_s"].shape[1]

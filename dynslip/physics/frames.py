@@ -19,7 +19,13 @@ from dynslip.physics.field import (
     place_state,
 )
 from dynslip.physics.layout import f64
-from dynslip.physics.observables import contact_function, located_edge, theta_at
+from dynslip.physics.observables import (
+    OBS_RBAR,
+    contact_function,
+    located_edge,
+    theta_at,
+    theta_key,
+)
 from dynslip.physics.sheet import SheetModel
 
 __all__ = ["frame_record", "initial_state", "reset_internal", "state_from"]
@@ -82,7 +88,8 @@ def frame_record(model: SheetModel, layout: Layout, t, y, args: StageArgs, conta
         "rbar_max": rbar_max,
         "theta_edge": edge.theta,
         "rbar_edge": edge.rbar,
-        "theta_at_rbar": theta_at(model.mesh.rbar, theta_all),
+        **dict(zip((theta_key(r) for r in OBS_RBAR), theta_at(model.mesh.rbar, theta_all),
+                   strict=True)),
         "work_clamp": acc[0],
         "work_ball": acc[1],
         "dissipation_drag": acc[2],

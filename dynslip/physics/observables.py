@@ -55,11 +55,18 @@ from typing import NamedTuple
 
 import jax.numpy as jnp
 
-__all__ = ["OBS_RBAR", "Edge", "contact_function", "located_edge", "polar_angle", "theta_at",
-           "threshold_penetration"]
+__all__ = ["OBS_RBAR", "Edge", "theta_key", "contact_function", "located_edge", "polar_angle",
+           "theta_at", "threshold_penetration"]
 
 OBS_RBAR = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
-"""The fixed material radii (R) at which every frame records theta (``theta_at_rbar``)."""
+"""The fixed material radii (R) at which every frame records theta (:func:`theta_key`)."""
+
+
+def theta_key(r: float) -> str:
+    """The frame's key of theta at the material radius ``r`` (R): ``theta_rbar_30`` for 0.3, a
+    scalar of its own, so that every scalar of a frame is differentiated
+    (:func:`dynslip.physics.driver.tangent.observables`)."""
+    return f"theta_rbar_{round(100 * r):02d}"
 
 
 class Edge(NamedTuple):
