@@ -134,7 +134,7 @@ def summarize(world, ds: xr.Dataset, result) -> dict:
         "mu": world.friction["mu"],
         **(
             {k: world.friction[k] for k in ("mu_s", "mu_k", "d_c_mm")}
-            if world.friction["friction_law"] == "slip_weakening"
+            if world.friction["d_c_mm"] > 0  # a law that weakens (slip weakening, adhesive)
             else {}
         ),
         "mu_mobilised_max": mu_mobilised_max,

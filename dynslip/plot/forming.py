@@ -184,9 +184,9 @@ def plot_theta(ds: xr.Dataset, ax, indices):
 
 
 def kinetic_mask(ds: xr.Dataset):
-    """(time, rbar) True where a node slips with its slip distance past d_c (slip_weakening
-    runs: friction at mu_k); None for laws without weakening."""
-    if ds.attrs.get("friction_law") != "slip_weakening" or "slip_distance" not in ds:
+    """(time, rbar) True where a node slips with its slip distance past d_c (a weakening law,
+    slip weakening or adhesive: friction at mu_k); None for laws without weakening."""
+    if not float(ds.attrs.get("d_c", 0.0)) > 0 or "slip_distance" not in ds:
         return None
     state = ds["state"].values
     return (state >= 2) & (ds["slip_distance"].values >= float(ds.attrs["d_c"]))
