@@ -17,8 +17,8 @@ from dynslip.physics.bodies.held import held_entries, projected
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["contact_gap", "corner_parts", "corners_crossed", "element_energy", "forces", "forces_and_hessians",
-           "held_projections"]
+__all__ = ["contact_gap", "corner_parts", "corners_crossed", "element_energy", "forces",
+           "forces_and_hessians", "held_projections"]
 
 
 def element_energy(material, dr, rsum, area_el, xa, xb):
@@ -205,6 +205,8 @@ def forces_and_hessians(model: SheetModel, q, zb, projections=None):
             ep, g = ep + c[0], g + c[1]
             h_diag, h_up = h_diag + c[2][0], h_up + c[2][1]
     if held is not None:
+        # a held body has corners: the held bodies' pair (hh, hz) is set above
+        assert isinstance(hh, tuple)
         load = load + jnp.sum(held[1][:, 1])
         hh = (hh[0] + held[3][0], hh[1] + held[3][1])
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))
