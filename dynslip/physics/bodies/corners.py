@@ -3,9 +3,12 @@ r"""Two-pass contact: a body's sharp features against the sheet's segments.
 The node-to-body penalty (:mod:`.contact`) acts at the sheet's nodes: where a body turns the
 sheet around a radius smaller than an element, the straight element between two nodes cuts
 through the body's corner and nothing resists it. The second pass swaps master and slave
-(Wriggers, *Computational Contact Mechanics*, 2nd ed. 2006, Sections 9.1-9.2, the two-pass
-node-to-segment algorithm; Laursen, *Computational Contact and Impact Mechanics*, 2002,
-Section 5.2): the body's **corners** act against the sheet's **segments**.
+(the two-pass node-to-segment contact: Wriggers, *Computational Contact Mechanics*, 2nd ed.,
+Springer 2006, its node-to-segment element with the penalty method; Laursen, *Computational
+Contact and Impact Mechanics*, Springer 2002; Zavarise and De Lorenzis, Int. J. Numer. Meth.
+Engng 79 (2009) 379-416, on the penalty node-to-segment pair and the bias of one pass): the
+body's **corners** act as points against the sheet's **segments** (a point-to-line pair:
+Konyukhov and Schweizerhof, Open J. Appl. Sci. 3 (2013) 15-20).
 
 **Corners.** Every convex arc of a body's profile (negative sweep: bulging out of the solid)
 of radius $r \le$ :data:`CORNER_RADIUS` is a corner: a circle of radius $r$ about the arc's
@@ -41,11 +44,15 @@ the segment's nodes with the same weights (:func:`corner_normal`: $(1 - s)N_j$ t
 $s N_j$ to node $j + 1$) and added to the normal force the ball's friction law reads at those
 nodes (:meth:`dynslip.physics.sheet.SheetModel.normal_force`); the friction then acts on the
 nodes, along the body's tangent at each node, and its dissipation is the nodes' (counted as
-every node's). The held bodies' corners are frictionless (docs/sharp-edges.md).
+every node's). A held body's corners add their shares to that body's friction at the nodes the
+same way (:func:`dynslip.physics.bodies.held.held_corner_normal`). The Newton matrix reads the
+shares' derivatives in the three nodes each reads (block tridiagonal:
+:mod:`dynslip.physics.solver.newton_matrix`), so it stays the residual's exact Jacobian.
 
-**Limit.** The distance is unsigned: a segment that passes a corner's centre would be pushed
-out the far side. The penalty keeps the penetration to $\sim F/(k w)$, a small fraction of $r$
-(docs/sharp-edges.md gives the measured values).
+**Limit.** The distance is unsigned: a segment that passed a corner's centre would be pushed
+out the far side. The penalty keeps the penetration to $\sim F/(k w)$, a small fraction of $r$,
+and an increment in which a segment passes through a centre is refused and cut
+(:func:`corner_crossed`; docs/sharp-edges.md).
 """
 
 from __future__ import annotations
@@ -82,10 +89,16 @@ def corners_of(body):
             if isinstance(seg, Arc) and seg.sweep < 0 and seg.radius <= CORNER_RADIUS]
     if not arcs:
         return None
-    centre = np.array([a.centre for a in arcs], float)
-    radius = np.array([a.radius for a in arcs], float)
-    weight = np.array([2 * math.pi * max(a.centre[0], a.radius) * a.radius * abs(a.sweep)
-                       for a in arcs])
+    # arcs about one centre with one radius (a rounded end drawn as two quarter circles) are
+    # one circle: one corner, its ring area their sum
+    found: dict[tuple, float] = {}
+    for a in arcs:
+        key = (round(a.centre[0], 12), round(a.centre[1], 12), round(a.radius, 12))
+        found[key] = found.get(key, 0.0) + abs(a.sweep)
+    centre = np.array([k[:2] for k in found], float)
+    radius = np.array([k[2] for k in found], float)
+    weight = np.array([2 * math.pi * max(k[0], k[2]) * k[2] * min(sw, 2 * math.pi)
+                       for k, sw in found.items()])
     return centre, radius, weight
 
 
