@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-PARTS = ["static", "forming", "speed", "driver", "sweep", "newton_parts", "bodies"]
+PARTS = ["static", "forming", "speed", "driver", "sweep", "newton_parts", "bodies", "corners"]
 
 
 def _load(part: str):

@@ -663,6 +663,14 @@ def bodies_bench_rows(runs: list[Path]) -> list[list[str]]:
                                key=lambda kv: int(kv[0][1:]))]
 
 
+def corners_bench_rows(runs: list[Path]) -> list[list[str]]:
+    b = bench(runs[0], "corners")
+    return [[k[1:], num(r["iteration_ms_node_only"], ".3f"), num(r["iteration_ms_two_pass"], ".3f"),
+             num(r["ratio"], ".2f"), yes(r["met"])]
+            for k, r in sorted(((k, v) for k, v in b.items() if k[:1] == "N"),
+                               key=lambda kv: int(kv[0][1:]))]
+
+
 def static_speed_rows(runs: list[Path]) -> list[list[str]]:
     b = bench(runs[0], "static")
     rows = []
@@ -1270,8 +1278,8 @@ DOCS_TABLES = {
         doc="docs/coin.md",
         header=("N", "trapping window of mu_s (mu_k = 0.83 mu_s)", "critical mu_s",
                 "the tool's resolution check"),
-        commands=(window("coin", "--nodes 50,100,200,400 --lo 0 --hi 3 --coarse 13 --tol 0.02"),),
-        rows=coin_window_rows, small="--nodes 24,30,36,40 --coarse 2 --tol 3", slow=True),
+        commands=(window("coin", "--nodes 100,200,400 --lo 0 --hi 3 --coarse 13 --tol 0.02"),),
+        rows=coin_window_rows, small="--nodes 24,30,36 --coarse 2 --tol 3", slow=True),
     # docs/bodies.md
     "mesh_check_bodies": table(
         "docs/bodies.md", ("run", "ball", "held bodies"),
@@ -1289,6 +1297,24 @@ DOCS_TABLES = {
              joined(S("mesh_check.bodies.tube wall.max_relative_chord_depth", ".3f")),
              joined(lambda r: S("mesh_check.bodies.tube wall.span_rad", ".2f")(r) + " rad"),
              joined(lambda r: yes(dig(summary(r), "mesh_check.bodies.tube wall.resolved"))))),
+    # docs/sharp-edges.md
+    "wall_resolution": table(
+        "docs/sharp-edges.md",
+        ("wall", "N", "trapped", "theta_max (rad)", "rbar_max (R)", "largest lambda_theta",
+         "rim chord / rim radius", "energy residual / work"),
+        spec([(("3 mm", str(n)), (run("method2", nodes=n),)) for n in (100, 150, 200)]
+             + [(("6 mm", str(n)), (run("method2", "physics.tube.wall_mm=6.0", nodes=n),))
+                for n in (100, 150, 200)],
+             joined(TRAPPED), joined(S("theta_max", ".3f")), joined(S("rbar_max", ".4f")),
+             joined(S("largest_stretch.lambda_theta", ".3f")),
+             joined(S("mesh_check.bodies.tube wall.max_relative_chord_depth", ".3f")),
+             joined(S("energy_balance.relative_residual", ".4f")))),
+    "corners_cost": Table(
+        doc="docs/sharp-edges.md",
+        header=("N", "node-only contact (ms)", "two-pass contact (ms)", "ratio", "within 1.5"),
+        commands=("DYNSLIP_BENCH_CORNERS_NODES=150 python benchmarks/run.py corners",),
+        rows=corners_bench_rows, small="DYNSLIP_BENCH_CORNERS_NODES=16", slow=True,
+        reads=("scenarios/method2.yaml", "benchmarks/corners.py")),
     "bodies_cost": Table(
         doc="docs/bodies.md",
         header=("N", "ball as a body / inline", "+ frictionless rim / ball",

@@ -69,18 +69,22 @@ def post_run():
 def test_coin_top_face_stretches_the_sheet_uniformly_and_equibiaxially(coin_run):
     """On the coin's frictionless flat top the in-plane equilibrium d(rho T_r)/d rho = T_phi holds
     with T_r = T_phi: lambda_theta = lambda_phi, the same at every node on the face (the stretch
-    the pull over the edge sets, past the pre-stretch), the sheet lying on the face."""
+    the pull over the edge sets, past the pre-stretch), the sheet flat over the face. The edge is
+    a corner (physics/bodies/corners.py): the element over it stands on its circle, so the flat
+    sheet lies on the face or above it by at most the edge radius (docs/coin.md)."""
     sc, model, f, rho, z = coin_run
     coin = model.ball
     top = coin.centre_z + coin.thickness / 2
     lt, lp = np.asarray(f["lambda_theta"]), np.asarray(f["lambda_phi"])
     # nodes on the flat face, clear of the rounded edge; the last of them is joined by its outer
     # element to the edge (where the sheet's pull is taken), so the closed form holds inward
-    on = (rho < coin.radius - coin.edge_radius) & (np.abs(z - float(f["ball_z"]) - top) < 2e-3)
+    h = z - float(f["ball_z"]) - top
+    on = (rho < coin.radius - coin.edge_radius) & (h > -2e-3) & (h < coin.edge_radius + 2e-3)
     assert on[0] and not on[-1]
     last = int(np.argmin(on)) - 1
     face = np.arange(rho.size) < last
     assert face.sum() >= 3 and on[face].all()
+    assert np.ptp(z[face]) < 1e-6  # flat
     assert lp[face].min() > sc.physics.pre_stretch + 0.01  # stretched past the start
     np.testing.assert_allclose(lt[face], lp[face], rtol=1e-6)
     np.testing.assert_allclose(lp[face], lp[0], rtol=1e-6)
@@ -89,7 +93,9 @@ def test_coin_top_face_stretches_the_sheet_uniformly_and_equibiaxially(coin_run)
 @pytest.mark.slow
 def test_coin_hold_carries_the_clamp_pull_at_rest(coin_run):
     """No held bodies: at rest the clamp's axial pull on the sheet is the hold's force on the
-    coin (C_z = -F_h), which is the coin's pressure load sum_i A_i p_i (-n_z), none at a gap."""
+    coin (C_z = -F_h), which is the coin's pressure load sum_i A_i p_i (-n_z), none at a gap,
+    plus its corners' (the edge's circles against the segments: the sum of their energy's
+    gradient in the nodes, physics/bodies/corners.py)."""
     from dynslip.physics.sheet import penalty_pressure
 
     _, model, f, rho, z = coin_run
@@ -100,6 +106,10 @@ def test_coin_hold_carries_the_clamp_pull_at_rest(coin_run):
     p = np.asarray(penalty_pressure(model.penalty, -jnp.asarray(d)))
     assert np.all(p[d > 0] == 0.0)
     load = np.sum(np.asarray(model.mesh.area) * p * -np.asarray(proj.normal)[:, 1])
+    from dynslip.physics.bodies.corners import corner_terms
+
+    _, gc = corner_terms(model.ball, x, model.penalty, f["ball_z"])
+    load = load + float(jnp.sum(gc[:, 1]))
     np.testing.assert_allclose(load, f["clamp_force"], rtol=1e-6)
     assert load < -1.0
 
@@ -108,7 +118,8 @@ def test_coin_hold_carries_the_clamp_pull_at_rest(coin_run):
 def test_held_cylinder_from_the_schema_shares_the_clamp_pull(post_run):
     """The schema's cylinder (mm over R) is a held body the sheet lies on: at rest the clamp's
     pull is the hold's plus its load, C_z = L - F_h; its pressure only where the sheet
-    penetrates it, and it carries part of the pull."""
+    penetrates it, and it carries part of the pull: at its nodes, or (its rounded top's radius
+    0.1 R is a corner, physics/bodies/corners.py) between them."""
     from dynslip.physics.sheet import penalty_pressure
 
     _, model, f, rho, z = post_run
@@ -119,7 +130,11 @@ def test_held_cylinder_from_the_schema_shares_the_clamp_pull(post_run):
     d = np.asarray(wall.body.distance(x))
     p = np.asarray(penalty_pressure(model.penalty, -jnp.asarray(d)))
     assert np.all(p[d > 0] == 0.0)
-    assert p.max() > 1.0 and load < -0.1  # the sheet presses down on the wall's rounded top
+    from dynslip.physics.bodies.corners import corner_normal
+
+    corner = float(jnp.max(corner_normal(wall.body, x, model.penalty)))
+    # the sheet presses down on the wall's rounded top
+    assert max(p.max(), corner) > 1.0 and load < -0.1
 
 
 def test_disc_trap_threshold_is_its_edge_mid_height_and_the_sphere_is_today():

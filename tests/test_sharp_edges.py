@@ -269,3 +269,22 @@ def test_a_segment_through_a_corner_is_caught():
     assert not bool(corner_crossed(KNIFE, over, slid))
     assert not bool(corner_crossed(KNIFE, over, over.at[1:3, 1].add(0.3)))
     assert not bool(corner_crossed(Sphere(), over, through))  # no corners
+
+
+def test_a_node_through_a_thin_cornered_ball_is_caught():
+    """A node on a coin's top face (the ball, with corners) that comes out of its bottom face
+    in one increment is caught; one that slides along the face is not."""
+    from dynslip.physics.terms import corners_crossed
+
+    coin = Disc(1.0, 0.15, 0.03)
+    model = _model(coin)
+    n = model.mesh.n
+    q0 = jnp.stack([jnp.linspace(0.0, 0.9, n), jnp.full(n, 0.0749)], axis=1)
+    through = q0.at[:, 1].set(-0.0751)
+    slid = q0.at[1:, 0].add(0.01)
+    zb = jnp.asarray(0.0)
+    assert bool(corners_crossed(model, q0, zb, through, zb))
+    assert not bool(corners_crossed(model, q0, zb, slid, zb))
+    smooth = _model(Sphere())
+    q1 = jnp.stack([jnp.linspace(0.0, 0.5, n), jnp.full(n, 0.999)], axis=1)
+    assert not bool(corners_crossed(smooth, q1, zb, q1.at[:, 1].set(-0.999), zb))  # not traced

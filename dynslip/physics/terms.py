@@ -17,8 +17,8 @@ from dynslip.physics.bodies.held import held_entries, projected
 from dynslip.physics.materials import relaxed_energy
 from dynslip.physics.sheet import SheetModel, penalty_energy, penalty_pressure
 
-__all__ = ["contact_gap", "corner_parts", "corners_crossed", "element_energy", "forces", "forces_and_hessians",
-           "held_projections"]
+__all__ = ["contact_gap", "corner_parts", "corners_crossed", "element_energy", "forces",
+           "forces_and_hessians", "held_projections"]
 
 
 def element_energy(material, dr, rsum, area_el, xa, xb):
@@ -123,8 +123,13 @@ def corners_crossed(model: SheetModel, q0, zb0, q, zb):
     """Whether a segment passed through a corner's centre of the ball or of a held body
     between the increment's start ``(q0, zb0)`` and ``(q, zb)``
     (:func:`~dynslip.physics.bodies.corners.corner_crossed`, each body's corners against the
-    nodes relative to it); False without corners (nothing traced)."""
+    nodes relative to it), or a node touching a ball with corners at the start went through it
+    (the side of the ball nearest it turned over: a thin body, as the coin, whose nearest face
+    changes from the top to the bottom); False without corners (nothing traced)."""
     out = corner_crossed(model.ball, q0, q)
+    if corners_of(model.ball) is not None:
+        p0, p1 = model.ball.project(q0), model.ball.project(q)
+        out = out | jnp.any((p0.distance <= 0) & (jnp.sum(p0.normal * p1.normal, axis=-1) < 0))
     for e in held_entries(model.bodies):
         if corners_of(e.body) is not None:
             x0 = q0 + jnp.stack([jnp.zeros(()), zb0 - e.shift(zb0)])
@@ -205,6 +210,8 @@ def forces_and_hessians(model: SheetModel, q, zb, projections=None):
             ep, g = ep + c[0], g + c[1]
             h_diag, h_up = h_diag + c[2][0], h_up + c[2][1]
     if held is not None:
+        # a held body has corners: the held bodies' pair (hh, hz) is set above
+        assert isinstance(hh, tuple)
         load = load + jnp.sum(held[1][:, 1])
         hh = (hh[0] + held[3][0], hh[1] + held[3][1])
     bad = ~jnp.isfinite(jnp.sum(e) + jnp.sum(ep))

@@ -3,9 +3,12 @@ r"""Two-pass contact: a body's sharp features against the sheet's segments.
 The node-to-body penalty (:mod:`.contact`) acts at the sheet's nodes: where a body turns the
 sheet around a radius smaller than an element, the straight element between two nodes cuts
 through the body's corner and nothing resists it. The second pass swaps master and slave
-(Wriggers, *Computational Contact Mechanics*, 2nd ed. 2006, Sections 9.1-9.2, the two-pass
-node-to-segment algorithm; Laursen, *Computational Contact and Impact Mechanics*, 2002,
-Section 5.2): the body's **corners** act against the sheet's **segments**.
+(the two-pass node-to-segment contact: Wriggers, *Computational Contact Mechanics*, 2nd ed.,
+Springer 2006, its node-to-segment element with the penalty method; Laursen, *Computational
+Contact and Impact Mechanics*, Springer 2002; Zavarise and De Lorenzis, Int. J. Numer. Meth.
+Engng 79 (2009) 379-416, on the penalty node-to-segment pair and the bias of one pass): the
+body's **corners** act as points against the sheet's **segments** (a point-to-line pair:
+Konyukhov and Schweizerhof, Open J. Appl. Sci. 3 (2013) 15-20).
 
 **Corners.** Every convex arc of a body's profile (negative sweep: bulging out of the solid)
 of radius $r \le$ :data:`CORNER_RADIUS` is a corner: a circle of radius $r$ about the arc's
@@ -41,11 +44,15 @@ the segment's nodes with the same weights (:func:`corner_normal`: $(1 - s)N_j$ t
 $s N_j$ to node $j + 1$) and added to the normal force the ball's friction law reads at those
 nodes (:meth:`dynslip.physics.sheet.SheetModel.normal_force`); the friction then acts on the
 nodes, along the body's tangent at each node, and its dissipation is the nodes' (counted as
-every node's). The held bodies' corners are frictionless (docs/sharp-edges.md).
+every node's). A held body's corners add their shares to that body's friction at the nodes the
+same way (:func:`dynslip.physics.bodies.held.held_corner_normal`). The Newton matrix reads the
+shares' derivatives in the three nodes each reads (block tridiagonal:
+:mod:`dynslip.physics.solver.newton_matrix`), so it stays the residual's exact Jacobian.
 
-**Limit.** The distance is unsigned: a segment that passes a corner's centre would be pushed
-out the far side. The penalty keeps the penetration to $\sim F/(k w)$, a small fraction of $r$
-(docs/sharp-edges.md gives the measured values).
+**Limit.** The distance is unsigned: a segment that passed a corner's centre would be pushed
+out the far side. The penalty keeps the penetration to $\sim F/(k w)$, a small fraction of $r$,
+and an increment in which a segment passes through a centre is refused and cut
+(:func:`corner_crossed`; docs/sharp-edges.md).
 """
 
 from __future__ import annotations
@@ -70,6 +77,14 @@ __all__ = ["CORNER_RADIUS", "corner_crossed", "corner_energy", "corner_normal",
 #: the bottle's shoulder and base and a 6 mm wall's rim keep today's contact exactly
 CORNER_RADIUS = 0.1
 
+#: the segments nearest each corner whose Hessian (and normal shares' derivatives) the Newton
+#: matrix reads; the energy and forces sum every segment. A segment reaches a corner's circle
+#: only where the sheet wraps it: on a resolved arc each chord cuts it by its sagitta, so up to
+#: (wrapped angle) / (angle per element) + 2 segments (the 3 mm rim: 0.34-0.40 rad an element
+#: at N = 100-200, so 11 segments cover 3.4-4 rad, more than its half circle). Past the window
+#: the matrix leaves a segment out (Newton's path changes, not its root)
+WINDOW = 11
+
 #: added to the squared distance so its gradient stays finite where a segment passes a centre
 _TINY = 1e-24
 
@@ -82,10 +97,16 @@ def corners_of(body):
             if isinstance(seg, Arc) and seg.sweep < 0 and seg.radius <= CORNER_RADIUS]
     if not arcs:
         return None
-    centre = np.array([a.centre for a in arcs], float)
-    radius = np.array([a.radius for a in arcs], float)
-    weight = np.array([2 * math.pi * max(a.centre[0], a.radius) * a.radius * abs(a.sweep)
-                       for a in arcs])
+    # arcs about one centre with one radius (a rounded end drawn as two quarter circles) are
+    # one circle: one corner, its ring area their sum
+    found: dict[tuple, float] = {}
+    for a in arcs:
+        key = (round(a.centre[0], 12), round(a.centre[1], 12), round(a.radius, 12))
+        found[key] = found.get(key, 0.0) + abs(a.sweep)
+    centre = np.array([k[:2] for k in found], float)
+    radius = np.array([k[2] for k in found], float)
+    weight = np.array([2 * math.pi * max(k[0], k[2]) * k[2] * min(sw, 2 * math.pi)
+                       for k, sw in found.items()])
     return centre, radius, weight
 
 
@@ -140,32 +161,44 @@ def corner_normal(body, x, pen: Penalty, z=0.0):
     return jnp.zeros(n).at[:-1].add(lo).at[1:].add(hi)
 
 
+def _window(ab, c):
+    """The :data:`WINDOW` segments nearest the centre ``c`` (fewer on a shorter sheet): their
+    indices (W,), centred on the nearest."""
+    nseg = ab.shape[0]
+    w = min(WINDOW, nseg)
+    d = jax.vmap(lambda v: _closest(c, v[:2], v[2:])[1])(ab)
+    start = jnp.clip(jnp.argmin(d) - w // 2, 0, nseg - w)
+    return start + jnp.arange(w)
+
+
 def corner_terms(body, x, pen: Penalty, z=0.0, hessian=False):
     """$E_c$ (:func:`corner_energy`), its gradient in the nodes (n, 2) and, with ``hessian``,
-    its Hessian as blocks ``(h_diag (n, 2, 2), h_up (n - 1, 2, 2))``: per pair, one 4 x 4
-    Hessian of the segment's two nodes (block tridiagonal); ``None`` without corners."""
+    its Hessian as blocks ``(h_diag (n, 2, 2), h_up (n - 1, 2, 2))``: per corner, one 4 x 4
+    Hessian for each of the :data:`WINDOW` segments nearest it (block tridiagonal: a segment
+    couples its two nodes); ``None`` without corners. The energy and gradient sum every
+    segment."""
     if corners_of(body) is None:
         return None
     n = x.shape[0]
     c, r, w, ab = _pairs(body, x, z)
 
-    def seg(ab):
-        def f(v):
-            return jnp.sum(jax.vmap(lambda ci, ri, wi: _pair_energy(pen, ri, wi, ci, v))(c, r, w))
+    def seg(v):
+        return jnp.sum(jax.vmap(lambda ci, ri, wi: _pair_energy(pen, ri, wi, ci, v))(c, r, w))
 
-        if not hessian:
-            e, g = jax.value_and_grad(f)(ab)
-            return e, g, None
-        gf = jax.grad(f)
-        h, g = jax.jacfwd(lambda v: (gf(v), gf(v)), has_aux=True)(ab)
-        return f(ab), g, h
-
-    e, g, h = jax.vmap(seg)(ab)
+    e, g = jax.vmap(jax.value_and_grad(seg))(ab)
     grad = jnp.zeros((n, 2)).at[:-1].add(g[:, :2]).at[1:].add(g[:, 2:])
     if not hessian:
         return jnp.sum(e), grad
-    h_diag = jnp.zeros((n, 2, 2)).at[:-1].add(h[:, :2, :2]).at[1:].add(h[:, 2:, 2:])
-    return jnp.sum(e), grad, (h_diag, h[:, :2, 2:])
+
+    def near(ci, ri, wi):
+        idx = _window(ab, ci)
+        return idx, jax.vmap(jax.hessian(lambda v: _pair_energy(pen, ri, wi, ci, v)))(ab[idx])
+
+    idx, h = jax.vmap(near)(c, r, w)
+    idx, h = idx.reshape(-1), h.reshape(-1, 4, 4)
+    h_diag = jnp.zeros((n, 2, 2)).at[idx].add(h[:, :2, :2]).at[idx + 1].add(h[:, 2:, 2:])
+    h_up = jnp.zeros((n - 1, 2, 2)).at[idx].add(h[:, :2, 2:])
+    return jnp.sum(e), grad, (h_diag, h_up)
 
 
 def corner_normal_jacobian(body, x, pen: Penalty, z=0.0):
@@ -180,17 +213,20 @@ def corner_normal_jacobian(body, x, pen: Penalty, z=0.0):
         return zero, zero, zero
     c, r, w, ab = _pairs(body, x, z)
 
-    def seg(v):
-        def one(ci, ri, wi):
+    def near(ci, ri, wi):
+        idx = _window(ab, ci)
+
+        def one(v):
             sj, dist = _closest(ci, v[:2], v[2:])
             f = wi * penalty_pressure(pen, ri - dist)
             return jnp.stack([(1.0 - sj) * f, sj * f])
 
-        return jnp.sum(jax.vmap(one)(c, r, w), axis=0)
+        return idx, jax.vmap(jax.jacfwd(one))(ab[idx])  # (W, 2, 4): (lo, hi) in (a, b)
 
-    j = jax.vmap(jax.jacfwd(seg))(ab)  # (n - 1, 2, 4): (lo, hi) in (a, b)
-    own = zero.at[:-1].add(j[:, 0, :2]).at[1:].add(j[:, 1, 2:])
-    return own, zero.at[:-1].set(j[:, 0, 2:]), zero.at[1:].set(j[:, 1, :2])
+    idx, j = jax.vmap(near)(c, r, w)
+    idx, j = idx.reshape(-1), j.reshape(-1, 2, 4)
+    own = zero.at[idx].add(j[:, 0, :2]).at[idx + 1].add(j[:, 1, 2:])
+    return own, zero.at[idx].add(j[:, 0, 2:]), zero.at[idx + 1].add(j[:, 1, :2])
 
 
 def corner_crossed(body, x0, x1, z=0.0):
