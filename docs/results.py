@@ -1575,7 +1575,30 @@ DOCS_TABLES = {
 }
 
 
+def fit_rows(runs: list[Path]) -> list[list[str]]:
+    """The observations against the fit at its optimum (``fit.json``): observed (value +-
+    one standard deviation, or the bound), the model's value, the residual in standard
+    deviations."""
+    fit = json.loads((runs[0] / "fit.json").read_text())
+    rows = []
+    for r in fit["residuals"]:
+        unit = f" ({r['unit']})" if r.get("unit") not in (None, "", "1") else ""
+        observed = (f"<= {num(r['value'])}" if r["kind"] == "bound"
+                    else f"{num(r['value'])} +- {num(r['uncertainty'])}")
+        rows.append([f"{r['name']}{unit}", observed, num(r["model"], ".4g"),
+                     f"{r['residual']:+.2f}"])
+    return rows
+
+
 TABLES: dict[str, Table] = {
+    "fit_paper": Table(
+        doc="docs/calibration.md",
+        header=("observation", "observed", "fit", "residual (sd)"),
+        commands=("dynslip fit scenarios/method1.yaml --data scenarios/observations/"
+                  "paper_shape.yaml --params physics.material.jm,physics.friction.mu_s "
+                  "--set numerics.nodes=30",),
+        rows=fit_rows, small="--scan 1 --max-steps 1", slow=True,
+        reads=("scenarios/observations/paper_shape.yaml",)),
     "selection_rule": Table(
         doc="docs/static-model.md",
         header=("model", "mu (rule)", "paper", "difference", "switch angle", "pole stretch",
@@ -1602,6 +1625,9 @@ REFERENCE: dict[tuple[str, str], str] = {
         "the modelling choices and their defaults; a number a 'why' cell quotes is measured "
         "in the table its 'more' cell links",
     ("docs/python-api.md", "| call | returns |"): "the Python API, a reference",
+    ("docs/calibration.md", "| key | unit | the model's value |"):
+        "the observations file's format: its keys, units and the summary value each is read "
+        "against",
     ("docs/adhesion.md", "| run | w (J/m^2) | tau_0 s / k (kPa) | mu_s / mu_k | push (mm) | "
                          "trapped | theta_max | rbar_max | largest stretch (I1-equivalent) | "
                          "release (N) |"):
