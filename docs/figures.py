@@ -89,6 +89,8 @@ RUNS = {
     "method1": Run("scenarios/method1.yaml", {"numerics.save_interval_s": 0.5}),
     "method2_rim_feed": Run("scenarios/method2_rim_feed.yaml", fast=False),
     "release_pull_tube": Run("scenarios/release_pull_tube.yaml", fast=False),
+    "method2_adhesive": Run("scenarios/method2_adhesive.yaml", fast=False),
+    "release_pull_tube_adhesive": Run("scenarios/release_pull_tube_adhesive.yaml", fast=False),
     "coin": Run("scenarios/coin.yaml", {"physics.friction.mu_s": 0.99,
                                         "physics.friction.mu_k": 0.82}),
     "method2_rim80": Run(
@@ -160,6 +162,16 @@ FIGURES = {
     "release_force_tube.png": Figure(
         "release_pull_tube",
         "dynslip run scenarios/release_pull_tube.yaml (DIR/release_force.png)",
+        "copy_release_force",
+    ),
+    "meridian_method2_adhesive.png": Figure(
+        "method2_adhesive",
+        "dynslip run scenarios/method2_adhesive.yaml (DIR/meridian.png)",
+        "copy_meridian",
+    ),
+    "release_force_tube_adhesive.png": Figure(
+        "release_pull_tube_adhesive",
+        "dynslip run scenarios/release_pull_tube_adhesive.yaml (DIR/release_force.png)",
         "copy_release_force",
     ),
     "meridian_coin.png": Figure(
