@@ -44,8 +44,10 @@ the segment's nodes with the same weights (:func:`corner_normal`: $(1 - s)N_j$ t
 $s N_j$ to node $j + 1$) and added to the normal force the ball's friction law reads at those
 nodes (:meth:`dynslip.physics.sheet.SheetModel.normal_force`); the friction then acts on the
 nodes, along the body's tangent at each node, and its dissipation is the nodes' (counted as
-every node's). A held body's corners add their shares to that body's friction at the nodes the
-same way (:func:`dynslip.physics.bodies.held.held_corner_normal`). The Newton matrix reads the
+every node's). A held body's corners are frictionless: adding their shares to that body's
+friction the same way (:func:`dynslip.physics.bodies.held.held_corner_normal`, switched by
+``HELD_CORNER_FRICTION``) broke the lab frame's agreement with the tube's frame, for a cause
+not found, and is off. The Newton matrix reads the
 shares' derivatives in the three nodes each reads (block tridiagonal:
 :mod:`dynslip.physics.solver.newton_matrix`), so it stays the residual's exact Jacobian.
 
