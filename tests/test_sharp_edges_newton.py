@@ -3,7 +3,7 @@ the increment's residual: the corners' penalty Hessian (block tridiagonal) and t
 friction, whose normal force each node shares with its neighbours (the rate's derivative
 through the share, physics/solver/newton_matrix.py ``_share_blocks``): a coin as the ball
 (its edge's corners under the ball's friction law) and a frictional held ring thin enough to
-be a corner.
+be a corner (its corners' friction switched on for the test).
 """
 
 from __future__ import annotations
@@ -64,7 +64,12 @@ def test_coin_corner_friction_newton_matrix(ball_mode):
 
 
 @pytest.mark.parametrize("ball_mode", [BALL_HOLD, BALL_FORCE])
-def test_held_corner_friction_newton_matrix(ball_mode):
+def test_held_corner_friction_newton_matrix(ball_mode, monkeypatch):
+    """The held corners' friction (off by default: physics/bodies/held.py
+    ``HELD_CORNER_FRICTION``) switched on: its Newton matrix terms are exact."""
+    from dynslip.physics.bodies import held as held_module
+
+    monkeypatch.setattr(held_module, "HELD_CORNER_FRICTION", True)
     ring = Torus(ring_radius=1.3, minor_radius=0.05, centre_z=0.2)
     model = small_model(NS, bodies=(Held(ring, Coulomb(mu=jnp.asarray(0.5),
                                                        eps=jnp.asarray(EPS))),))

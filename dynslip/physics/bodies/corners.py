@@ -44,8 +44,10 @@ the segment's nodes with the same weights (:func:`corner_normal`: $(1 - s)N_j$ t
 $s N_j$ to node $j + 1$) and added to the normal force the ball's friction law reads at those
 nodes (:meth:`dynslip.physics.sheet.SheetModel.normal_force`); the friction then acts on the
 nodes, along the body's tangent at each node, and its dissipation is the nodes' (counted as
-every node's). A held body's corners add their shares to that body's friction at the nodes the
-same way (:func:`dynslip.physics.bodies.held.held_corner_normal`). The Newton matrix reads the
+every node's). A held body's corners are frictionless: adding their shares to that body's
+friction the same way (:func:`dynslip.physics.bodies.held.held_corner_normal`, switched by
+``HELD_CORNER_FRICTION``) broke the lab frame's agreement with the tube's frame, for a cause
+not found, and is off. The Newton matrix reads the
 shares' derivatives in the three nodes each reads (block tridiagonal:
 :mod:`dynslip.physics.solver.newton_matrix`), so it stays the residual's exact Jacobian.
 
@@ -77,12 +79,12 @@ __all__ = ["CORNER_RADIUS", "corner_crossed", "corner_energy", "corner_normal",
 #: the bottle's shoulder and base and a 6 mm wall's rim keep today's contact exactly
 CORNER_RADIUS = 0.1
 
-#: the segments nearest each corner whose Hessian (and normal shares' derivatives) the Newton
-#: matrix reads; the energy and forces sum every segment. A segment reaches a corner's circle
-#: only where the sheet wraps it: on a resolved arc each chord cuts it by its sagitta, so up to
-#: (wrapped angle) / (angle per element) + 2 segments (the 3 mm rim: 0.34-0.40 rad an element
-#: at N = 100-200, so 11 segments cover 3.4-4 rad, more than its half circle). Past the window
-#: the matrix leaves a segment out (Newton's path changes, not its root)
+#: the segments nearest each corner (by distance) whose Hessian (and normal shares'
+#: derivatives) the Newton matrix reads; the energy and forces sum every segment. A segment
+#: reaches a corner's circle only where the sheet wraps it: on a resolved arc each chord cuts it
+#: by its sagitta, so up to (wrapped angle) / (angle per element) + 2 segments (the 3 mm rim:
+#: 0.34-0.40 rad an element at N = 100-200, so 11 segments cover 3.4-4 rad, more than its half
+#: circle). Past them the matrix leaves a segment out (Newton's path changes, not its root)
 WINDOW = 11
 
 #: added to the squared distance so its gradient stays finite where a segment passes a centre
@@ -162,13 +164,12 @@ def corner_normal(body, x, pen: Penalty, z=0.0):
 
 
 def _window(ab, c):
-    """The :data:`WINDOW` segments nearest the centre ``c`` (fewer on a shorter sheet): their
-    indices (W,), centred on the nearest."""
-    nseg = ab.shape[0]
-    w = min(WINDOW, nseg)
+    """The :data:`WINDOW` segments nearest the centre ``c`` by distance (fewer on a shorter
+    sheet): their indices (W,). Not a run of neighbours: a sheet can touch one corner in two
+    places far apart along it (the tube's rim, with the sheet folded back up its outer wall)."""
+    w = min(WINDOW, ab.shape[0])
     d = jax.vmap(lambda v: _closest(c, v[:2], v[2:])[1])(ab)
-    start = jnp.clip(jnp.argmin(d) - w // 2, 0, nseg - w)
-    return start + jnp.arange(w)
+    return jax.lax.top_k(-d, w)[1]
 
 
 def corner_terms(body, x, pen: Penalty, z=0.0, hessian=False):

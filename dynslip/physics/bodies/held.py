@@ -330,13 +330,21 @@ class HeldFrame(eqx.Module):
                                           heal_rate), 0.0))
 
 
+#: whether a held body's corners' normal force enters its friction (:func:`held_corner_normal`).
+#: Off: with it on, the lab frame and the tube's frame no longer give one path
+#: (tests/test_lab_frame.py: 2.5e-4 R apart instead of 4e-10; the cause is not found), so a
+#: held body's corners are frictionless; its Newton matrix terms are kept and checked
+#: (tests/test_sharp_edges_newton.py switches it on)
+HELD_CORNER_FRICTION = False
+
+
 def held_corner_normal(bodies, x, pen, zb=0.0):
     """Each held body's corners' normal force shared over the nodes ``x`` (n, 2) (absolute)
     (:func:`~dynslip.physics.bodies.corners.corner_normal`), as (K, n) in held order, or None
     when no held body has corners: the held friction reads it beside the nodes' own penalty
     force (:func:`held_frame`'s ``corners``)."""
     entries = held_entries(bodies)
-    if all(corners_of(e.body) is None for e in entries):
+    if not HELD_CORNER_FRICTION or all(corners_of(e.body) is None for e in entries):
         return None
     return jnp.stack([corner_normal(e.body, x, pen, e.shift(zb)) for e in entries])
 

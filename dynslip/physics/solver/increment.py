@@ -129,11 +129,9 @@ def corner_share_jacobians(model: SheetModel, q):
 def held_share_jacobians(model: SheetModel, q, zb):
     """:func:`held_shares`' derivatives in the nodes, ``(own, up, low)`` (K, n, 2) each, or
     None where :func:`held_shares` is None."""
-    if not frictional(model.bodies):
+    if held_shares(model, q, zb) is None:
         return None
     entries = held_entries(model.bodies)
-    if all(corners_of(e.body) is None for e in entries):
-        return None
     x = q + jnp.stack([jnp.zeros(()), zb])
     parts = [corner_normal_jacobian(e.body, x, model.penalty, e.shift(zb)) for e in entries]
     return tuple(jnp.stack([p[j] for p in parts]) for j in range(3))
