@@ -1747,7 +1747,7 @@ def outdated_key(name: str) -> str | None:
 def outdated() -> dict[str, str]:
     """Each table measured before a change to its code that says so, naming today's key: its
     numbers are those of the code at its recorded key, and its doc says they are not today's."""
-    return {name: f"{t.doc}: measured with key {recorded_key(name)}"
+    return {name: f"{t.doc}: measured with key {recorded_key(name)} (None: by hand)"
             for name, t in TABLES.items()
             if recorded_key(name) != t.key() and outdated_key(name) == t.key()}
 
@@ -1760,7 +1760,7 @@ def mark_outdated(names: Iterable[str]) -> list[str]:
     done = []
     for name in names:
         t = TABLES[name]
-        if recorded_key(name) in (None, t.key()):
+        if recorded_key(name) == t.key():
             continue
         text = (ROOT / t.doc).read_text()
         span = block(text, name)
