@@ -18,8 +18,9 @@ at most 1.1x inline, each added body at most 1.3x).
 """
 
 import os
-import time
 from pathlib import Path
+
+from timing import ms_per_call  # benchmarks/timing.py (this folder runs as the script's)
 
 SCENARIO = Path(__file__).resolve().parent / "method2_let_go.yaml"
 REPEAT = 200
@@ -27,14 +28,7 @@ ROUNDS = 7
 
 
 def _ms(f, *a) -> float:
-    import jax
-
-    jax.block_until_ready(f(*a))
-    t = time.perf_counter()
-    for _ in range(REPEAT):
-        out = f(*a)
-    jax.block_until_ready(out)
-    return 1e3 * (time.perf_counter() - t) / REPEAT
+    return ms_per_call(f, *a, repeat=REPEAT)
 
 
 def _inline_ball():

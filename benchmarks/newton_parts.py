@@ -13,22 +13,16 @@ the compiled Newton loop they cost somewhat less). ``python benchmarks/run.py ne
 from __future__ import annotations
 
 import os
-import time
 from pathlib import Path
+
+from timing import ms_per_call  # benchmarks/timing.py (this folder runs as the script's)
 
 SCENARIO = Path(__file__).resolve().parent / "method2_let_go.yaml"
 REPEAT = 300
 
 
 def _ms(f, *a) -> float:
-    import jax
-
-    jax.block_until_ready(f(*a))
-    t = time.perf_counter()
-    for _ in range(REPEAT):
-        out = f(*a)
-    jax.block_until_ready(out)
-    return 1e3 * (time.perf_counter() - t) / REPEAT
+    return ms_per_call(f, *a, repeat=REPEAT)
 
 
 def _generic_cyclic(lower, diag, upper, f):
